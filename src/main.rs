@@ -1,1 +1,31 @@
-fn main(){}
+//! The `altrep` command-line tool: see `altrep --help`.
+
+use altrep::cli;
+use clap::{Parser, Subcommand};
+
+#[derive(Parser)]
+#[command(name = "altrep", version, about = "Precompute and fit compact stand-ins for complex geometry")]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// The main job: capture the bundled procedural scene, fit every representation, write a report.
+    Demo(cli::demo::DemoArgs),
+    /// Capture N orthographic views (colour, depth, normals) of an OBJ mesh.
+    Capture(cli::capture::CaptureArgs),
+}
+
+fn main() {
+    let cli = Cli::parse();
+    let result = match cli.command {
+        Command::Demo(args) => cli::demo::run(args),
+        Command::Capture(args) => cli::capture::run(args),
+    };
+    if let Err(e) = result {
+        eprintln!("altrep: error: {e}");
+        std::process::exit(1);
+    }
+}

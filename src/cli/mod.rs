@@ -1,0 +1,8 @@
+//! Subcommands of the `altrep` binary. Each subcommand lives in its own file with a
+//! `clap::Args` struct and a `run` function; `src/main.rs` only dispatches.
+
+pub mod capture;
+pub mod demo;
+
+/// Error type of the command-line layer: a message for the user, already formatted.
+pub type CliResult = Result<(), Box<dyn std::error::Error + Send + Sync>>;

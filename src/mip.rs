@@ -1,0 +1,1 @@
+//! Mip pyramid (being written).

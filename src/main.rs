@@ -20,6 +20,8 @@ enum Command {
     Demo(cli::demo::DemoArgs),
     /// Capture N orthographic views (colour, depth, normals) of an OBJ mesh.
     Capture(cli::capture::CaptureArgs),
+    /// Benchmark the trilinear least-squares fit: solvers, regularisation λ, quantisation.
+    FitBench(cli::fit_bench::FitBenchArgs),
 }
 
 fn main() {
@@ -27,6 +29,7 @@ fn main() {
     let result = match cli.command {
         Command::Demo(args) => cli::demo::run(args),
         Command::Capture(args) => cli::capture::run(args),
+        Command::FitBench(args) => cli::fit_bench::run(args),
     };
     if let Err(e) = result {
         eprintln!("altrep: error: {e}");

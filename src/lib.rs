@@ -15,6 +15,7 @@
 pub mod cli;
 pub mod metrics;
 pub mod mip;
+pub mod parallax;
 
 pub use altrep_data_gen as data_gen;
 pub use altrep_solvers as solvers;

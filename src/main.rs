@@ -20,6 +20,8 @@ enum Command {
     Demo(cli::demo::DemoArgs),
     /// Capture N orthographic views (colour, depth, normals) of an OBJ mesh.
     Capture(cli::capture::CaptureArgs),
+    /// Images with parallax: march steps per bound type, violations, bytes, and quality vs ground truth.
+    Parallax(cli::parallax::ParallaxArgs),
 }
 
 fn main() {
@@ -27,6 +29,7 @@ fn main() {
     let result = match cli.command {
         Command::Demo(args) => cli::demo::run(args),
         Command::Capture(args) => cli::capture::run(args),
+        Command::Parallax(args) => cli::parallax::run(args),
     };
     if let Err(e) = result {
         eprintln!("altrep: error: {e}");

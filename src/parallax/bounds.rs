@@ -38,7 +38,7 @@ use altrep_data_gen::PixelGrid;
 use rayon::prelude::*;
 
 use super::images::{ParallaxImages, TexelGeom};
-use super::warp::{cylinder_range, march_row, piece, warp_row_direct_impl};
+use super::warp::{cylinder_range, hit_piece, piece, warp_row_direct_impl};
 use super::{ParallaxError, invalid};
 
 /// The kinds of march bounds.
@@ -256,6 +256,24 @@ impl Bounds {
         }
     }
 
+    /// A copy with every stored range widened by `margin` world units on both sides
+    /// (`v_max + margin`, `v_min − margin`); a negative margin narrows, and a range that becomes
+    /// inverted becomes empty. For margin experiments and for checking that [`dense_sweep`]
+    /// catches bounds that are too tight; the values are no longer on the storage grid.
+    pub fn with_margin(&self, margin: f64) -> Bounds {
+        let mut out = self.clone();
+        for slot in out.views.iter_mut().flatten().flatten() {
+            if let Some(b) = slot {
+                b.v_max += margin;
+                b.v_min -= margin;
+                if b.v_min > b.v_max {
+                    *slot = None;
+                }
+            }
+        }
+        out
+    }
+
     /// Checks that these bounds were built for `images` (same number and size of views).
     pub fn check(&self, images: &ParallaxImages) -> Result<(), ParallaxError> {
         let p = &images.params;
@@ -314,88 +332,218 @@ fn wrap(a: f64) -> f64 {
     if w <= -PI { w + 2.0 * PI } else { w }
 }
 
-/// Per row: polar coordinates `(|E|, ψ_E)` of every piece end point.
-fn row_endpoints(grid: &PixelGrid, row: &[TexelGeom], out: &mut Vec<(f64, f64)>) {
-    out.clear();
-    for (i, g) in row.iter().enumerate() {
-        if !g.defined {
-            continue;
+/// A row's pieces and end points, prepared once for the event sweeps of all its pixels.
+struct RowSweep {
+    /// Piece `2i + right` of texel `i`: its end points, `None` if the texel is undefined.
+    pieces: Vec<Option<((f64, f64), (f64, f64))>>,
+    /// Ids of the existing pieces.
+    existing: Vec<u32>,
+    /// End points: `(|E|, ψ_E)` and the one or two pieces they bound (`u32::MAX` = none).
+    ends: Vec<(f64, f64, [u32; 2])>,
+}
+
+const NONE: u32 = u32::MAX;
+
+impl RowSweep {
+    fn new(grid: &PixelGrid, row: &[TexelGeom]) -> Self {
+        let mut pieces = vec![None; 2 * row.len()];
+        let mut existing = Vec::new();
+        let mut ends = Vec::new();
+        let polar = |(x, z): (f64, f64)| (x.hypot(z), z.atan2(x));
+        for (i, g) in row.iter().enumerate() {
+            if !g.defined {
+                continue;
+            }
+            let (l, r) = (2 * i as u32, 2 * i as u32 + 1);
+            let left = piece(grid, g, i, false);
+            let right = piece(grid, g, i, true);
+            pieces[l as usize] = Some(left);
+            pieces[r as usize] = Some(right);
+            existing.extend([l, r]);
+            // A joined left end is the left neighbour's right end, listed there.
+            if !g.link_l {
+                let (rho, psi) = polar(left.0);
+                ends.push((rho, psi, [l, NONE]));
+            }
+            let (rho, psi) = polar(left.1);
+            ends.push((rho, psi, [l, r]));
+            let (rho, psi) = polar(right.1);
+            ends.push((rho, psi, [r, if g.link_r { r + 1 } else { NONE }]));
         }
-        let (a, b) = piece(grid, g, i, false);
-        let (_, c) = piece(grid, g, i, true);
-        for (x, z) in [a, b, c] {
-            out.push((x.hypot(z), z.atan2(x)));
+        Self {
+            pieces,
+            existing,
+            ends,
         }
+    }
+
+    /// The ray `x` under `(co, si)` against piece `id`: `(t, z_e)` if it is hit.
+    #[inline]
+    fn eval(&self, id: u32, x: f64, co: f64, si: f64) -> Option<(f64, f64)> {
+        let (a, b) = self.pieces[id as usize]?;
+        hit_piece(a, b, x, co, si).map(|(t, _, z_e)| (t, z_e))
     }
 }
 
-/// The exact sweep of one pixel: fills the corner points of both half ranges.
-#[allow(clippy::too_many_arguments)]
+/// Reusable buffers of [`pixel_points`].
+#[derive(Default)]
+struct Scratch {
+    /// `(θ, end point index or NONE)`, sorted.
+    events: Vec<(f64, u32)>,
+    /// Whether each piece is met by the ray in the current interval.
+    met: Vec<bool>,
+    /// The pieces met in the current interval.
+    active: Vec<u32>,
+}
+
+/// Half-width of the window of event angles whose pieces are re-tested (radians); far above the
+/// rounding error of a computed event (~1e-15), far below any meaningful angle.
+const WINDOW: f64 = 1e-9;
+
+/// The exact sweep of one pixel (module docs): fills the corner points of both half ranges,
+/// sorted by τ.
+///
+/// The pieces the ray meets change only at events; the sweep keeps that set, re-testing at each
+/// interval's middle only the pieces bounded by the end points of the events at its ends (within
+/// [`WINDOW`] of them, which absorbs rounding in the computed event angles: a piece whose true
+/// crossing lies near a computed event is re-tested at every interval within the window). The
+/// visible piece is the met piece nearest to the camera (largest `z_e`), as the march finds it.
 fn pixel_points(
     grid: &PixelGrid,
-    row: &[TexelGeom],
-    endpoints: &[(f64, f64)],
+    rs: &RowSweep,
     x: f64,
     delta: f64,
     subdivisions: usize,
-    r_march: f64,
-    events: &mut Vec<f64>,
+    sc: &mut Scratch,
     halves: &mut [HalfPoints; 2],
 ) {
     halves[0].clear();
     halves[1].clear();
+    let events = &mut sc.events;
     events.clear();
-    events.extend([-delta, 0.0, delta]);
-    for &(rho, psi) in endpoints {
+    events.extend([(-delta, NONE), (0.0, NONE), (delta, NONE)]);
+    for (e, &(rho, psi, _)) in rs.ends.iter().enumerate() {
         if rho < x.abs() {
             continue;
         }
         let phi = (x / rho).clamp(-1.0, 1.0).acos();
         for th in [wrap(psi - phi), wrap(psi + phi)] {
             if th > -delta && th < delta {
-                events.push(th);
+                events.push((th, e as u32));
             }
         }
     }
-    events.sort_unstable_by(f64::total_cmp);
-    events.dedup();
-    let half_of = |th: f64| usize::from(th >= 0.0);
+    events.sort_unstable_by(|a, b| a.0.total_cmp(&b.0));
+    sc.met.clear();
+    sc.met.resize(rs.pieces.len(), false);
+    sc.active.clear();
     let r = grid.cylinder.radius;
-    let hit_at = |th: f64| {
-        let (co, si) = (th.cos(), th.sin());
-        let (x1, x2) = cylinder_range(x, co, si, r_march);
-        march_row(grid, row, x, co, si, x1, x2).hit
-    };
     let step = delta / subdivisions as f64;
     let tau = |th: f64| th.sin() / (1.0 + th.cos());
-    // Exact values at every event angle.
-    for &e in events.iter() {
-        if let Some(h) = hit_at(e) {
-            let p = (tau(e), h.z_e);
-            let which: &[usize] = if e == 0.0 {
-                &[0, 1]
-            } else if e > 0.0 {
-                &[1]
-            } else {
-                &[0]
+    let pieces_of = |k: usize| {
+        let e = events[k].1;
+        if e == NONE {
+            [NONE, NONE]
+        } else {
+            rs.ends[e as usize].2
+        }
+    };
+    let n = events.len();
+    let (mut idx, mut lo) = (0usize, 0usize);
+    while idx < n {
+        let th = events[idx].0;
+        let mut gend = idx;
+        while gend < n && events[gend].0 == th {
+            gend += 1;
+        }
+        while events[lo].0 < th - WINDOW {
+            lo += 1;
+        }
+        // Exact value at this event angle: the nearest met piece among those met just before
+        // and those bounded by the events here.
+        {
+            let (co, si) = (th.cos(), th.sin());
+            let mut best: Option<f64> = None;
+            let mut consider = |id: u32| {
+                if id != NONE
+                    && let Some((_, z)) = rs.eval(id, x, co, si)
+                {
+                    best = Some(best.map_or(z, |b: f64| b.max(z)));
+                }
             };
-            for &half in which {
-                halves[half].upper.push(p);
-                halves[half].lower.push(p);
+            if idx == 0 {
+                rs.existing.iter().for_each(|&id| consider(id));
+            } else {
+                sc.active.iter().for_each(|&id| consider(id));
+                let mut k = lo;
+                while k < n && events[k].0 <= th + WINDOW {
+                    pieces_of(k).iter().for_each(|&id| consider(id));
+                    k += 1;
+                }
+            }
+            if let Some(z) = best {
+                let p = (tau(th), z);
+                let which: &[usize] = if th == 0.0 {
+                    &[0, 1]
+                } else if th > 0.0 {
+                    &[1]
+                } else {
+                    &[0]
+                };
+                for &half in which {
+                    halves[half].upper.push(p);
+                    halves[half].lower.push(p);
+                }
             }
         }
-    }
-    // Boxes over the open event intervals.
-    for w in events.windows(2) {
-        let (ea, eb) = (w[0], w[1]);
-        if eb <= ea {
-            continue;
+        if gend == n {
+            break;
         }
-        let Some(h) = hit_at(0.5 * (ea + eb)) else {
+        let (ea, eb) = (th, events[gend].0);
+        idx = gend;
+        // Update the met set at the interval's middle.
+        let mid = 0.5 * (ea + eb);
+        let (co, si) = (mid.cos(), mid.sin());
+        let retest = |id: u32, met: &mut Vec<bool>, active: &mut Vec<u32>| {
+            if id == NONE {
+                return;
+            }
+            let now = rs.eval(id, x, co, si).is_some();
+            if met[id as usize] != now {
+                met[id as usize] = now;
+                if now {
+                    active.push(id);
+                } else if let Some(p) = active.iter().position(|&a| a == id) {
+                    active.swap_remove(p);
+                }
+            }
+        };
+        if ea == -delta {
+            for &id in &rs.existing {
+                retest(id, &mut sc.met, &mut sc.active);
+            }
+        } else {
+            let mut k = lo;
+            while k < n && events[k].0 <= eb + WINDOW {
+                for id in pieces_of(k) {
+                    retest(id, &mut sc.met, &mut sc.active);
+                }
+                k += 1;
+            }
+        }
+        // The visible piece: nearest met piece.
+        let mut vis: Option<(u32, f64)> = None;
+        for &id in &sc.active {
+            if let Some((_, z)) = rs.eval(id, x, co, si)
+                && vis.is_none_or(|(_, bz)| z > bz)
+            {
+                vis = Some((id, z));
+            }
+        }
+        let Some((id, _)) = vis else { continue };
+        let Some((a, b)) = rs.pieces[id as usize] else {
             continue;
         };
-        let g = &row[h.texel];
-        let (a, b) = piece(grid, g, h.texel, h.right);
         let (dx, dz) = (b.0 - a.0, b.1 - a.1);
         let len2 = dx * dx + dz * dz;
         let t_foot = if len2 > 0.0 {
@@ -403,7 +551,8 @@ fn pixel_points(
         } else {
             0.0
         };
-        // Crossing on the piece's line at angle th: (t, z_e); degenerate ends give both ends.
+        // Crossing on the piece's line at angle th: (t, t, z_e, z_e); a piece seen edge-on
+        // (only possible at an interval end) gives both its ends.
         let on_line = |th: f64| -> (f64, f64, f64, f64) {
             let (co, si) = (th.cos(), th.sin());
             let xe_a = a.0 * co + a.1 * si;
@@ -421,35 +570,34 @@ fn pixel_points(
                 (0.0, 1.0, z0.min(z1), z0.max(z1))
             }
         };
-        let half = half_of(0.5 * (ea + eb));
-        // Grid points strictly inside (ea, eb).
-        let m0 = (ea / step).floor() as i64 + 1;
+        let half = usize::from(mid >= 0.0);
+        // Boxes over the sub-intervals cut by the uniform grid strictly inside (ea, eb).
+        let mut m = (ea / step).floor() as i64 + 1;
         let mut s_a = ea;
         let mut end_a = on_line(ea);
-        let mut m = m0;
         loop {
             let gm = m as f64 * step;
             let s_b = if gm < eb { gm } else { eb };
             let end_b = on_line(s_b);
             let (t_lo, t_hi) = (end_a.0.min(end_b.0), end_a.1.max(end_b.1));
-            let mut lo = end_a.2.min(end_b.2);
-            let mut hi = end_a.3.max(end_b.3);
+            let mut zlo = end_a.2.min(end_b.2);
+            let mut zhi = end_a.3.max(end_b.3);
             if t_foot > t_lo && t_foot < t_hi {
                 let (px, pz) = (a.0 + t_foot * dx, a.1 + t_foot * dz);
                 let zf = (px * px + pz * pz - x * x).max(0.0).sqrt();
-                if lo >= 0.0 {
-                    lo = lo.min(zf);
-                } else if hi <= 0.0 {
-                    hi = hi.max(-zf);
+                if zlo >= 0.0 {
+                    zlo = zlo.min(zf);
+                } else if zhi <= 0.0 {
+                    zhi = zhi.max(-zf);
                 }
             }
             let (ta, tb) = (tau(s_a), tau(s_b));
-            let (lo, hi) = (lo - EPS * r, hi + EPS * r);
+            let (zlo, zhi) = (zlo - EPS * r, zhi + EPS * r);
             let hp = &mut halves[half];
-            hp.upper.push((ta, hi));
-            hp.upper.push((tb, hi));
-            hp.lower.push((ta, lo));
-            hp.lower.push((tb, lo));
+            hp.upper.push((ta, zhi));
+            hp.upper.push((tb, zhi));
+            hp.lower.push((ta, zlo));
+            hp.lower.push((tb, zlo));
             if s_b >= eb {
                 break;
             }
@@ -458,9 +606,8 @@ fn pixel_points(
             m += 1;
         }
     }
-    for hp in halves.iter_mut() {
-        hp.upper.sort_unstable_by(|p, q| p.0.total_cmp(&q.0));
-        hp.lower.sort_unstable_by(|p, q| p.0.total_cmp(&q.0));
+    for hp in halves.iter() {
+        debug_assert!(hp.upper.windows(2).all(|w| w[0].0 <= w[1].0));
     }
 }
 
@@ -649,23 +796,19 @@ pub fn build_bounds(
                 let rows: Vec<Vec<[Option<SlotHull>; 2]>> = (0..h)
                     .into_par_iter()
                     .map(|j| {
-                        let row = &view.geom[j * w..(j + 1) * w];
-                        let mut endpoints = Vec::new();
-                        row_endpoints(&grid, row, &mut endpoints);
-                        let mut events = Vec::new();
+                        let rs = RowSweep::new(&grid, &view.geom[j * w..(j + 1) * w]);
+                        let mut scratch = Scratch::default();
                         let mut halves = [HalfPoints::default(), HalfPoints::default()];
                         (0..w)
                             .map(|i| {
                                 let x = grid.x_at(i as f64 + 0.5);
                                 pixel_points(
                                     &grid,
-                                    row,
-                                    &endpoints,
+                                    &rs,
                                     x,
                                     delta,
                                     subdivisions,
-                                    r_march,
-                                    &mut events,
+                                    &mut scratch,
                                     &mut halves,
                                 );
                                 let slot = |which: &[usize]| -> Option<SlotHull> {
@@ -819,9 +962,249 @@ pub fn dense_sweep(
     Ok(counts)
 }
 
+/// The first version of the sweep, which finds the visible piece of every interval by a full
+/// march: slower, kept to cross-check [`pixel_points`].
+#[cfg(test)]
+mod reference {
+    use super::*;
+    use crate::parallax::warp::march_row;
+
+    /// Per row: polar coordinates `(|E|, ψ_E)` of every piece end point.
+    pub(super) fn row_endpoints(grid: &PixelGrid, row: &[TexelGeom], out: &mut Vec<(f64, f64)>) {
+        out.clear();
+        for (i, g) in row.iter().enumerate() {
+            if !g.defined {
+                continue;
+            }
+            let (a, b) = piece(grid, g, i, false);
+            let (_, c) = piece(grid, g, i, true);
+            for (x, z) in [a, b, c] {
+                out.push((x.hypot(z), z.atan2(x)));
+            }
+        }
+    }
+
+    /// The exact sweep of one pixel: fills the corner points of both half ranges.
+    #[allow(clippy::too_many_arguments)]
+    pub(super) fn pixel_points_by_march(
+        grid: &PixelGrid,
+        row: &[TexelGeom],
+        endpoints: &[(f64, f64)],
+        x: f64,
+        delta: f64,
+        subdivisions: usize,
+        r_march: f64,
+        events: &mut Vec<f64>,
+        halves: &mut [HalfPoints; 2],
+    ) {
+        halves[0].clear();
+        halves[1].clear();
+        events.clear();
+        events.extend([-delta, 0.0, delta]);
+        for &(rho, psi) in endpoints {
+            if rho < x.abs() {
+                continue;
+            }
+            let phi = (x / rho).clamp(-1.0, 1.0).acos();
+            for th in [wrap(psi - phi), wrap(psi + phi)] {
+                if th > -delta && th < delta {
+                    events.push(th);
+                }
+            }
+        }
+        events.sort_unstable_by(f64::total_cmp);
+        events.dedup();
+        let half_of = |th: f64| usize::from(th >= 0.0);
+        let r = grid.cylinder.radius;
+        let hit_at = |th: f64| {
+            let (co, si) = (th.cos(), th.sin());
+            let (x1, x2) = cylinder_range(x, co, si, r_march);
+            march_row(grid, row, x, co, si, x1, x2).hit
+        };
+        let step = delta / subdivisions as f64;
+        let tau = |th: f64| th.sin() / (1.0 + th.cos());
+        // Exact values at every event angle.
+        for &e in events.iter() {
+            if let Some(h) = hit_at(e) {
+                let p = (tau(e), h.z_e);
+                let which: &[usize] = if e == 0.0 {
+                    &[0, 1]
+                } else if e > 0.0 {
+                    &[1]
+                } else {
+                    &[0]
+                };
+                for &half in which {
+                    halves[half].upper.push(p);
+                    halves[half].lower.push(p);
+                }
+            }
+        }
+        // Boxes over the open event intervals.
+        for w in events.windows(2) {
+            let (ea, eb) = (w[0], w[1]);
+            if eb <= ea {
+                continue;
+            }
+            let Some(h) = hit_at(0.5 * (ea + eb)) else {
+                continue;
+            };
+            let g = &row[h.texel];
+            let (a, b) = piece(grid, g, h.texel, h.right);
+            let (dx, dz) = (b.0 - a.0, b.1 - a.1);
+            let len2 = dx * dx + dz * dz;
+            let t_foot = if len2 > 0.0 {
+                -(a.0 * dx + a.1 * dz) / len2
+            } else {
+                0.0
+            };
+            // Crossing on the piece's line at angle th: (t, z_e); degenerate ends give both ends.
+            let on_line = |th: f64| -> (f64, f64, f64, f64) {
+                let (co, si) = (th.cos(), th.sin());
+                let xe_a = a.0 * co + a.1 * si;
+                let xe_b = b.0 * co + b.1 * si;
+                let ze = |t: f64| {
+                    let (px, pz) = (a.0 + t * dx, a.1 + t * dz);
+                    pz * co - px * si
+                };
+                if xe_b - xe_a > 1e-14 * r {
+                    let t = ((x - xe_a) / (xe_b - xe_a)).clamp(0.0, 1.0);
+                    let z = ze(t);
+                    (t, t, z, z)
+                } else {
+                    let (z0, z1) = (ze(0.0), ze(1.0));
+                    (0.0, 1.0, z0.min(z1), z0.max(z1))
+                }
+            };
+            let half = half_of(0.5 * (ea + eb));
+            // Grid points strictly inside (ea, eb).
+            let m0 = (ea / step).floor() as i64 + 1;
+            let mut s_a = ea;
+            let mut end_a = on_line(ea);
+            let mut m = m0;
+            loop {
+                let gm = m as f64 * step;
+                let s_b = if gm < eb { gm } else { eb };
+                let end_b = on_line(s_b);
+                let (t_lo, t_hi) = (end_a.0.min(end_b.0), end_a.1.max(end_b.1));
+                let mut lo = end_a.2.min(end_b.2);
+                let mut hi = end_a.3.max(end_b.3);
+                if t_foot > t_lo && t_foot < t_hi {
+                    let (px, pz) = (a.0 + t_foot * dx, a.1 + t_foot * dz);
+                    let zf = (px * px + pz * pz - x * x).max(0.0).sqrt();
+                    if lo >= 0.0 {
+                        lo = lo.min(zf);
+                    } else if hi <= 0.0 {
+                        hi = hi.max(-zf);
+                    }
+                }
+                let (ta, tb) = (tau(s_a), tau(s_b));
+                let (lo, hi) = (lo - EPS * r, hi + EPS * r);
+                let hp = &mut halves[half];
+                hp.upper.push((ta, hi));
+                hp.upper.push((tb, hi));
+                hp.lower.push((ta, lo));
+                hp.lower.push((tb, lo));
+                if s_b >= eb {
+                    break;
+                }
+                s_a = s_b;
+                end_a = end_b;
+                m += 1;
+            }
+        }
+        for hp in halves.iter_mut() {
+            hp.upper.sort_by(|p, q| p.0.total_cmp(&q.0));
+            hp.lower.sort_by(|p, q| p.0.total_cmp(&q.0));
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn event_sweep_matches_marching_sweep() {
+        use crate::parallax::images::{ParallaxImages, ParallaxParams};
+        for name in ["truck", "tree", "building", "torus"] {
+            let shape = altrep_data_gen::scene_shape(name).unwrap();
+            let p = ParallaxParams {
+                views: 6,
+                width: 24,
+                height: 12,
+                ..Default::default()
+            };
+            let images = ParallaxImages::capture(&shape, &p).unwrap();
+            let grid = images.pixel_grid();
+            let (mut a, mut b) = (
+                [HalfPoints::default(), HalfPoints::default()],
+                [HalfPoints::default(), HalfPoints::default()],
+            );
+            let mut sc = Scratch::default();
+            let (mut ends, mut ev) = (Vec::new(), Vec::new());
+            for view in &images.views {
+                for j in 0..p.height {
+                    let row = &view.geom[j * p.width..(j + 1) * p.width];
+                    let rs = RowSweep::new(&grid, row);
+                    reference::row_endpoints(&grid, row, &mut ends);
+                    for i in 0..p.width {
+                        let x = grid.x_at(i as f64 + 0.5);
+                        pixel_points(&grid, &rs, x, p.delta_theta(), 4, &mut sc, &mut a);
+                        reference::pixel_points_by_march(
+                            &grid,
+                            row,
+                            &ends,
+                            x,
+                            p.delta_theta(),
+                            4,
+                            images.march_radius(),
+                            &mut ev,
+                            &mut b,
+                        );
+                        for h in 0..2 {
+                            for (u, v) in [(&a[h].upper, &b[h].upper), (&a[h].lower, &b[h].lower)] {
+                                let mut u = u.clone();
+                                u.sort_by(|p, q| p.0.total_cmp(&q.0).then(p.1.total_cmp(&q.1)));
+                                let mut v = v.clone();
+                                v.sort_by(|p, q| p.0.total_cmp(&q.0).then(p.1.total_cmp(&q.1)));
+                                v.dedup();
+                                u.dedup();
+                                if u != v {
+                                    let th = 0.0f64;
+                                    for (k, &e) in sc
+                                        .events
+                                        .iter()
+                                        .enumerate()
+                                        .filter(|(_, e)| e.0.abs() < 0.2)
+                                    {
+                                        eprintln!(
+                                            "event {k} {e:?} pieces {:?}",
+                                            if e.1 == NONE {
+                                                [NONE, NONE]
+                                            } else {
+                                                rs.ends[e.1 as usize].2
+                                            }
+                                        );
+                                    }
+                                    for &id in &rs.existing {
+                                        if let Some(r) = rs.eval(id, x, th.cos(), th.sin()) {
+                                            eprintln!(
+                                                "met at 0: piece {id} {r:?} {:?}",
+                                                rs.pieces[id as usize]
+                                            );
+                                        }
+                                    }
+                                    eprintln!("x = {x}");
+                                }
+                                assert_eq!(u, v, "{name} row {j} pixel {i} half {h}");
+                            }
+                        }
+                    }
+                }
+            }
+        }
+    }
 
     #[test]
     fn hulls_keep_extremes() {

@@ -194,7 +194,9 @@ pub(crate) fn march_row(
     x2: f64,
 ) -> MarchResult {
     let w = grid.width as i64;
-    let (c1, c2) = (cell(grid, x1), cell(grid, x2));
+    // Widen by a hair so that an end lying on a cell boundary (a texel centre) visits the cell
+    // holding the piece that starts there, whatever the rounding of `cell`.
+    let eps = 1e-9 * grid.pitch_x();
     let mut steps = 0u32;
     if si >= 0.0 {
         if x1 > x2 {
@@ -203,6 +205,7 @@ pub(crate) fn march_row(
                 steps: 0,
             };
         }
+        let (c1, c2) = (cell(grid, x1 - eps), cell(grid, x2 + eps));
         for c in c1..=c2 {
             steps += 1;
             if c >= 0
@@ -229,6 +232,7 @@ pub(crate) fn march_row(
                 steps: 0,
             };
         }
+        let (c1, c2) = (cell(grid, x1 + eps), cell(grid, x2 - eps));
         for c in (c2..=c1).rev() {
             steps += 1;
             if c + 1 < w

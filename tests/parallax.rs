@@ -365,7 +365,7 @@ fn bad_input_gets_typed_errors() {
     let images = ParallaxImages::capture(&shape, &p).unwrap();
     let other = ParallaxImages::capture(&shape, &small(4, 8)).unwrap();
     let b = build_bounds(&other, BoundKind::ZMinMax, &BoundParams::default()).unwrap();
-    assert!(measure_steps(&images, &[b.clone()], 10, 0).is_err());
+    assert!(measure_steps(&images, std::slice::from_ref(&b), 10, 0).is_err());
     assert!(dense_sweep(&images, &[&b], 2).is_err());
     let bad_bits = BoundParams {
         bits: 12,

@@ -54,7 +54,7 @@ pub type SectionFn = fn(&DemoContext) -> Result<DemoSection, Box<dyn std::error:
 
 /// The sections of the demo, in order.
 pub fn sections() -> Vec<(&'static str, SectionFn)> {
-    vec![("captures", captures_section)]
+    vec![("captures", captures_section), ("parallax", super::parallax::demo_section)]
 }
 
 /// Runs `altrep demo`.

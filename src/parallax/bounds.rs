@@ -78,6 +78,17 @@ impl BoundKind {
         }
     }
 
+    /// ASCII identifier for file names and keys.
+    pub fn slug(self) -> &'static str {
+        match self {
+            BoundKind::Cylinder => "cylinder",
+            BoundKind::ZMinMax => "zminmax",
+            BoundKind::FPair => "pair",
+            BoundKind::BestC => "best_c",
+            BoundKind::BestCSplit => "best_c_split",
+        }
+    }
+
     /// Stored channels per pixel of every view.
     pub fn channels(self) -> usize {
         match self {
@@ -332,10 +343,13 @@ fn wrap(a: f64) -> f64 {
     if w <= -PI { w + 2.0 * PI } else { w }
 }
 
+/// A piece's end points `((x_a, z_a), (x_b, z_b))`.
+type Segment = ((f64, f64), (f64, f64));
+
 /// A row's pieces and end points, prepared once for the event sweeps of all its pixels.
 struct RowSweep {
     /// Piece `2i + right` of texel `i`: its end points, `None` if the texel is undefined.
-    pieces: Vec<Option<((f64, f64), (f64, f64))>>,
+    pieces: Vec<Option<Segment>>,
     /// Ids of the existing pieces.
     existing: Vec<u32>,
     /// End points: `(|E|, ψ_E)` and the one or two pieces they bound (`u32::MAX` = none).
@@ -727,6 +741,16 @@ impl CGrid {
     }
 }
 
+/// The next `f32` above (`up`) or below a finite `f`.
+fn f32_step(f: f32, up: bool) -> f32 {
+    if f == 0.0 {
+        let tiny = f32::from_bits(1);
+        return if up { tiny } else { -tiny };
+    }
+    let b = f.to_bits();
+    f32::from_bits(if (f > 0.0) == up { b + 1 } else { b - 1 })
+}
+
 /// Quantises `values` (one channel of one view) outward: up (`v_max`) or down (`v_min`).
 fn quantize_channel(values: &mut [&mut f64], up: bool, bits: u32) {
     if values.is_empty() {
@@ -736,9 +760,9 @@ fn quantize_channel(values: &mut [&mut f64], up: bool, bits: u32) {
         for v in values.iter_mut() {
             let mut f = **v as f32;
             if up && f64::from(f) < **v {
-                f = f.next_up();
+                f = f32_step(f, true);
             } else if !up && f64::from(f) > **v {
-                f = f.next_down();
+                f = f32_step(f, false);
             }
             **v = f64::from(f);
         }
@@ -1235,6 +1259,16 @@ mod tests {
                 (q(-1.0) - q(-1.0).round()).abs() < 1e-9 && (q(1.0) - q(1.0).round()).abs() < 1e-9
             );
             assert!(g.c0 <= lo + 1e-12 && g.c0 + g.levels as f64 * g.step >= hi - 1e-12);
+        }
+    }
+
+    #[test]
+    fn f32_steps_are_adjacent() {
+        for f in [1.0f32, -1.0, 0.3, -2.5e-7, 0.0] {
+            let (u, d) = (f32_step(f, true), f32_step(f, false));
+            assert!(u > f && d < f);
+            assert!(f32_step(u, false) == f || f == 0.0);
+            assert!(f32_step(d, true) == f || f == 0.0);
         }
     }
 

@@ -64,7 +64,7 @@ impl ParallaxParams {
         if self.depth_bits != 8 && self.depth_bits != 16 {
             return Err(invalid("depth_bits", self.depth_bits, "must be 8 or 16"));
         }
-        if !(self.continuity_texels > 0.0) {
+        if self.continuity_texels.is_nan() || self.continuity_texels <= 0.0 {
             return Err(invalid(
                 "continuity_texels",
                 self.continuity_texels,

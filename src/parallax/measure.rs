@@ -32,6 +32,10 @@ pub struct StepStats {
     pub max_steps: u32,
     /// Mean steps over the fragments whose ray meets the height field (per warped view).
     pub mean_steps_hit: f64,
+    /// Mean steps over the fragments in the object's footprint: pixels whose ray meets the view's
+    /// height field for some θ of its range (non-empty zmin/zmax bound), the area a tight
+    /// impostor mesh would rasterise. `None` when no zmin/zmax bound is measured.
+    pub mean_steps_footprint: Option<f64>,
     /// Crossings outside the stored bounds in the dense sweep ([`dense_sweep`]); `None` if not run.
     pub violations: Option<u64>,
     /// Fragments of the step sweep where the bounded march found another crossing than the
@@ -54,6 +58,8 @@ pub struct StepsReport {
     pub samples: u64,
     /// Share of samples whose ray meets the height field.
     pub hit_share: f64,
+    /// Share of samples in the footprint (see [`StepStats::mean_steps_footprint`]).
+    pub footprint_share: Option<f64>,
     /// Per bound: mean steps per warped view of each screen pixel (row-major `Lx × Ly`), for heat
     /// maps.
     #[serde(skip)]
@@ -66,8 +72,10 @@ struct Acc {
     sum: Vec<u64>,
     max: Vec<u32>,
     sum_hit: Vec<u64>,
+    sum_foot: Vec<u64>,
     mismatches: Vec<u64>,
     hits: u64,
+    foot: u64,
     heat: Vec<Vec<u32>>,
 }
 
@@ -77,8 +85,10 @@ impl Acc {
             sum: vec![0; m],
             max: vec![0; m],
             sum_hit: vec![0; m],
+            sum_foot: vec![0; m],
             mismatches: vec![0; m],
             hits: 0,
+            foot: 0,
             heat: vec![vec![0; px]; m],
         }
     }
@@ -87,12 +97,14 @@ impl Acc {
             self.sum[b] += o.sum[b];
             self.max[b] = self.max[b].max(o.max[b]);
             self.sum_hit[b] += o.sum_hit[b];
+            self.sum_foot[b] += o.sum_foot[b];
             self.mismatches[b] += o.mismatches[b];
             for (h, g) in self.heat[b].iter_mut().zip(&o.heat[b]) {
                 *h += g;
             }
         }
         self.hits += o.hits;
+        self.foot += o.foot;
         self
     }
 }
@@ -120,6 +132,7 @@ pub fn measure_steps(
     let xs: Vec<f64> = (0..w).map(|i| grid.x_at(i as f64 + 0.5)).collect();
     let r = images.march_radius();
     let nb = bounds.len();
+    let footprint = bounds.iter().find(|b| b.kind == BoundKind::ZMinMax);
     let acc = (0..angles)
         .into_par_iter()
         .fold(
@@ -135,6 +148,8 @@ pub fn measure_steps(
                             let (x1, x2) = cylinder_range(x, co, si, r);
                             let reference = march_row(&grid, row, x, co, si, x1, x2);
                             acc.hits += u64::from(reference.hit.is_some());
+                            let in_foot = footprint.is_some_and(|f| f.pixel(k, i, j)[0].is_some());
+                            acc.foot += u64::from(in_foot);
                             for (b, bound) in bounds.iter().enumerate() {
                                 let res = match bound.range_cs(k, j * w + i, x, co, si) {
                                     Some((a1, a2)) => march_row(&grid, row, x, co, si, a1, a2),
@@ -147,6 +162,9 @@ pub fn measure_steps(
                                 acc.max[b] = acc.max[b].max(res.steps);
                                 if reference.hit.is_some() {
                                     acc.sum_hit[b] += u64::from(res.steps);
+                                }
+                                if in_foot {
+                                    acc.sum_foot[b] += u64::from(res.steps);
                                 }
                                 acc.mismatches[b] += u64::from(res.hit != reference.hit);
                                 acc.heat[b][j * w + i] += res.steps;
@@ -185,6 +203,8 @@ pub fn measure_steps(
             mean_steps: acc.sum[b] as f64 / samples as f64,
             max_steps: acc.max[b],
             mean_steps_hit: acc.sum_hit[b] as f64 / acc.hits.max(1) as f64,
+            mean_steps_footprint: footprint
+                .map(|_| acc.sum_foot[b] as f64 / acc.foot.max(1) as f64),
             violations: violations.as_ref().map(|v| v[b]),
             mismatches: acc.mismatches[b],
             precompute_ms: bound.precompute.as_secs_f64() * 1e3,
@@ -197,6 +217,7 @@ pub fn measure_steps(
         angles,
         samples,
         hit_share: acc.hits as f64 / samples as f64,
+        footprint_share: footprint.map(|_| acc.foot as f64 / samples as f64),
         heat: acc
             .heat
             .iter()

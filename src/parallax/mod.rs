@@ -79,7 +79,7 @@ pub use measure::{
     QualityParams, QualityRow, StepStats, StepsReport, measure_quality, measure_steps,
 };
 pub use warp::{
-    Crossing, MarchResult, RenderParams, WarpMethod, cylinder_range, march, render,
+    Crossing, MarchResult, RenderParams, WarpMethod, cylinder_range, march, render, render_bounded,
     warp_row_direct, warp_view,
 };
 

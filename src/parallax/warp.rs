@@ -504,3 +504,54 @@ pub fn render(
         });
     Ok(img)
 }
+
+/// Renders at the views' own resolution (one ray per pixel centre, where stored bounds are valid)
+/// with the march ranges of `bounds`: the shader's path. Returns the image (combined as in
+/// [`render`]) and the total march steps of both warped views. With bounds of any kind the image
+/// is the same as [`render`]'s at native resolution; only the steps differ.
+///
+/// Errors: bounds built for other images.
+pub fn render_bounded(
+    images: &ParallaxImages,
+    bounds: &super::Bounds,
+    alpha: f64,
+    light: &Light,
+) -> Result<(RgbaImage, u64), ParallaxError> {
+    bounds.check(images)?;
+    let p = &images.params;
+    let (w, h) = (p.width, p.height);
+    let grid = images.pixel_grid();
+    let pair = images.bracketing(alpha);
+    let mut img = RgbaImage::new(w, h);
+    let steps: u64 = img
+        .pixels
+        .par_chunks_mut(w)
+        .enumerate()
+        .map(|(j, px)| {
+            let mut steps = 0u64;
+            for (i, pixel) in px.iter_mut().enumerate() {
+                let x = grid.x_at(i as f64 + 0.5);
+                let mut cols = [None, None];
+                for (slot, &(k, theta, _)) in pair.iter().enumerate() {
+                    let (co, si) = (theta.cos(), theta.sin());
+                    let view = &images.views[k];
+                    let row = &view.geom[j * w..(j + 1) * w];
+                    if let Some((x1, x2)) = bounds.range_cs(k, j * w + i, x, co, si) {
+                        let r = march_row(&grid, row, x, co, si, x1, x2);
+                        steps += u64::from(r.steps);
+                        cols[slot] = r.hit.map(|c| shade_crossing(view, j, &c, light));
+                    }
+                }
+                let col = match cols {
+                    [None, None] => continue,
+                    [Some(a), None] => a,
+                    [None, Some(b)] => b,
+                    [Some(a), Some(b)] => pair[0].2 as f32 * a + pair[1].2 as f32 * b,
+                };
+                *pixel = [col.x, col.y, col.z, 1.0];
+            }
+            steps
+        })
+        .sum();
+    Ok((img, steps))
+}

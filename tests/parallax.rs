@@ -321,6 +321,7 @@ fn inverse_warping_matches_the_ground_truth_between_views() {
         height: 64,
         supersample: 3,
         light,
+        mip: true,
     };
     let img = render(&images, alpha, WarpMethod::Inverse, &screen).unwrap();
     let truth = render_truth(
@@ -403,4 +404,75 @@ fn bad_input_gets_typed_errors() {
         ParallaxImages::from_grids(&grids, &p),
         Err(ParallaxError::InconsistentView { view: 0, .. })
     ));
+}
+
+#[test]
+fn minified_impostors_warp_a_mip_level_and_alias_less() {
+    // 128² views drawn on a 32² screen: the mip path warps level 2 (32² filtered texels); point
+    // sampling level 0 aliases. Both against a 4×4-supersampled truth. Measured on the tree (fine
+    // detail): +0.63 dB on average. (On coarse-detail shapes — truck, building, pear — the mip
+    // path loses 1–3 dB instead: box-filtered depth mixes front and back surfaces and the warp's
+    // linear interpolation blurs once more; see `RenderParams::mip`.)
+    let shape = scene_shape("tree").unwrap();
+    let images = ParallaxImages::capture(&shape, &small(8, 128)).unwrap();
+    assert_eq!(images.mip_levels(), 8);
+    let l2 = images.level(2).unwrap();
+    assert_eq!(
+        (l2.params.width, l2.params.height, l2.views.len()),
+        (32, 32, 8)
+    );
+    assert!(images.level(8).is_err());
+    assert!(
+        images.bytes_with_mips() > images.bytes()
+            && images.bytes_with_mips() < images.bytes() * 4 / 3 + 1
+    );
+    let light = Light::default();
+    let mut gain = 0.0;
+    for alpha in [0.4, 1.9, 4.1] {
+        let truth = render_truth(
+            &shape,
+            &TruthParams {
+                angle: alpha,
+                width: 32,
+                height: 32,
+                supersample: 4,
+                light,
+                cylinder: BoundingCylinder::default(),
+            },
+        )
+        .unwrap();
+        let screen = RenderParams {
+            width: 32,
+            height: 32,
+            supersample: 1,
+            light,
+            mip: true,
+        };
+        assert_eq!(screen.mip_level(128, 128), 2);
+        let mip = psnr(
+            &render(&images, alpha, WarpMethod::Inverse, &screen).unwrap(),
+            &truth,
+        )
+        .unwrap();
+        let point = psnr(
+            &render(
+                &images,
+                alpha,
+                WarpMethod::Inverse,
+                &RenderParams {
+                    mip: false,
+                    ..screen
+                },
+            )
+            .unwrap(),
+            &truth,
+        )
+        .unwrap();
+        eprintln!("tree α = {alpha}: mip {mip:.2} dB, point-sampled {point:.2} dB");
+        gain += (mip - point) / 3.0;
+    }
+    assert!(
+        gain > 0.3,
+        "the mip level gains only {gain:.2} dB over point sampling"
+    );
 }

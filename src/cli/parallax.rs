@@ -328,6 +328,7 @@ pub fn demo_section(
         height: size,
         supersample: 3,
         light: ctx.light,
+        mip: true,
     };
     md += "Left to right: ground truth (3×3 rays), inverse warping, direct warping, one-step offset (same 8 views), blend of 64 views without parallax.\n\n| α (rad) | inverse PSNR dB | direct PSNR dB | offset PSNR dB | blend-64 PSNR dB | inverse IoU |\n|---|---|---|---|---|---|\n";
     let mut quality = Vec::new();

@@ -11,6 +11,7 @@ use glam::Vec3;
 use rayon::prelude::*;
 
 use super::{ParallaxError, invalid};
+use crate::mip::{Pyramid, PyramidParams, Texture};
 
 /// Parameters of an image-with-parallax representation.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -181,6 +182,38 @@ pub struct ParallaxImages {
     pub capture_time: Duration,
     /// See [`Self::march_radius`].
     march_radius: f64,
+    /// See [`Self::pyramids`].
+    pyramids: Vec<Pyramid>,
+}
+
+/// Joins neighbouring defined texels of every row whose depths differ by at most `threshold`
+/// (world units) and sets the depths at the cell boundaries.
+fn link_rows(geom: &mut [TexelGeom], width: usize, threshold: f64) {
+    for row in geom.chunks_mut(width) {
+        for i in 0..width {
+            let linked = i + 1 < width
+                && row[i].defined
+                && row[i + 1].defined
+                && (row[i].z - row[i + 1].z).abs() <= threshold;
+            row[i].link_r = linked;
+            if i + 1 < width {
+                row[i + 1].link_l = linked;
+            }
+        }
+        for i in 0..width {
+            let z = row[i].z;
+            row[i].zl = if row[i].link_l {
+                0.5 * (row[i - 1].z + z)
+            } else {
+                z
+            };
+            row[i].zr = if row[i].link_r {
+                0.5 * (z + row[i + 1].z)
+            } else {
+                z
+            };
+        }
+    }
 }
 
 /// Quantises `x ∈ [0, 1]` to `bits` and back.
@@ -281,32 +314,7 @@ impl ParallaxImages {
                 albedo[idx] = Vec3::new(q(s.albedo.x), q(s.albedo.y), q(s.albedo.z));
                 normal[idx] = Vec3::new(qn(s.normal.x), qn(s.normal.y), qn(s.normal.z));
             }
-            for j in 0..g.height {
-                let row = &mut geom[j * g.width..(j + 1) * g.width];
-                for i in 0..g.width {
-                    let linked = i + 1 < g.width
-                        && row[i].defined
-                        && row[i + 1].defined
-                        && (row[i].z - row[i + 1].z).abs() <= threshold;
-                    row[i].link_r = linked;
-                    if i + 1 < g.width {
-                        row[i + 1].link_l = linked;
-                    }
-                }
-                for i in 0..g.width {
-                    let z = row[i].z;
-                    row[i].zl = if row[i].link_l {
-                        0.5 * (row[i - 1].z + z)
-                    } else {
-                        z
-                    };
-                    row[i].zr = if row[i].link_r {
-                        0.5 * (z + row[i + 1].z)
-                    } else {
-                        z
-                    };
-                }
-            }
+            link_rows(&mut geom, g.width, threshold);
             views.push(View {
                 angle: params.view_angle(k),
                 width: g.width,
@@ -316,14 +324,126 @@ impl ParallaxImages {
                 normal,
             });
         }
+        Self::assemble(*params, views)
+    }
+
+    /// Finishes a representation from its views: march radius and one mip pyramid per view.
+    fn assemble(params: ParallaxParams, views: Vec<View>) -> Result<Self, ParallaxError> {
+        let r = params.cylinder.radius;
+        let pyramids = views
+            .iter()
+            .map(|v| {
+                let mut data = Vec::with_capacity(v.geom.len() * 8);
+                for (k, g) in v.geom.iter().enumerate() {
+                    if g.defined {
+                        let (a, n) = (v.albedo[k], v.normal[k]);
+                        data.extend([a.x, a.y, a.z, 1.0, n.x, n.y, n.z, (g.z / r) as f32]);
+                    } else {
+                        data.extend([0.0; 8]);
+                    }
+                }
+                let tex = Texture::new(v.width, v.height, 8, data)?;
+                Ok(Pyramid::build(tex, PyramidParams::default())?)
+            })
+            .collect::<Result<Vec<_>, ParallaxError>>()?;
         let mut images = Self {
-            params: *params,
+            params,
             views,
             capture_time: Duration::ZERO,
             march_radius: r,
+            pyramids,
         };
         images.march_radius = images.compute_march_radius();
         Ok(images)
+    }
+
+    /// One mip pyramid per view ([`crate::mip`], box filter, clamped edges), 8 channels per
+    /// texel, all premultiplied by coverage: albedo (3, linear), coverage, normal (3), depth / R.
+    /// Level 0 holds the stored views exactly.
+    pub fn pyramids(&self) -> &[Pyramid] {
+        &self.pyramids
+    }
+
+    /// Number of mip levels (down to 1 × 1).
+    pub fn mip_levels(&self) -> usize {
+        self.pyramids.first().map_or(1, |p| p.levels().len())
+    }
+
+    /// The representation at mip level `level`: views of the level's size whose texels are
+    /// defined where the filtered coverage is at least ½, with albedo, normal and depth divided
+    /// by the coverage (un-premultiplied) and neighbours joined by the same continuity threshold
+    /// in texels of that level. A display warps this when the impostor covers fewer pixels than
+    /// the views have texels (fewer, filtered texels: less aliasing and fewer steps). Level 0 is
+    /// a copy. Cost: linear in the level's texels, plus its own pyramid.
+    ///
+    /// Errors: `level` beyond the last level.
+    pub fn level(&self, level: usize) -> Result<ParallaxImages, ParallaxError> {
+        if level >= self.mip_levels() {
+            return Err(invalid(
+                "mip level",
+                level,
+                "must be below the number of levels",
+            ));
+        }
+        if level == 0 {
+            return Ok(self.clone());
+        }
+        let r = self.params.cylinder.radius;
+        let first = &self.pyramids[0].levels()[level];
+        let params = ParallaxParams {
+            width: first.width,
+            height: first.height,
+            ..self.params
+        };
+        let grid = PixelGrid {
+            width: params.width,
+            height: params.height,
+            cylinder: params.cylinder,
+        };
+        let threshold = params.continuity_texels * grid.pitch_x();
+        let views = self
+            .pyramids
+            .iter()
+            .zip(&self.views)
+            .map(|(p, v)| {
+                let t = &p.levels()[level];
+                let n = t.width * t.height;
+                let mut geom = vec![TexelGeom::default(); n];
+                let mut albedo = vec![Vec3::ZERO; n];
+                let mut normal = vec![Vec3::ZERO; n];
+                for k in 0..n {
+                    let c = &t.data[k * 8..k * 8 + 8];
+                    if c[3] >= 0.5 {
+                        let inv = 1.0 / c[3];
+                        geom[k].defined = true;
+                        geom[k].z = f64::from(c[7] * inv) * r;
+                        albedo[k] = Vec3::new(c[0], c[1], c[2]) * inv;
+                        normal[k] = Vec3::new(c[4], c[5], c[6]) * inv;
+                    }
+                }
+                link_rows(&mut geom, t.width, threshold);
+                View {
+                    angle: v.angle,
+                    width: t.width,
+                    height: t.height,
+                    geom,
+                    albedo,
+                    normal,
+                }
+            })
+            .collect();
+        Self::assemble(params, views)
+    }
+
+    /// Bytes of the stored views with their mip pyramids: every level at the bytes per texel of
+    /// level 0 (about 4/3 of [`Self::bytes`]).
+    pub fn bytes_with_mips(&self) -> usize {
+        let texels: usize = self
+            .pyramids
+            .iter()
+            .flat_map(|p| p.levels().iter().map(|l| l.width * l.height))
+            .sum();
+        texels * self.params.bytes_per_texel()
     }
 
     /// Radius `R' ≥ R` of the cylinder the march starts from: the largest distance to the axis of
@@ -376,7 +496,7 @@ impl ParallaxImages {
         [(k1, theta1, 1.0 - beta), ((k1 + 1) % n, theta1 - dt, beta)]
     }
 
-    /// Bytes of the stored views: `N·Lx·Ly·(7 + depth_bits/8)`.
+    /// Bytes of the stored views (level 0, as the report counts): `N·Lx·Ly·(7 + depth_bits/8)`.
     pub fn bytes(&self) -> usize {
         self.params.views * self.params.width * self.params.height * self.params.bytes_per_texel()
     }

@@ -334,6 +334,7 @@ pub fn measure_quality(
             height: size,
             supersample: params.supersample,
             light: params.light,
+            mip: true,
         };
         let run =
             |images: &ParallaxImages,

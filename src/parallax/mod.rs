@@ -114,6 +114,9 @@ pub enum ParallaxError {
     /// An image comparison failed.
     #[error(transparent)]
     Metrics(#[from] MetricsError),
+    /// A mip pyramid could not be built.
+    #[error(transparent)]
+    Mip(#[from] crate::mip::MipError),
 }
 
 fn invalid(

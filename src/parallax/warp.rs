@@ -56,6 +56,13 @@ pub struct RenderParams {
     pub supersample: usize,
     /// The light shading albedo and normals.
     pub light: Light,
+    /// Warp a mip level when the screen is coarser than the views: level
+    /// `round(log2(max(Lx/width, Ly/height)))` of [`ParallaxImages::level`] (nearest level, as
+    /// `GL_LINEAR_MIPMAP_NEAREST`). With `false`, level 0 is point-sampled. Measured at 128² → 32²
+    /// against a 4×4-supersampled truth: +0.6 dB on fine detail (tree), −1 to −3 dB on coarse
+    /// detail (truck, building, pear), where box-filtered depth mixes front and back surfaces;
+    /// the coarse level also needs about 4× fewer march steps.
+    pub mip: bool,
 }
 
 impl RenderParams {
@@ -66,7 +73,17 @@ impl RenderParams {
             height: images.params.height,
             supersample: 1,
             light: Light::default(),
+            mip: true,
         }
+    }
+
+    /// The mip level this screen reads from views of `width × height` texels.
+    pub fn mip_level(&self, width: usize, height: usize) -> usize {
+        if !self.mip {
+            return 0;
+        }
+        let ratio = (width as f64 / self.width as f64).max(height as f64 / self.height as f64);
+        ratio.log2().round().max(0.0) as usize
     }
 
     fn validate(&self) -> Result<(), ParallaxError> {
@@ -458,8 +475,10 @@ fn warp_row_into(
 /// Renders the object at display angle `alpha`: the two bracketing views are warped and combined
 /// per ray — undefined in both: nothing; defined in one: that one; in both: the shaded colours
 /// blended by angular proportion ([`ParallaxImages::bracketing`]). Returns premultiplied linear
-/// RGBA (alpha = share of the pixel's rays that hit). Cost: `height·width·supersample` rays, two
-/// warps each (`O(steps)` inverse, `O(Lx)` per row direct), rows in parallel.
+/// RGBA (alpha = share of the pixel's rays that hit). When the screen is coarser than the views
+/// and `screen.mip` is set, a mip level is warped instead ([`RenderParams::mip_level`]). Cost:
+/// `height·width·supersample` rays, two warps each (`O(steps)` inverse, `O(Lx)` per row direct),
+/// rows in parallel.
 ///
 /// Errors: a zero screen size.
 pub fn render(
@@ -469,6 +488,17 @@ pub fn render(
     screen: &RenderParams,
 ) -> Result<RgbaImage, ParallaxError> {
     screen.validate()?;
+    let level = screen
+        .mip_level(images.params.width, images.params.height)
+        .min(images.mip_levels() - 1);
+    if level > 0 {
+        let coarse = images.level(level)?;
+        let screen = RenderParams {
+            mip: false,
+            ..*screen
+        };
+        return render(&coarse, alpha, method, &screen);
+    }
     let [(k1, t1, w1), (k2, t2, w2)] = images.bracketing(alpha);
     let xs = screen.sample_xs(images.params.cylinder.radius);
     let n = xs.len();

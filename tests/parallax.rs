@@ -12,7 +12,8 @@ use altrep::data_gen::{
 use altrep::metrics::{CompareOptions, compare, psnr, silhouette_iou};
 use altrep::parallax::{
     BoundKind, BoundParams, Bounds, ParallaxError, ParallaxImages, ParallaxParams, RenderParams,
-    WarpMethod, build_bounds, dense_sweep, measure_steps, render, warp_view,
+    WarpMethod, build_bounds, dense_sweep, march, measure_steps, render, warp_row_direct,
+    warp_view,
 };
 
 const MESHES: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../shared/data/meshes/");
@@ -265,8 +266,8 @@ fn best_c_is_never_worse_than_the_pair() {
         for k in 0..p.views {
             for j in 0..p.height {
                 for i in 0..p.width {
-                    let [a, b] = pair.pixel(k, i, j);
-                    let [c, _] = best.pixel(k, i, j);
+                    let [a, b] = pair.pixel(k, i, j).unwrap();
+                    let [c, _] = best.pixel(k, i, j).unwrap();
                     assert_eq!(a.is_some(), c.is_some(), "{name}: emptiness differs");
                     let (Some(a), Some(b), Some(c)) = (a, b, c) else {
                         continue;
@@ -388,6 +389,30 @@ fn bad_input_gets_typed_errors() {
         ..RenderParams::native(&images)
     };
     assert!(render(&images, 0.3, WarpMethod::Direct, &zero).is_err());
+    // Indices and angles.
+    assert!(
+        render(
+            &images,
+            f64::NAN,
+            WarpMethod::Inverse,
+            &RenderParams::native(&images)
+        )
+        .is_err()
+    );
+    assert!(images.bracketing(f64::INFINITY).is_err());
+    assert!(march(&images, 0, 16, 0.0, 0.1, (-1.0, 1.0)).is_err());
+    assert!(march(&images, 0, 3, f64::NAN, 0.1, (-1.0, 1.0)).is_err());
+    assert!(march(&images, 0, 3, 0.1, 0.1, (-1.0, 1.0)).is_ok());
+    let mut out = vec![None; 2];
+    assert!(warp_row_direct(&images, 0, 3, 0.1, &[0.5, 0.1], &mut out).is_err());
+    assert!(warp_row_direct(&images, 0, 3, 0.1, &[0.1, 0.2, 0.3], &mut out).is_err());
+    let zb = build_bounds(&images, BoundKind::ZMinMax, &BoundParams::default()).unwrap();
+    assert!(
+        zb.pixel(4, 0, 0).is_err() && zb.pixel(0, 16, 0).is_err() && zb.pixel(0, 0, 16).is_err()
+    );
+    assert!(zb.range(0, 1, 1, 0.0, f64::NAN).is_err());
+    assert!(zb.range(0, 1, 1, 0.0, 0.2).is_ok());
+    assert!(images.views[0].depth(99, 0).is_none() && !images.views[0].defined(0, 99));
     // Grids that do not fit the parameters.
     let g = capture_view(
         &shape,
@@ -403,6 +428,33 @@ fn bad_input_gets_typed_errors() {
     assert!(matches!(
         ParallaxImages::from_grids(&grids, &p),
         Err(ParallaxError::InconsistentView { view: 0, .. })
+    ));
+    // Right angles but a NaN normal and a truncated sample list.
+    let mut grids: Vec<_> = (0..4)
+        .map(|k| {
+            capture_view(
+                &shape,
+                &ViewParams {
+                    angle: p.view_angle(k),
+                    width: 16,
+                    height: 16,
+                    cylinder: BoundingCylinder::default(),
+                },
+            )
+            .unwrap()
+        })
+        .collect();
+    assert!(ParallaxImages::from_grids(&grids, &p).is_ok());
+    let hit = grids[2].samples.iter().position(|s| s.is_some()).unwrap();
+    grids[2].samples[hit].as_mut().unwrap().normal.x = f32::NAN;
+    assert!(matches!(
+        ParallaxImages::from_grids(&grids, &p),
+        Err(ParallaxError::InconsistentView { view: 2, .. })
+    ));
+    grids[2].samples.truncate(10);
+    assert!(matches!(
+        ParallaxImages::from_grids(&grids, &p),
+        Err(ParallaxError::InconsistentView { view: 2, .. })
     ));
 }
 

@@ -48,7 +48,7 @@ fn render_with(
             "must be positive",
         ));
     }
-    let [(k1, t1, w1), (k2, t2, w2)] = images.bracketing(alpha);
+    let [(k1, t1, w1), (k2, t2, w2)] = images.bracketing(alpha)?;
     let grid = images.pixel_grid();
     let xs = screen.sample_xs(images.params.cylinder.radius);
     let inv = 1.0 / screen.supersample as f32;

@@ -39,7 +39,7 @@ use rayon::prelude::*;
 
 use super::images::{ParallaxImages, TexelGeom};
 use super::warp::{cylinder_range, hit_piece, piece, warp_row_direct_impl};
-use super::{ParallaxError, invalid};
+use super::{ParallaxError, finite, in_range, invalid};
 
 /// The kinds of march bounds.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, serde::Serialize)]
@@ -204,12 +204,21 @@ fn clip(r: (f64, f64), cyl: (f64, f64), forward: bool) -> Option<(f64, f64)> {
 impl Bounds {
     /// The stored slots of pixel `(i, j)` of view `k`: zmin/zmax and best c use slot 0; the pair
     /// holds `c = −1` in slot 0 and `c = +1` in slot 1; the split kind holds θ < 0 in slot 0 and
-    /// θ ≥ 0 in slot 1. Empty for [`BoundKind::Cylinder`]. Panics on bad indices.
-    pub fn pixel(&self, k: usize, i: usize, j: usize) -> [Option<PixelBound>; 2] {
-        match self.kind {
-            BoundKind::Cylinder => [None, None],
-            _ => self.views[k][j * self.width + i],
+    /// θ ≥ 0 in slot 1. Empty for [`BoundKind::Cylinder`]. Errors: an index out of range.
+    pub fn pixel(
+        &self,
+        k: usize,
+        i: usize,
+        j: usize,
+    ) -> Result<[Option<PixelBound>; 2], ParallaxError> {
+        if self.kind == BoundKind::Cylinder {
+            return Ok([None, None]);
         }
+        let view = &self.views[in_range("view index", k, self.views.len())?];
+        let height = view.len() / self.width.max(1);
+        in_range("column", i, self.width)?;
+        in_range("row", j, height)?;
+        Ok(view[j * self.width + i])
     }
 
     pub(crate) fn candidates(&self, k: usize, idx: usize, x: f64, co: f64, si: f64) -> Candidates {
@@ -238,8 +247,24 @@ impl Bounds {
     /// The march range `(x1, x2)` of pixel `(i, j)` of view `k` at screen abscissa `x` under
     /// `theta`, clipped to the cylinder range (free in a shader); `None` when nothing can be hit.
     /// For the pair, the shorter clipped interval. Bounds hold for rays at pixel centres.
-    pub fn range(&self, k: usize, i: usize, j: usize, x: f64, theta: f64) -> Option<(f64, f64)> {
-        self.range_cs(k, j * self.width + i, x, theta.cos(), theta.sin())
+    /// Errors: an index out of range, a non-finite `x` or `theta`.
+    pub fn range(
+        &self,
+        k: usize,
+        i: usize,
+        j: usize,
+        x: f64,
+        theta: f64,
+    ) -> Result<Option<(f64, f64)>, ParallaxError> {
+        finite("screen abscissa", x)?;
+        finite("theta", theta)?;
+        self.pixel(k, i, j)?;
+        let (k, idx) = if self.kind == BoundKind::Cylinder {
+            (0, 0)
+        } else {
+            (k, j * self.width + i)
+        };
+        Ok(self.range_cs(k, idx, x, theta.cos(), theta.sin()))
     }
 
     #[inline]

@@ -10,7 +10,7 @@ use altrep_data_gen::{
 use glam::Vec3;
 use rayon::prelude::*;
 
-use super::{ParallaxError, invalid};
+use super::{ParallaxError, finite, invalid};
 use crate::mip::{Pyramid, PyramidParams, Texture};
 
 /// Parameters of an image-with-parallax representation.
@@ -127,20 +127,26 @@ pub struct View {
 }
 
 impl View {
-    /// Whether texel `(i, j)` is defined.
-    pub fn defined(&self, i: usize, j: usize) -> bool {
-        self.geom[j * self.width + i].defined
+    fn index(&self, i: usize, j: usize) -> Option<usize> {
+        (i < self.width && j < self.height).then_some(j * self.width + i)
     }
 
-    /// Stored depth of texel `(i, j)` in world units (toward the camera), `None` if undefined.
+    /// Whether texel `(i, j)` is defined (`false` outside the view).
+    pub fn defined(&self, i: usize, j: usize) -> bool {
+        self.index(i, j).is_some_and(|k| self.geom[k].defined)
+    }
+
+    /// Stored depth of texel `(i, j)` in world units (toward the camera), `None` if undefined or
+    /// outside the view.
     pub fn depth(&self, i: usize, j: usize) -> Option<f64> {
-        let g = &self.geom[j * self.width + i];
+        let g = &self.geom[self.index(i, j)?];
         g.defined.then_some(g.z)
     }
 
-    /// Stored (decoded) albedo and normal of texel `(i, j)`, `None` if undefined.
+    /// Stored (decoded) albedo and normal of texel `(i, j)`, `None` if undefined or outside the
+    /// view.
     pub fn attributes(&self, i: usize, j: usize) -> Option<(Vec3, Vec3)> {
-        let k = j * self.width + i;
+        let k = self.index(i, j)?;
         self.geom[k]
             .defined
             .then(|| (self.albedo[k], self.normal[k]))
@@ -253,7 +259,8 @@ impl ParallaxImages {
     /// threshold. Cost: linear in the texels.
     ///
     /// Errors: invalid parameters, wrong number of grids, a grid of another size, angle, cylinder
-    /// or projection, a non-finite depth or a depth outside `[−1, 1]`.
+    /// or projection, a sample count that does not match the size, a non-finite albedo or normal,
+    /// a non-finite depth or a depth outside `[−1, 1]`.
     pub fn from_grids(
         grids: &[SampleGrid],
         params: &ParallaxParams,
@@ -296,6 +303,9 @@ impl ParallaxImages {
                 }
             }
             let n = g.width * g.height;
+            if g.samples.len() != n {
+                return Err(bad(format!("{} samples for {n} texels", g.samples.len())));
+            }
             let mut geom = vec![TexelGeom::default(); n];
             let mut albedo = vec![Vec3::ZERO; n];
             let mut normal = vec![Vec3::ZERO; n];
@@ -304,6 +314,11 @@ impl ParallaxImages {
                 let d = f64::from(s.depth);
                 if !d.is_finite() || d.abs() > 1.0 + 1e-6 {
                     return Err(bad(format!("texel {idx} has depth {d} outside [-1, 1]")));
+                }
+                if !(s.albedo.is_finite() && s.normal.is_finite()) {
+                    return Err(bad(format!(
+                        "texel {idx} has a non-finite albedo or normal"
+                    )));
                 }
                 let q = |c: f32| {
                     srgb_to_linear(unorm(f64::from(linear_to_srgb(c.clamp(0.0, 1.0))), 8) as f32)
@@ -485,8 +500,14 @@ impl ParallaxImages {
 
     /// The two views used at display angle `alpha`: `[(k1, θ1, w1), (k2, θ2, w2)]` with
     /// `θ1 = α − α_k1 ∈ [0, Δθ)`, `θ2 = θ1 − Δθ`, and blending weights `w1 = 1 − θ1/Δθ`,
-    /// `w2 = θ1/Δθ` (the report's angular proportion).
-    pub fn bracketing(&self, alpha: f64) -> [(usize, f64, f64); 2] {
+    /// `w2 = θ1/Δθ` (the report's angular proportion). Errors: a non-finite angle.
+    pub fn bracketing(&self, alpha: f64) -> Result<[(usize, f64, f64); 2], ParallaxError> {
+        finite("display angle", alpha)?;
+        Ok(self.bracket(alpha))
+    }
+
+    /// [`Self::bracketing`] for a finite angle.
+    pub(crate) fn bracket(&self, alpha: f64) -> [(usize, f64, f64); 2] {
         let n = self.params.views;
         let dt = self.params.delta_theta();
         let a = alpha.rem_euclid(TAU);
@@ -518,7 +539,7 @@ mod tests {
         let img = ParallaxImages::capture(&scene_shape("sphere").unwrap(), &p).unwrap();
         for m in 0..97 {
             let a = TAU * m as f64 / 97.0 - 3.0;
-            let [(k1, t1, w1), (k2, t2, w2)] = img.bracketing(a);
+            let [(k1, t1, w1), (k2, t2, w2)] = img.bracketing(a).unwrap();
             assert_eq!(k2, (k1 + 1) % 8);
             assert!((0.0..=p.delta_theta()).contains(&t1) && t2 <= 0.0);
             assert!((w1 + w2 - 1.0).abs() < 1e-12);

@@ -139,7 +139,7 @@ pub fn measure_steps(
             || Acc::new(nb, w * h),
             |mut acc, m| {
                 let alpha = TAU * m as f64 / angles as f64;
-                for (k, theta, _) in images.bracketing(alpha) {
+                for (k, theta, _) in images.bracket(alpha) {
                     let (co, si) = (theta.cos(), theta.sin());
                     let view = &images.views[k];
                     for j in 0..h {
@@ -148,7 +148,8 @@ pub fn measure_steps(
                             let (x1, x2) = cylinder_range(x, co, si, r);
                             let reference = march_row(&grid, row, x, co, si, x1, x2);
                             acc.hits += u64::from(reference.hit.is_some());
-                            let in_foot = footprint.is_some_and(|f| f.pixel(k, i, j)[0].is_some());
+                            let in_foot = footprint
+                                .is_some_and(|f| f.pixel(k, i, j).is_ok_and(|p| p[0].is_some()));
                             acc.foot += u64::from(in_foot);
                             for (b, bound) in bounds.iter().enumerate() {
                                 let res = match bound.range_cs(k, j * w + i, x, co, si) {

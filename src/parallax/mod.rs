@@ -119,6 +119,28 @@ pub enum ParallaxError {
     Mip(#[from] crate::mip::MipError),
 }
 
+/// Checks that `x` is finite.
+fn finite(name: &'static str, x: f64) -> Result<f64, ParallaxError> {
+    if x.is_finite() {
+        Ok(x)
+    } else {
+        Err(invalid(name, x, "must be finite"))
+    }
+}
+
+/// Checks that `index < len`.
+fn in_range(name: &'static str, index: usize, len: usize) -> Result<usize, ParallaxError> {
+    if index < len {
+        Ok(index)
+    } else {
+        Err(ParallaxError::InvalidParameter {
+            name,
+            value: index.to_string(),
+            reason: "is out of range",
+        })
+    }
+}
+
 fn invalid(
     name: &'static str,
     value: impl std::fmt::Display,

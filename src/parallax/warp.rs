@@ -8,7 +8,7 @@ use glam::Vec3;
 use rayon::prelude::*;
 
 use super::images::{ParallaxImages, TexelGeom, View};
-use super::{ParallaxError, invalid};
+use super::{ParallaxError, finite, in_range, invalid};
 
 /// Where a ray crosses a view's height field.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -276,7 +276,7 @@ pub(crate) fn march_row(
 /// Inverse warping of one ray (the shader's algorithm): row `j` of view `k` seen under `theta`,
 /// screen abscissa `x`, marched from `range.0` (`x1`) toward `range.1` (`x2`), one cell per step.
 /// Pass [`cylinder_range`] with [`ParallaxImages::march_radius`] for the unbounded march.
-/// Cost: `O(steps)`. Panics if `k` or `j` is out of range.
+/// Cost: `O(steps)`. Errors: an index out of range, a non-finite input.
 pub fn march(
     images: &ParallaxImages,
     k: usize,
@@ -284,10 +284,19 @@ pub fn march(
     x: f64,
     theta: f64,
     range: (f64, f64),
-) -> MarchResult {
-    let v = &images.views[k];
+) -> Result<MarchResult, ParallaxError> {
+    let v = &images.views[in_range("view index", k, images.views.len())?];
+    in_range("row", j, v.height)?;
+    for (name, value) in [
+        ("screen abscissa", x),
+        ("theta", theta),
+        ("x1", range.0),
+        ("x2", range.1),
+    ] {
+        finite(name, value)?;
+    }
     let row = &v.geom[j * v.width..(j + 1) * v.width];
-    march_row(
+    Ok(march_row(
         &images.pixel_grid(),
         row,
         x,
@@ -295,14 +304,16 @@ pub fn march(
         theta.sin(),
         range.0,
         range.1,
-    )
+    ))
 }
 
 /// Direct warping of row `j` of view `k` under `theta` onto the screen abscissae `xs` (ascending):
 /// the front-facing pieces are drawn back to front (decreasing `x_t` for θ ≥ 0, increasing for
 /// θ < 0), each over the rays with `x_e(a) ≤ X < x_e(b)`; the last drawn wins. `out[s]` gets the
-/// crossing seen by ray `xs[s]`. Cost: `O(Lx + len(xs))` per row. Panics on bad indices or if
-/// `out` is shorter than `xs`.
+/// crossing seen by ray `xs[s]`. Cost: `O(Lx + len(xs))` per row.
+///
+/// Errors: an index out of range, `out` shorter than `xs`, a non-finite `theta` or abscissa,
+/// abscissae not ascending.
 pub fn warp_row_direct(
     images: &ParallaxImages,
     k: usize,
@@ -310,10 +321,27 @@ pub fn warp_row_direct(
     theta: f64,
     xs: &[f64],
     out: &mut [Option<Crossing>],
-) {
-    let v = &images.views[k];
+) -> Result<(), ParallaxError> {
+    let v = &images.views[in_range("view index", k, images.views.len())?];
+    in_range("row", j, v.height)?;
+    finite("theta", theta)?;
+    if out.len() < xs.len() {
+        return Err(invalid(
+            "output length",
+            out.len(),
+            "must be at least the number of abscissae",
+        ));
+    }
+    if xs.iter().any(|x| !x.is_finite()) || xs.windows(2).any(|w| w[0] > w[1]) {
+        return Err(invalid(
+            "screen abscissae",
+            xs.len(),
+            "must be finite and ascending",
+        ));
+    }
     let row = &v.geom[j * v.width..(j + 1) * v.width];
     warp_row_direct_impl(&images.pixel_grid(), row, theta.cos(), theta.sin(), xs, out);
+    Ok(())
 }
 
 pub(crate) fn warp_row_direct_impl(
@@ -402,7 +430,7 @@ pub(crate) fn shade_crossing(view: &View, j: usize, c: &Crossing, light: &Light)
 /// (`height` rows of `width·supersample` rays) and the shaded image (alpha = share of rays that
 /// hit). Inverse warping marches from the cylinder of [`ParallaxImages::march_radius`].
 ///
-/// Errors: `k` out of range, a zero screen size.
+/// Errors: `k` out of range, a zero screen size, a non-finite `theta`.
 pub fn warp_view(
     images: &ParallaxImages,
     k: usize,
@@ -411,6 +439,7 @@ pub fn warp_view(
     screen: &RenderParams,
 ) -> Result<(Vec<Option<Crossing>>, RgbaImage), ParallaxError> {
     screen.validate()?;
+    finite("theta", theta)?;
     if k >= images.views.len() {
         return Err(invalid(
             "view index",
@@ -457,7 +486,11 @@ fn warp_row_into(
     out: &mut [Option<Crossing>],
 ) {
     match method {
-        WarpMethod::Direct => warp_row_direct(images, k, j, theta, xs, out),
+        WarpMethod::Direct => {
+            let v = &images.views[k];
+            let row = &v.geom[j * v.width..(j + 1) * v.width];
+            warp_row_direct_impl(&images.pixel_grid(), row, theta.cos(), theta.sin(), xs, out);
+        }
         WarpMethod::Inverse => {
             let (co, si) = (theta.cos(), theta.sin());
             let v = &images.views[k];
@@ -480,7 +513,7 @@ fn warp_row_into(
 /// `height·width·supersample` rays, two warps each (`O(steps)` inverse, `O(Lx)` per row direct),
 /// rows in parallel.
 ///
-/// Errors: a zero screen size.
+/// Errors: a zero screen size, a non-finite angle.
 pub fn render(
     images: &ParallaxImages,
     alpha: f64,
@@ -499,7 +532,7 @@ pub fn render(
         };
         return render(&coarse, alpha, method, &screen);
     }
-    let [(k1, t1, w1), (k2, t2, w2)] = images.bracketing(alpha);
+    let [(k1, t1, w1), (k2, t2, w2)] = images.bracketing(alpha)?;
     let xs = screen.sample_xs(images.params.cylinder.radius);
     let n = xs.len();
     let mut img = RgbaImage::new(screen.width, screen.height);
@@ -540,7 +573,7 @@ pub fn render(
 /// [`render`]) and the total march steps of both warped views. With bounds of any kind the image
 /// is the same as [`render`]'s at native resolution; only the steps differ.
 ///
-/// Errors: bounds built for other images.
+/// Errors: bounds built for other images, a non-finite angle.
 pub fn render_bounded(
     images: &ParallaxImages,
     bounds: &super::Bounds,
@@ -551,7 +584,7 @@ pub fn render_bounded(
     let p = &images.params;
     let (w, h) = (p.width, p.height);
     let grid = images.pixel_grid();
-    let pair = images.bracketing(alpha);
+    let pair = images.bracketing(alpha)?;
     let mut img = RgbaImage::new(w, h);
     let steps: u64 = img
         .pixels

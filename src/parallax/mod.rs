@@ -8,7 +8,14 @@
 //! ray per pixel as a fragment shader would ([`march`]), combines them ([`render`]), provides two
 //! baselines ([`render_blend_baseline`], [`render_offset_baseline`]), and precomputes per-pixel
 //! **march bounds** ([`build_bounds`]) whose step counts, memory and conservativeness are measured
-//! by [`measure_steps`] and [`dense_sweep`].
+//! by [`measure_steps`] and [`dense_sweep`]; [`render_bounded`] is the shader's path with stored
+//! bounds. Each view carries a mip pyramid ([`ParallaxImages::pyramids`]); a minified impostor
+//! warps a coarser level ([`ParallaxImages::level`], [`RenderParams::mip`]).
+//!
+//! Measured (`altrep parallax --shape truck`, 64², N = 8, 8-bit bounds, 360 angles, every
+//! fragment of the quad, per warped view): mean steps 16.0 (cylinder), 1.98 (zmin/zmax), 1.41
+//! (pair), 1.04 (best c), 0.67 (best c, split θ); zero violations on the dense sweep. See the
+//! closing note of issue 5 for all six shapes and the report's ÷5 / ÷12.
 //!
 //! ## Sign conventions (derived once from data-gen's; SPEC §14 says the report slips)
 //!

@@ -16,6 +16,7 @@ pub mod cli;
 pub mod fit;
 pub mod metrics;
 pub mod mip;
+pub mod parallax;
 
 pub use altrep_data_gen as data_gen;
 pub use altrep_solvers as solvers;

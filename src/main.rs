@@ -22,6 +22,8 @@ enum Command {
     Capture(cli::capture::CaptureArgs),
     /// Benchmark the trilinear least-squares fit: solvers, regularisation λ, quantisation.
     FitBench(cli::fit_bench::FitBenchArgs),
+    /// Images with parallax: march steps per bound type, violations, bytes, and quality vs ground truth.
+    Parallax(cli::parallax::ParallaxArgs),
 }
 
 fn main() {
@@ -30,6 +32,7 @@ fn main() {
         Command::Demo(args) => cli::demo::run(args),
         Command::Capture(args) => cli::capture::run(args),
         Command::FitBench(args) => cli::fit_bench::run(args),
+        Command::Parallax(args) => cli::parallax::run(args),
     };
     if let Err(e) = result {
         eprintln!("altrep: error: {e}");

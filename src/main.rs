@@ -4,7 +4,11 @@ use altrep::cli;
 use clap::{Parser, Subcommand};
 
 #[derive(Parser)]
-#[command(name = "altrep", version, about = "Precompute and fit compact stand-ins for complex geometry")]
+#[command(
+    name = "altrep",
+    version,
+    about = "Precompute and fit compact stand-ins for complex geometry"
+)]
 struct Cli {
     #[command(subcommand)]
     command: Command,

@@ -20,6 +20,8 @@ enum Command {
     Demo(cli::demo::DemoArgs),
     /// Capture N orthographic views (colour, depth, normals) of an OBJ mesh.
     Capture(cli::capture::CaptureArgs),
+    /// Ellipsoid micro-primitives: eigen-solver, filter rules, sin²θ law and octree report.
+    EllipsoidBench(cli::ellipsoid_bench::EllipsoidBenchArgs),
 }
 
 fn main() {
@@ -27,6 +29,7 @@ fn main() {
     let result = match cli.command {
         Command::Demo(args) => cli::demo::run(args),
         Command::Capture(args) => cli::capture::run(args),
+        Command::EllipsoidBench(args) => cli::ellipsoid_bench::run(args),
     };
     if let Err(e) = result {
         eprintln!("altrep: error: {e}");

@@ -1,0 +1,205 @@
+//! `altrep ellipsoid-bench`: the eigen-solver table, the filter-rule table, the sin²θ fit and the
+//! octree report of SPEC §8 (issue 6), printed and optionally written as JSON.
+
+use std::collections::BTreeMap;
+use std::path::PathBuf;
+
+use crate::ellipsoid::FilterRule;
+use crate::ellipsoid::octree::{AnalyticVolume, OctreeParams};
+use crate::ellipsoid::report::{
+    EllipsoidBenchReport, FilterRow, SIN2_THETAS, eigen_table, filter_table, octree_row,
+    report_quadrature, sin2_fits,
+};
+
+use super::CliResult;
+
+/// Arguments of `altrep ellipsoid-bench`.
+#[derive(clap::Args, Debug)]
+pub struct EllipsoidBenchArgs {
+    /// Write the report as JSON to this file.
+    #[arg(long)]
+    pub json: Option<PathBuf>,
+    /// Seed of every random case (rotations, grass jitter, lawn).
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Octree sizes (voxels per side), comma-separated.
+    #[arg(long, value_delimiter = ',', default_value = "128,256")]
+    pub sizes: Vec<usize>,
+    /// Filter rule of the octree's coarser levels.
+    #[arg(long, value_enum, default_value_t = RuleArg::Sggx)]
+    pub rule: RuleArg,
+    /// Timing passes per eigen method (the median is reported).
+    #[arg(long, default_value_t = 21)]
+    pub batches: usize,
+}
+
+/// Filter rule on the command line.
+#[derive(clap::ValueEnum, Clone, Copy, Debug)]
+pub enum RuleArg {
+    /// Weighted mean of Q⁻¹ (the 1995 seed).
+    Seed1995,
+    /// Weighted mean of the SGGX matrix S (Heitz et al. 2015).
+    Sggx,
+}
+
+impl From<RuleArg> for FilterRule {
+    fn from(r: RuleArg) -> Self {
+        match r {
+            RuleArg::Seed1995 => FilterRule::Seed1995,
+            RuleArg::Sggx => FilterRule::Sggx,
+        }
+    }
+}
+
+fn winner_line(rows: &[FilterRow], case: &str) -> Option<String> {
+    let a = rows
+        .iter()
+        .find(|r| r.case == case && r.rule == "seed1995")?;
+    let b = rows.iter().find(|r| r.case == case && r.rule == "sggx")?;
+    let verdict = |name: &str, x: f64, y: f64| {
+        let (w, ratio) = if x <= y {
+            ("seed1995", y / x)
+        } else {
+            ("sggx", x / y)
+        };
+        format!("{name}: {w} ({ratio:.1}x smaller)")
+    };
+    Some(format!(
+        "  {case:<20} {}; {}; {}",
+        verdict("L1", a.l1_error, b.l1_error),
+        verdict("shape", a.l1_shape_error, b.l1_shape_error),
+        verdict("area", a.area_error, b.area_error)
+    ))
+}
+
+/// Runs `altrep ellipsoid-bench`.
+pub fn run(args: EllipsoidBenchArgs) -> CliResult {
+    let eigen = eigen_table(args.seed, args.batches)?;
+    println!("3x3 symmetric eigen-decomposition");
+    println!(
+        "  accuracy: adversarial suite ({} f64 / {} f32 matrices); speed: 4096 random symmetric, single thread, median of {} passes",
+        eigen[0].cases, eigen[2].cases, args.batches
+    );
+    println!(
+        "  {:<14} {:>9} {:>22} {:>18}  worst case",
+        "method", "ns/op", "worst |A-VLV'|/|A|", "worst |V'V-I|"
+    );
+    for r in &eigen {
+        println!(
+            "  {:<14} {:>9.1} {:>22.2e} {:>18.2e}  {}",
+            r.method, r.ns_per_op, r.worst_reconstruction, r.worst_orthogonality, r.worst_case
+        );
+    }
+    println!(
+        "  speed-up over nalgebra: f64 {:.1}x, f32 {:.1}x",
+        eigen[1].ns_per_op / eigen[0].ns_per_op,
+        eigen[3].ns_per_op / eigen[2].ns_per_op
+    );
+
+    let quad = report_quadrature();
+    let filter = filter_table(args.seed, &quad)?;
+    println!();
+    println!(
+        "Filtering k weighted ellipsoids (relative L1 over the sphere; adaptive quadrature base {}, depth {}, tol {:e})",
+        quad.base, quad.max_depth, quad.tolerance
+    );
+    println!(
+        "  {:<20} {:<9} {:>10} {:>10} {:>10}  filtered lengths",
+        "case", "rule", "L1 normals", "L1 shape", "area"
+    );
+    for r in &filter {
+        println!(
+            "  {:<20} {:<9} {:>10.4} {:>10.4} {:>10.4}  ({:.3}, {:.3}, {:.3})",
+            r.case,
+            r.rule,
+            r.l1_error,
+            r.l1_shape_error,
+            r.area_error,
+            r.lengths[0],
+            r.lengths[1],
+            r.lengths[2]
+        );
+    }
+    println!("  winner per case:");
+    let mut cases: Vec<&str> = filter.iter().map(|r| r.case.as_str()).collect();
+    cases.dedup();
+    for c in cases {
+        if let Some(line) = winner_line(&filter, c) {
+            println!("{line}");
+        }
+    }
+
+    let fits = sin2_fits(&quad)?;
+    println!();
+    println!(
+        "sin^2(theta) law (rotated pair, theta = {:?} rad): fitted k in L1 error ~ (sin^2 theta)^k",
+        SIN2_THETAS
+    );
+    let mut sin2_exponent = BTreeMap::new();
+    let mut sin2_points = BTreeMap::new();
+    for f in &fits {
+        let errs: Vec<String> = f.points.iter().map(|(_, e)| format!("{e:.2e}")).collect();
+        println!(
+            "  {:<9} k = {:.3}   (errors {})",
+            f.rule.name(),
+            f.exponent,
+            errs.join(", ")
+        );
+        sin2_exponent.insert(f.rule.name().to_string(), f.exponent);
+        sin2_points.insert(f.rule.name().to_string(), f.points.clone());
+    }
+
+    let params = OctreeParams {
+        rule: args.rule.into(),
+        ..Default::default()
+    };
+    println!();
+    println!(
+        "Octree (rule {}, leaf flatness {}, pruning tolerance {:e}, {} bytes/node)",
+        params.rule.name(),
+        params.leaf_flatness,
+        params.tolerance,
+        std::mem::size_of::<crate::ellipsoid::octree::OctreeNode>()
+    );
+    println!(
+        "  {:<18} {:>9} {:>9} {:>11} {:>12} {:>14} {:>10} {:>9}",
+        "volume", "nodes", "leaves", "compression", "bytes", "dense bytes", "voxelize s", "build s"
+    );
+    let mut octree = Vec::new();
+    for &n in &args.sizes {
+        for volume in [
+            AnalyticVolume::sphere_torus(n),
+            AnalyticVolume::lawn(n, args.seed),
+        ] {
+            let row = octree_row(&volume, &params)?;
+            let r = &row.report;
+            println!(
+                "  {:<18} {:>9} {:>9} {:>10.2}% {:>12} {:>14} {:>10.2} {:>9.2}",
+                r.volume,
+                r.nodes,
+                r.leaves,
+                100.0 * r.compression,
+                r.bytes,
+                r.dense_bytes,
+                row.voxelize_seconds,
+                r.build_seconds
+            );
+            octree.push(row);
+        }
+    }
+
+    if let Some(path) = args.json {
+        let report = EllipsoidBenchReport {
+            eigen,
+            filter,
+            sin2_exponent,
+            sin2_points,
+            octree,
+        };
+        std::fs::write(&path, serde_json::to_string_pretty(&report)?)
+            .map_err(|e| format!("cannot write {}: {e}", path.display()))?;
+        println!();
+        println!("wrote {}", path.display());
+    }
+    Ok(())
+}

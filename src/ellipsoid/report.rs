@@ -1,0 +1,236 @@
+//! The measurements behind `altrep ellipsoid-bench`: eigen-solver speed and accuracy, filter-rule
+//! errors, the sin²θ fit, and octree costs. Each function returns serialisable rows; the CLI only
+//! prints them.
+
+use std::collections::BTreeMap;
+use std::hint::black_box;
+use std::time::Instant;
+
+use nalgebra::Matrix3;
+use serde::Serialize;
+
+use super::eigen::{
+    EigenScalar, SymEigen3, adversarial_suite, adversarial_suite_f32, orthogonality_error,
+    reconstruction_error, sym_eigen3, sym_eigen3_nalgebra,
+};
+use super::error::{EigenError, EllipsoidError};
+use super::filter::{FilterCase, FilterRule, Sin2Fit, filter, filter_errors, fit_sin2_exponent};
+use super::octree::{AnalyticVolume, Octree, OctreeParams, OctreeReport, VoxelGrid};
+use super::quadrature::SphereQuadrature;
+use super::rng::SplitMix64;
+
+/// One row of the eigen table.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct EigenRow {
+    /// Solver and scalar type, e.g. `"altrep f64"`, `"nalgebra f64"`.
+    pub method: String,
+    /// Median time per decomposition over random symmetric matrices, nanoseconds.
+    pub ns_per_op: f64,
+    /// Worst `‖A − VΛVᵀ‖_F/‖A‖_F` over the adversarial suite.
+    pub worst_reconstruction: f64,
+    /// Worst `‖VᵀV − I‖_F` over the adversarial suite.
+    pub worst_orthogonality: f64,
+    /// The case that gave the worst reconstruction.
+    pub worst_case: String,
+    /// Matrices in the suite for this scalar type.
+    pub cases: usize,
+}
+
+type Solver<T> = fn(&Matrix3<T>) -> Result<SymEigen3<T>, EigenError>;
+
+fn accuracy<T: EigenScalar>(
+    suite: &[(String, Matrix3<T>)],
+    solve: Solver<T>,
+) -> Result<(f64, f64, String), EigenError> {
+    let mut worst = (0.0f64, 0.0f64, String::new());
+    for (name, m) in suite {
+        let e = solve(m)?;
+        let r = reconstruction_error(m, &e);
+        let o = orthogonality_error(&e);
+        if r >= worst.0 {
+            worst.0 = r;
+            worst.2 = name.clone();
+        }
+        worst.1 = worst.1.max(o);
+    }
+    Ok(worst)
+}
+
+/// Median over `batches` of the time per call of `solve` on `mats`, in ns.
+fn time_per_op<T: EigenScalar>(mats: &[Matrix3<T>], solve: Solver<T>, batches: usize) -> f64 {
+    let mut times: Vec<f64> = (0..batches.max(1))
+        .map(|_| {
+            let start = Instant::now();
+            for m in mats {
+                let _ = black_box(solve(black_box(m)));
+            }
+            start.elapsed().as_nanos() as f64 / mats.len().max(1) as f64
+        })
+        .collect();
+    times.sort_by(f64::total_cmp);
+    times[times.len() / 2]
+}
+
+/// Random symmetric matrices `R diag(d) Rᵀ` with `d` uniform in [−1, 1] (the timing set; the
+/// adversarial suite holds many diagonal shortcuts and would flatter the timings).
+pub fn timing_set(seed: u64, n: usize) -> Vec<Matrix3<f64>> {
+    let mut rng = SplitMix64::new(seed);
+    (0..n)
+        .map(|_| {
+            let r = rng.rotation();
+            let d = Matrix3::from_diagonal(&nalgebra::Vector3::new(
+                rng.uniform(-1.0, 1.0),
+                rng.uniform(-1.0, 1.0),
+                rng.uniform(-1.0, 1.0),
+            ));
+            let m = r * d * r.transpose();
+            (m + m.transpose()) * 0.5
+        })
+        .collect()
+}
+
+/// The eigen table: this module's solver and nalgebra's `SymmetricEigen`, in `f64` and `f32`.
+/// Accuracy on [`adversarial_suite`] (f32: [`adversarial_suite_f32`]); speed on 4096 random
+/// matrices, median of `batches` passes (single thread). Cost: ~`batches` × 5 ms.
+pub fn eigen_table(seed: u64, batches: usize) -> Result<Vec<EigenRow>, EigenError> {
+    let suite64: Vec<(String, Matrix3<f64>)> = adversarial_suite(seed)
+        .into_iter()
+        .map(|c| (c.name, c.matrix))
+        .collect();
+    let suite32 = adversarial_suite_f32(seed);
+    let t64 = timing_set(seed, 4096);
+    let t32: Vec<Matrix3<f32>> = t64.iter().map(|m| m.map(|x| x as f32)).collect();
+    let mut rows = Vec::new();
+    let methods64: [(&str, Solver<f64>); 2] = [
+        ("altrep f64", sym_eigen3::<f64>),
+        ("nalgebra f64", sym_eigen3_nalgebra::<f64>),
+    ];
+    for (name, solve) in methods64 {
+        let (r, o, case) = accuracy(&suite64, solve)?;
+        rows.push(EigenRow {
+            method: name.into(),
+            ns_per_op: time_per_op(&t64, solve, batches),
+            worst_reconstruction: r,
+            worst_orthogonality: o,
+            worst_case: case,
+            cases: suite64.len(),
+        });
+    }
+    let methods32: [(&str, Solver<f32>); 2] = [
+        ("altrep f32", sym_eigen3::<f32>),
+        ("nalgebra f32", sym_eigen3_nalgebra::<f32>),
+    ];
+    for (name, solve) in methods32 {
+        let (r, o, case) = accuracy(&suite32, solve)?;
+        rows.push(EigenRow {
+            method: name.into(),
+            ns_per_op: time_per_op(&t32, solve, batches),
+            worst_reconstruction: r,
+            worst_orthogonality: o,
+            worst_case: case,
+            cases: suite32.len(),
+        });
+    }
+    Ok(rows)
+}
+
+/// One row of the filter table.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct FilterRow {
+    /// Case name.
+    pub case: String,
+    /// Rule name.
+    pub rule: String,
+    /// Relative L1 error of the normal distribution (see [`super::FilterErrors`]).
+    pub l1_error: f64,
+    /// Relative L1 error of the projected area over directions.
+    pub area_error: f64,
+    /// Scale-free L1 error (both distributions normalised to unit integral).
+    pub l1_shape_error: f64,
+    /// Lengths of the filtered ellipsoid, ascending.
+    pub lengths: [f64; 3],
+}
+
+/// The quadrature used by the report: base 16, depth 9, tolerance 1e-6 on relative errors.
+pub fn report_quadrature() -> SphereQuadrature {
+    SphereQuadrature {
+        base: 16,
+        max_depth: 9,
+        tolerance: 1e-6,
+    }
+}
+
+/// Filter table: every [`FilterCase::standard`] case by both rules. Cost: ~1–5 s.
+pub fn filter_table(seed: u64, quad: &SphereQuadrature) -> Result<Vec<FilterRow>, EllipsoidError> {
+    let mut rows = Vec::new();
+    for case in FilterCase::standard(seed)? {
+        for rule in FilterRule::ALL {
+            let f = filter(&case.ellipsoids, &case.weights, rule)?;
+            let e = filter_errors(&case.ellipsoids, &case.weights, &f, quad)?;
+            let mut l = [f.lengths().x, f.lengths().y, f.lengths().z];
+            l.sort_by(f64::total_cmp);
+            rows.push(FilterRow {
+                case: case.name.clone(),
+                rule: rule.name().into(),
+                l1_error: e.l1_error,
+                area_error: e.area_error,
+                l1_shape_error: e.l1_shape_error,
+                lengths: l,
+            });
+        }
+    }
+    Ok(rows)
+}
+
+/// The angles of the sin²θ fit: 0.01 to 0.16 rad, doubling.
+pub const SIN2_THETAS: [f64; 5] = [0.01, 0.02, 0.04, 0.08, 0.16];
+
+/// The sin²θ fits of both rules over [`SIN2_THETAS`].
+pub fn sin2_fits(quad: &SphereQuadrature) -> Result<Vec<Sin2Fit>, EllipsoidError> {
+    FilterRule::ALL
+        .iter()
+        .map(|&rule| fit_sin2_exponent(rule, &SIN2_THETAS, quad))
+        .collect()
+}
+
+/// One octree measurement: the report plus the time to sample the analytic volume into a grid.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct OctreeRow {
+    /// Seconds to sample the analytic volume into a dense grid (not part of the build).
+    pub voxelize_seconds: f64,
+    /// The build's report (volume name, nodes, compression, bytes, build time, …).
+    #[serde(flatten)]
+    pub report: OctreeReport,
+}
+
+/// Samples `volume` into a [`VoxelGrid`] and builds its octree with `params`.
+/// Memory: the grid takes 32 bytes per voxel (537 MB at 256³) while the build runs.
+pub fn octree_row(
+    volume: &AnalyticVolume,
+    params: &OctreeParams,
+) -> Result<OctreeRow, EllipsoidError> {
+    let start = Instant::now();
+    let grid = VoxelGrid::from_source(volume)?;
+    let voxelize_seconds = start.elapsed().as_secs_f64();
+    let (_octree, mut report) = Octree::build(&grid, params)?;
+    report.volume = format!("{} {}^3", volume.name, volume.n);
+    Ok(OctreeRow {
+        voxelize_seconds,
+        report,
+    })
+}
+
+/// Everything `altrep ellipsoid-bench` prints, as written to `--json`.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct EllipsoidBenchReport {
+    /// Eigen table.
+    pub eigen: Vec<EigenRow>,
+    /// Filter table.
+    pub filter: Vec<FilterRow>,
+    /// `k` of `L1 error ∝ (sin²θ)^k` per rule name (the seed's claim: `k = 1`).
+    pub sin2_exponent: BTreeMap<String, f64>,
+    /// The (θ, L1 error) points behind each fit.
+    pub sin2_points: BTreeMap<String, Vec<(f64, f64)>>,
+    /// Octree rows.
+    pub octree: Vec<OctreeRow>,
+}

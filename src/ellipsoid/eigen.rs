@@ -7,9 +7,9 @@
 //! of J. Kopp, *Efficient numerical diagonalization of hermitian 3×3 matrices* (Int. J. Mod. Phys. C
 //! 19, 2008). Written from the papers' mathematics; no code was ported.
 //!
-//! 1. **Scale.** Multiply `A` by the power of two `2^k` that brings its largest absolute entry into
+//! 1. **Diagonal input** (off-diagonal entries exactly zero): the answer is read off, exactly.
+//! 2. **Scale.** Multiply `A` by the power of two `2^k` that brings its largest absolute entry into
 //!    `[1, 2)` (exact: no rounding), so entries from 1e-300 to 1e300 behave alike.
-//! 2. **Diagonal input** (all off-diagonal squares zero): the answer is read off, exactly.
 //! 3. **Normalise.** `B = (A − qI)/p` with `q = tr(A)/3` and `p² = tr((A − qI)²)/6`, so the
 //!    eigenvalues `β` of `B` satisfy `Σβ = 0`, `Σβ² = 6`, i.e. `β_k = 2 cos(φ + 2πk/3)`
 //!    with `cos 3φ = det(B)/2`.
@@ -215,7 +215,20 @@ pub fn sym_eigen3<T: EigenScalar>(a: &Matrix3<T>) -> Result<SymEigen3<T>, EigenE
         });
     }
 
-    // Step 1: exact power-of-two scaling (two factors so that each stays a normal number).
+    // Step 1: exactly diagonal input: read off, unscaled (scaling could flush a tiny
+    // diagonal entry to zero).
+    let zero = T::zero();
+    let one = T::one();
+    if upper[1].2 == zero && upper[2].2 == zero && upper[4].2 == zero {
+        let pairs = [
+            (upper[0].2, [one, zero, zero]),
+            (upper[3].2, [zero, one, zero]),
+            (upper[5].2, [zero, zero, one]),
+        ];
+        return Ok(assemble(pairs, 0, 0));
+    }
+
+    // Step 2: exact power-of-two scaling (two factors so that each stays a normal number).
     let k = -max_abs.exponent();
     let (k1, k2) = (k / 2, k - k / 2);
     let s = |x: T| x * T::pow2(k1) * T::pow2(k2);
@@ -229,10 +242,8 @@ pub fn sym_eigen3<T: EigenScalar>(a: &Matrix3<T>) -> Result<SymEigen3<T>, EigenE
     ];
 
     let off = c[1] * c[1] + c[2] * c[2] + c[4] * c[4];
-    let zero = T::zero();
-    let one = T::one();
-    let mut pairs: [(T, [T; 3]); 3] = if off == zero {
-        // Step 2: diagonal input, exact.
+    let pairs: [(T, [T; 3]); 3] = if off == zero {
+        // Off-diagonal entries below √(min positive) of the largest: diagonal to working precision.
         [
             (c[0], [one, zero, zero]),
             (c[3], [zero, one, zero]),
@@ -241,8 +252,19 @@ pub fn sym_eigen3<T: EigenScalar>(a: &Matrix3<T>) -> Result<SymEigen3<T>, EigenE
     } else {
         general_case(c)
     };
+    let out = assemble(pairs, k1, k2);
+    if out.values.iter().any(|v| !v.is_finite()) {
+        return Err(EigenError::Overflow {
+            max_abs: max_abs.to_f64(),
+        });
+    }
+    Ok(out)
+}
 
-    // Ascending order (three compare-swaps), then the sign convention.
+/// Sorts (value, vector) pairs ascending, applies the sign convention and undoes the scaling
+/// `2^(k1 + k2)`.
+#[inline(always)]
+fn assemble<T: EigenScalar>(mut pairs: [(T, [T; 3]); 3], k1: i32, k2: i32) -> SymEigen3<T> {
     if pairs[1].0 < pairs[0].0 {
         pairs.swap(0, 1);
     }
@@ -256,19 +278,13 @@ pub fn sym_eigen3<T: EigenScalar>(a: &Matrix3<T>) -> Result<SymEigen3<T>, EigenE
     let mut values = Vector3::zeros();
     let mut vectors = Matrix3::zeros();
     for (i, (lambda, v)) in pairs.iter().enumerate() {
-        let value = *lambda * u1 * u2;
-        if !value.is_finite() {
-            return Err(EigenError::Overflow {
-                max_abs: max_abs.to_f64(),
-            });
-        }
-        values[i] = value;
+        values[i] = *lambda * u1 * u2;
         let v = canonical_sign(*v);
         vectors[(0, i)] = v[0];
         vectors[(1, i)] = v[1];
         vectors[(2, i)] = v[2];
     }
-    Ok(SymEigen3 { values, vectors })
+    SymEigen3 { values, vectors }
 }
 
 /// Steps 3–5 on a scaled matrix with a non-zero off-diagonal part. Returns (eigenvalue, unit

@@ -590,8 +590,8 @@ fn octree_root_is_the_filter_of_all_voxels() {
                     if v.density > 0.0 {
                         let d = f64::from(v.density);
                         rho += d;
-                        for k in 0..3 {
-                            col[k] += d * f64::from(v.color[k]);
+                        for (c, vc) in col.iter_mut().zip(v.color) {
+                            *c += d * f64::from(vc);
                         }
                         let leaf = tree
                             .lookup([x as f64 + 0.5, y as f64 + 0.5, z as f64 + 0.5], 0)
@@ -604,8 +604,8 @@ fn octree_root_is_the_filter_of_all_voxels() {
         }
         let root = tree.nodes()[0];
         assert!((f64::from(root.density) - rho / 32f64.powi(3)).abs() < 1e-6);
-        for k in 0..3 {
-            assert!((f64::from(root.color[k]) - col[k] / rho).abs() < 1e-5);
+        for (rc, c) in root.color.iter().zip(col) {
+            assert!((f64::from(*rc) - c / rho).abs() < 1e-5);
         }
         let expected = filter(&ellipsoids, &weights, rule).unwrap();
         let got = tree.lookup([1.0, 1.0, 1.0], tree.depth()).unwrap();

@@ -5,10 +5,11 @@ use std::collections::BTreeMap;
 use std::path::PathBuf;
 
 use crate::ellipsoid::FilterRule;
+use crate::ellipsoid::SphereQuadrature;
 use crate::ellipsoid::octree::{AnalyticVolume, OctreeParams};
 use crate::ellipsoid::report::{
-    EllipsoidBenchReport, FilterRow, SIN2_THETAS, eigen_table, filter_table, octree_row,
-    report_quadrature, sin2_fits,
+    EigenRow, EllipsoidBenchReport, FilterRow, OctreeRow, SIN2_THETAS, eigen_table, filter_table,
+    octree_row, report_quadrature, sin2_fits,
 };
 
 use super::CliResult;
@@ -31,6 +32,27 @@ pub struct EllipsoidBenchArgs {
     /// Timing passes per eigen method (the median is reported).
     #[arg(long, default_value_t = 21)]
     pub batches: usize,
+    /// Sections to run, comma-separated (default: all).
+    #[arg(
+        long,
+        value_enum,
+        value_delimiter = ',',
+        default_value = "eigen,filter,sin2,octree"
+    )]
+    pub sections: Vec<Section>,
+}
+
+/// A part of the report.
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Section {
+    /// Eigen-solver table.
+    Eigen,
+    /// Filter-rule table.
+    Filter,
+    /// sin²θ fit.
+    Sin2,
+    /// Octree report.
+    Octree,
 }
 
 /// Filter rule on the command line.
@@ -74,6 +96,41 @@ fn winner_line(rows: &[FilterRow], case: &str) -> Option<String> {
 
 /// Runs `altrep ellipsoid-bench`.
 pub fn run(args: EllipsoidBenchArgs) -> CliResult {
+    let on = |s: Section| args.sections.contains(&s);
+    let mut report = EllipsoidBenchReport {
+        eigen: Vec::new(),
+        filter: Vec::new(),
+        sin2_exponent: BTreeMap::new(),
+        sin2_points: BTreeMap::new(),
+        octree: Vec::new(),
+    };
+    if on(Section::Eigen) {
+        report.eigen = print_eigen(&args)?;
+    }
+    let quad = report_quadrature();
+    if on(Section::Filter) {
+        report.filter = print_filter(&args, &quad)?;
+    }
+    if on(Section::Sin2) {
+        (report.sin2_exponent, report.sin2_points) = print_sin2(&quad)?;
+    }
+    if on(Section::Octree) {
+        report.octree = print_octree(&args)?;
+    }
+    if let Some(path) = &args.json {
+        std::fs::write(path, serde_json::to_string_pretty(&report)?)
+            .map_err(|e| format!("cannot write {}: {e}", path.display()))?;
+        println!();
+        println!("wrote {}", path.display());
+    }
+    Ok(())
+}
+
+type Sin2Maps = (BTreeMap<String, f64>, BTreeMap<String, Vec<(f64, f64)>>);
+
+fn print_eigen(
+    args: &EllipsoidBenchArgs,
+) -> Result<Vec<EigenRow>, Box<dyn std::error::Error + Send + Sync>> {
     let eigen = eigen_table(args.seed, args.batches)?;
     println!("3x3 symmetric eigen-decomposition");
     println!(
@@ -91,13 +148,17 @@ pub fn run(args: EllipsoidBenchArgs) -> CliResult {
         );
     }
     println!(
-        "  speed-up over nalgebra: f64 {:.1}x, f32 {:.1}x",
-        eigen[1].ns_per_op / eigen[0].ns_per_op,
-        eigen[3].ns_per_op / eigen[2].ns_per_op
+        "  speed-up over nalgebra (median ratio of interleaved passes): f64 {:.1}x, f32 {:.1}x",
+        eigen[0].speedup_vs_nalgebra, eigen[2].speedup_vs_nalgebra
     );
+    Ok(eigen)
+}
 
-    let quad = report_quadrature();
-    let filter = filter_table(args.seed, &quad)?;
+fn print_filter(
+    args: &EllipsoidBenchArgs,
+    quad: &SphereQuadrature,
+) -> Result<Vec<FilterRow>, Box<dyn std::error::Error + Send + Sync>> {
+    let filter = filter_table(args.seed, quad)?;
     println!();
     println!(
         "Filtering k weighted ellipsoids (relative L1 over the sphere; adaptive quadrature base {}, depth {}, tol {:e})",
@@ -128,8 +189,13 @@ pub fn run(args: EllipsoidBenchArgs) -> CliResult {
             println!("{line}");
         }
     }
+    Ok(filter)
+}
 
-    let fits = sin2_fits(&quad)?;
+fn print_sin2(
+    quad: &SphereQuadrature,
+) -> Result<Sin2Maps, Box<dyn std::error::Error + Send + Sync>> {
+    let fits = sin2_fits(quad)?;
     println!();
     println!(
         "sin^2(theta) law (rotated pair, theta = {:?} rad): fitted k in L1 error ~ (sin^2 theta)^k",
@@ -148,7 +214,12 @@ pub fn run(args: EllipsoidBenchArgs) -> CliResult {
         sin2_exponent.insert(f.rule.name().to_string(), f.exponent);
         sin2_points.insert(f.rule.name().to_string(), f.points.clone());
     }
+    Ok((sin2_exponent, sin2_points))
+}
 
+fn print_octree(
+    args: &EllipsoidBenchArgs,
+) -> Result<Vec<OctreeRow>, Box<dyn std::error::Error + Send + Sync>> {
     let params = OctreeParams {
         rule: args.rule.into(),
         ..Default::default()
@@ -187,19 +258,5 @@ pub fn run(args: EllipsoidBenchArgs) -> CliResult {
             octree.push(row);
         }
     }
-
-    if let Some(path) = args.json {
-        let report = EllipsoidBenchReport {
-            eigen,
-            filter,
-            sin2_exponent,
-            sin2_points,
-            octree,
-        };
-        std::fs::write(&path, serde_json::to_string_pretty(&report)?)
-            .map_err(|e| format!("cannot write {}: {e}", path.display()))?;
-        println!();
-        println!("wrote {}", path.display());
-    }
-    Ok(())
+    Ok(octree)
 }

@@ -26,6 +26,9 @@ pub struct EigenRow {
     pub method: String,
     /// Median time per decomposition over random symmetric matrices, nanoseconds.
     pub ns_per_op: f64,
+    /// nalgebra's time over this method's, same scalar type: median of ratios of interleaved
+    /// passes (robust to machine load); 1 for nalgebra itself.
+    pub speedup_vs_nalgebra: f64,
     /// Worst `‖A − VΛVᵀ‖_F/‖A‖_F` over the adversarial suite.
     pub worst_reconstruction: f64,
     /// Worst `‖VᵀV − I‖_F` over the adversarial suite.
@@ -56,19 +59,37 @@ fn accuracy<T: EigenScalar>(
     Ok(worst)
 }
 
-/// Median over `batches` of the time per call of `solve` on `mats`, in ns.
-fn time_per_op<T: EigenScalar>(mats: &[Matrix3<T>], solve: Solver<T>, batches: usize) -> f64 {
-    let mut times: Vec<f64> = (0..batches.max(1))
-        .map(|_| {
-            let start = Instant::now();
-            for m in mats {
-                let _ = black_box(solve(black_box(m)));
-            }
-            start.elapsed().as_nanos() as f64 / mats.len().max(1) as f64
-        })
-        .collect();
-    times.sort_by(f64::total_cmp);
-    times[times.len() / 2]
+/// Time per call of `solve` on `mats`, in ns (one pass).
+fn one_pass<T: EigenScalar>(mats: &[Matrix3<T>], solve: Solver<T>) -> f64 {
+    let start = Instant::now();
+    for m in mats {
+        let _ = black_box(solve(black_box(m)));
+    }
+    start.elapsed().as_nanos() as f64 / mats.len().max(1) as f64
+}
+
+fn median(mut v: Vec<f64>) -> f64 {
+    v.sort_by(f64::total_cmp);
+    v[v.len() / 2]
+}
+
+/// Interleaved timing of two solvers (pass A, pass B, pass A, …) so both see the same machine
+/// load: (median ns of A, median ns of B, median of the per-pair ratios B/A).
+fn time_pair<T: EigenScalar>(
+    mats: &[Matrix3<T>],
+    a: Solver<T>,
+    b: Solver<T>,
+    batches: usize,
+) -> (f64, f64, f64) {
+    let (mut ta, mut tb, mut ratio) = (Vec::new(), Vec::new(), Vec::new());
+    for _ in 0..batches.max(1) {
+        let x = one_pass(mats, a);
+        let y = one_pass(mats, b);
+        ta.push(x);
+        tb.push(y);
+        ratio.push(y / x);
+    }
+    (median(ta), median(tb), median(ratio))
 }
 
 /// Random symmetric matrices `R diag(d) Rᵀ` with `d` uniform in [−1, 1] (the timing set; the
@@ -91,7 +112,7 @@ pub fn timing_set(seed: u64, n: usize) -> Vec<Matrix3<f64>> {
 
 /// The eigen table: this module's solver and nalgebra's `SymmetricEigen`, in `f64` and `f32`.
 /// Accuracy on [`adversarial_suite`] (f32: [`adversarial_suite_f32`]); speed on 4096 random
-/// matrices, median of `batches` passes (single thread). Cost: ~`batches` × 5 ms.
+/// matrices, median of `batches` interleaved passes (single thread). Cost: ~`batches` × 10 ms.
 pub fn eigen_table(seed: u64, batches: usize) -> Result<Vec<EigenRow>, EigenError> {
     let suite64: Vec<(String, Matrix3<f64>)> = adversarial_suite(seed)
         .into_iter()
@@ -101,30 +122,34 @@ pub fn eigen_table(seed: u64, batches: usize) -> Result<Vec<EigenRow>, EigenErro
     let t64 = timing_set(seed, 4096);
     let t32: Vec<Matrix3<f32>> = t64.iter().map(|m| m.map(|x| x as f32)).collect();
     let mut rows = Vec::new();
-    let methods64: [(&str, Solver<f64>); 2] = [
-        ("altrep f64", sym_eigen3::<f64>),
-        ("nalgebra f64", sym_eigen3_nalgebra::<f64>),
-    ];
-    for (name, solve) in methods64 {
+    let (ours, reference, ratio) =
+        time_pair(&t64, sym_eigen3::<f64>, sym_eigen3_nalgebra::<f64>, batches);
+    for (name, solve, ns, speedup) in [
+        ("altrep f64", sym_eigen3::<f64> as Solver<f64>, ours, ratio),
+        ("nalgebra f64", sym_eigen3_nalgebra::<f64>, reference, 1.0),
+    ] {
         let (r, o, case) = accuracy(&suite64, solve)?;
         rows.push(EigenRow {
             method: name.into(),
-            ns_per_op: time_per_op(&t64, solve, batches),
+            ns_per_op: ns,
+            speedup_vs_nalgebra: speedup,
             worst_reconstruction: r,
             worst_orthogonality: o,
             worst_case: case,
             cases: suite64.len(),
         });
     }
-    let methods32: [(&str, Solver<f32>); 2] = [
-        ("altrep f32", sym_eigen3::<f32>),
-        ("nalgebra f32", sym_eigen3_nalgebra::<f32>),
-    ];
-    for (name, solve) in methods32 {
+    let (ours, reference, ratio) =
+        time_pair(&t32, sym_eigen3::<f32>, sym_eigen3_nalgebra::<f32>, batches);
+    for (name, solve, ns, speedup) in [
+        ("altrep f32", sym_eigen3::<f32> as Solver<f32>, ours, ratio),
+        ("nalgebra f32", sym_eigen3_nalgebra::<f32>, reference, 1.0),
+    ] {
         let (r, o, case) = accuracy(&suite32, solve)?;
         rows.push(EigenRow {
             method: name.into(),
-            ns_per_op: time_per_op(&t32, solve, batches),
+            ns_per_op: ns,
+            speedup_vs_nalgebra: speedup,
             worst_reconstruction: r,
             worst_orthogonality: o,
             worst_case: case,

@@ -1,1 +1,259 @@
-//! Image metrics (being written).
+//! Image metrics against the ground truth: RMSE, PSNR, max error, share of pixels above a
+//! threshold, all with masks for undefined pixels; silhouette IoU.
+//!
+//! Images are [`RgbaImage`]s: linear RGB with premultiplied alpha, values nominally in `[0, 1]`.
+//! Errors are computed over the four premultiplied channels, so a silhouette error counts like a
+//! colour error. PSNR uses a peak of 1: `PSNR = 10·log10(1 / MSE)` dB; identical images give
+//! `f64::INFINITY`.
+
+use altrep_data_gen::RgbaImage;
+use serde::Serialize;
+
+/// What went wrong in a comparison.
+#[derive(Debug, thiserror::Error, PartialEq)]
+pub enum MetricsError {
+    /// The two images differ in size.
+    #[error("image sizes differ: {a:?} vs {b:?}")]
+    SizeMismatch {
+        /// Width and height of the first image.
+        a: (usize, usize),
+        /// Width and height of the second image.
+        b: (usize, usize),
+    },
+    /// The mask does not have one entry per pixel.
+    #[error("mask has {mask} entries for {pixels} pixels")]
+    MaskSize {
+        /// Entries in the mask.
+        mask: usize,
+        /// Pixels in the images.
+        pixels: usize,
+    },
+    /// No pixel is left to compare (empty image or empty mask).
+    #[error("no pixel to compare (empty image or all-false mask)")]
+    NothingToCompare,
+    /// A pixel holds NaN or infinity.
+    #[error("pixel {index} of the {which} image is not finite")]
+    NonFinite {
+        /// `"first"` or `"second"`.
+        which: &'static str,
+        /// Pixel index.
+        index: usize,
+    },
+}
+
+/// Options of [`compare`].
+#[derive(Clone, Copy, Debug, Default)]
+pub struct CompareOptions<'a> {
+    /// Pixels to compare (`true`); `None` compares all.
+    pub mask: Option<&'a [bool]>,
+    /// A pixel is "wrong" when its largest channel error exceeds this (default 0: any error).
+    pub threshold: f32,
+}
+
+/// Error of one image against a reference.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct ImageError {
+    /// Root mean square error over compared channels.
+    pub rmse: f64,
+    /// `10·log10(1/MSE)` dB (infinite for identical images).
+    pub psnr_db: f64,
+    /// Largest absolute channel error.
+    pub max_abs: f64,
+    /// Share of compared pixels whose largest channel error exceeds the threshold.
+    pub share_above: f64,
+    /// Pixels compared.
+    pub pixels: usize,
+}
+
+fn check(a: &RgbaImage, b: &RgbaImage, mask: Option<&[bool]>) -> Result<(), MetricsError> {
+    if (a.width, a.height) != (b.width, b.height) || a.pixels.len() != b.pixels.len() {
+        return Err(MetricsError::SizeMismatch {
+            a: (a.width, a.height),
+            b: (b.width, b.height),
+        });
+    }
+    if let Some(m) = mask
+        && m.len() != a.pixels.len()
+    {
+        return Err(MetricsError::MaskSize {
+            mask: m.len(),
+            pixels: a.pixels.len(),
+        });
+    }
+    for (which, img) in [("first", a), ("second", b)] {
+        if let Some(index) = img
+            .pixels
+            .iter()
+            .position(|p| p.iter().any(|c| !c.is_finite()))
+        {
+            return Err(MetricsError::NonFinite { which, index });
+        }
+    }
+    Ok(())
+}
+
+/// Compares `image` with `reference`. Cost: one pass over the pixels.
+pub fn compare(
+    image: &RgbaImage,
+    reference: &RgbaImage,
+    options: &CompareOptions,
+) -> Result<ImageError, MetricsError> {
+    check(image, reference, options.mask)?;
+    let (mut sum2, mut max_abs, mut above, mut n) = (0.0f64, 0.0f64, 0usize, 0usize);
+    for (k, (p, q)) in image.pixels.iter().zip(&reference.pixels).enumerate() {
+        if options.mask.is_some_and(|m| !m[k]) {
+            continue;
+        }
+        n += 1;
+        let mut worst = 0.0f64;
+        for c in 0..4 {
+            let e = f64::from(p[c] - q[c]).abs();
+            sum2 += e * e;
+            worst = worst.max(e);
+        }
+        max_abs = max_abs.max(worst);
+        above += usize::from(worst > f64::from(options.threshold));
+    }
+    if n == 0 {
+        return Err(MetricsError::NothingToCompare);
+    }
+    let mse = sum2 / (4 * n) as f64;
+    Ok(ImageError {
+        rmse: mse.sqrt(),
+        psnr_db: psnr_from_mse(mse),
+        max_abs,
+        share_above: above as f64 / n as f64,
+        pixels: n,
+    })
+}
+
+/// PSNR in dB for a peak of 1: `10·log10(1/mse)`, infinite when `mse = 0`.
+pub fn psnr_from_mse(mse: f64) -> f64 {
+    if mse <= 0.0 {
+        f64::INFINITY
+    } else {
+        -10.0 * mse.log10()
+    }
+}
+
+/// PSNR of `image` against `reference` over all pixels (see [`compare`]).
+pub fn psnr(image: &RgbaImage, reference: &RgbaImage) -> Result<f64, MetricsError> {
+    compare(image, reference, &CompareOptions::default()).map(|e| e.psnr_db)
+}
+
+/// Silhouette intersection over union: pixels with `alpha > alpha_threshold` form each
+/// silhouette. Two empty silhouettes give 1.
+pub fn silhouette_iou(
+    a: &RgbaImage,
+    b: &RgbaImage,
+    alpha_threshold: f32,
+) -> Result<f64, MetricsError> {
+    check(a, b, None)?;
+    let (mut inter, mut union) = (0usize, 0usize);
+    for (p, q) in a.pixels.iter().zip(&b.pixels) {
+        let (x, y) = (p[3] > alpha_threshold, q[3] > alpha_threshold);
+        inter += usize::from(x && y);
+        union += usize::from(x || y);
+    }
+    Ok(if union == 0 {
+        1.0
+    } else {
+        inter as f64 / union as f64
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn img(pixels: Vec<[f32; 4]>, w: usize) -> RgbaImage {
+        RgbaImage {
+            width: w,
+            height: pixels.len() / w,
+            pixels,
+        }
+    }
+
+    #[test]
+    fn known_errors() {
+        let a = img(vec![[0.0; 4], [1.0; 4]], 2);
+        let b = img(vec![[0.0; 4], [0.5, 1.0, 1.0, 1.0]], 2);
+        let e = compare(
+            &a,
+            &b,
+            &CompareOptions {
+                mask: None,
+                threshold: 0.1,
+            },
+        )
+        .unwrap();
+        // One channel off by 0.5 among 8: MSE = 0.25/8.
+        assert!((e.rmse - (0.25f64 / 8.0).sqrt()).abs() < 1e-12);
+        assert!((e.psnr_db - 10.0 * (8.0f64 / 0.25).log10()).abs() < 1e-9);
+        assert_eq!(e.max_abs, 0.5);
+        assert_eq!(e.share_above, 0.5);
+        // Masking the wrong pixel out leaves identical images.
+        let m = [true, false];
+        let e = compare(
+            &a,
+            &b,
+            &CompareOptions {
+                mask: Some(&m),
+                threshold: 0.0,
+            },
+        )
+        .unwrap();
+        assert_eq!(e.psnr_db, f64::INFINITY);
+        assert_eq!(e.pixels, 1);
+    }
+
+    #[test]
+    fn iou_and_errors() {
+        let a = img(
+            vec![[0.0, 0.0, 0.0, 1.0], [0.0, 0.0, 0.0, 1.0], [0.0; 4]],
+            3,
+        );
+        let b = img(
+            vec![[0.0, 0.0, 0.0, 1.0], [0.0; 4], [0.0, 0.0, 0.0, 1.0]],
+            3,
+        );
+        assert!((silhouette_iou(&a, &b, 0.5).unwrap() - 1.0 / 3.0).abs() < 1e-12);
+        let c = img(vec![[0.0; 4]; 2], 2);
+        assert!(matches!(
+            compare(&a, &c, &CompareOptions::default()),
+            Err(MetricsError::SizeMismatch { .. })
+        ));
+        let m = [false; 3];
+        assert_eq!(
+            compare(
+                &a,
+                &b,
+                &CompareOptions {
+                    mask: Some(&m),
+                    threshold: 0.0
+                }
+            ),
+            Err(MetricsError::NothingToCompare)
+        );
+        let m = [true; 2];
+        assert!(matches!(
+            compare(
+                &a,
+                &b,
+                &CompareOptions {
+                    mask: Some(&m),
+                    threshold: 0.0
+                }
+            ),
+            Err(MetricsError::MaskSize { .. })
+        ));
+        let n = img(vec![[f32::NAN, 0.0, 0.0, 1.0], [0.0; 4], [0.0; 4]], 3);
+        assert!(matches!(
+            psnr(&n, &b),
+            Err(MetricsError::NonFinite {
+                which: "first",
+                index: 0
+            })
+        ));
+    }
+}

@@ -1,1 +1,49 @@
-//! placeholder
+//! # altrep-data-gen — shapes, meshes, ray-cast capture and ground truth
+//!
+//! The first stage of altrep's pipeline: it turns a shape (procedural or an OBJ mesh) into samples
+//! (orthographic views, cylindrical textures, voxel volumes) and renders the ray-cast **ground truth**
+//! that every accuracy figure of the project is measured against.
+//!
+//! ## Conventions (fixed once, here; every other crate refers to them)
+//!
+//! * Object frame: right-handed, **`y` is the vertical axis**. Horizontal angles are measured in the
+//!   x–z plane: [`direction`]`(α) = (cos α, 0, sin α)`.
+//! * Every object lives in a [`BoundingCylinder`] of radius `R` about the `y` axis and height `H`
+//!   (`y ∈ [0, H]`). Procedural shapes are built for `R = 1`, `H = 2`; meshes are normalised into it.
+//! * A **view at angle α** is orthographic and looks along `−d(α)` (the camera sits on the `+d(α)`
+//!   side). Its screen basis is `right(α) = (sin α, 0, −cos α)` ([`screen_right`]), `up = +y`, and
+//!   `right × up = d(α)` (right-handed). A point `p` has screen abscissa `x = p·right(α)`, screen
+//!   ordinate `y = p.y`, and **depth** `z = p·d(α)` (positive toward the camera). For
+//!   `p = r·d(β)`, `x = r·sin(α − β)`.
+//! * Pixel grids cover the cylinder's silhouette `[−R, R] × [0, H]`: pixel `(i, j)` of a
+//!   `W × Hpx` grid has its centre at `x = −R + (i + ½)·2R/W` and `y = H − (j + ½)·H/Hpx`
+//!   (row 0 at the **top**, as in image files). See [`PixelGrid`].
+//! * Stored depths and radii are divided by `R`, so they lie in `[−1, 1]`.
+//! * Colours are linear RGB in `[0, 1]`; images are RGBA with **premultiplied** alpha; files are
+//!   written sRGB-encoded.
+//! * A sample whose ray misses is **undefined** (`None`), never a magic number.
+//! * Every random choice takes a seed ([`SplitMix64`]).
+
+mod capture;
+mod error;
+mod geometry;
+mod image_io;
+mod mesh;
+mod rng;
+mod shape;
+mod shapes;
+mod truth;
+mod volume;
+
+pub use capture::{
+    CylinderParams, Projection, Sample, SampleGrid, ViewParams, capture_cylinder, capture_view,
+};
+pub use error::DataGenError;
+pub use geometry::{BoundingCylinder, Hit, PixelGrid, Ray, direction, screen_right};
+pub use image_io::{RgbaImage, linear_to_srgb, srgb_to_linear};
+pub use mesh::{Mesh, MeshLoadOptions};
+pub use rng::SplitMix64;
+pub use shape::{Albedo, Csg, Part, Primitive, Shape};
+pub use shapes::{SCENE_SHAPES, scene_shape};
+pub use truth::{Light, TruthParams, render_truth};
+pub use volume::{Volume, VoxelParams, voxelize};

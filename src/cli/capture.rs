@@ -1,9 +1,103 @@
-//! `altrep capture` (being written).
+//! `altrep capture` — N orthographic views of an OBJ mesh (or a procedural shape) with colour,
+//! 16-bit depth and normals, and the ray-casting throughput.
+
+use std::path::PathBuf;
+use std::time::Instant;
+
+use altrep_data_gen::{
+    BoundingCylinder, Light, Mesh, MeshLoadOptions, Shape, ViewParams, capture_view, scene_shape,
+};
+use serde_json::json;
+
 use super::CliResult;
+
 /// Arguments of `altrep capture`.
 #[derive(clap::Args, Debug)]
-pub struct CaptureArgs {}
+pub struct CaptureArgs {
+    /// OBJ mesh to capture.
+    #[arg(long, conflicts_with = "shape", required_unless_present = "shape")]
+    pub mesh: Option<PathBuf>,
+    /// Procedural shape to capture instead (sphere, box, torus, capsule, pear, truck, chair, tree, building).
+    #[arg(long)]
+    pub shape: Option<String>,
+    /// Number of views, at angles 2πk/N.
+    #[arg(long, default_value_t = 8, allow_negative_numbers = true, value_parser = clap::value_parser!(u32).range(1..=4096))]
+    pub views: u32,
+    /// Width and height of each view in pixels.
+    #[arg(long, default_value_t = 64, allow_negative_numbers = true, value_parser = clap::value_parser!(u32).range(1..=16384))]
+    pub size: u32,
+    /// Output folder.
+    #[arg(long, default_value = "altrep-out/capture")]
+    pub out: PathBuf,
+}
+
+/// Loads the shape named by `--mesh` or `--shape` (shared by the subcommands that take them).
+pub fn load_shape(
+    mesh: Option<&PathBuf>,
+    shape: Option<&str>,
+) -> Result<Box<dyn Shape>, Box<dyn std::error::Error + Send + Sync>> {
+    match (mesh, shape) {
+        (Some(path), _) => Ok(Box::new(Mesh::load_obj(path, &MeshLoadOptions::default())?)),
+        (None, Some(name)) => Ok(Box::new(scene_shape(name)?)),
+        (None, None) => Err("give --mesh FILE or --shape NAME".into()),
+    }
+}
+
 /// Runs `altrep capture`.
-pub fn run(_args: CaptureArgs) -> CliResult {
-    Err("not built yet".into())
+pub fn run(args: CaptureArgs) -> CliResult {
+    let t_load = Instant::now();
+    let shape = load_shape(args.mesh.as_ref(), args.shape.as_deref())?;
+    let load_ms = t_load.elapsed().as_secs_f64() * 1e3;
+    let cylinder = BoundingCylinder::default();
+    let size = args.size as usize;
+    let n = args.views as usize;
+    std::fs::create_dir_all(&args.out)
+        .map_err(|e| format!("cannot create {}: {e}", args.out.display()))?;
+    let mut capture_s = 0.0;
+    let mut files = Vec::new();
+    for k in 0..n {
+        let angle = std::f64::consts::TAU * k as f64 / n as f64;
+        let t0 = Instant::now();
+        let view = capture_view(
+            shape.as_ref(),
+            &ViewParams {
+                angle,
+                width: size,
+                height: size,
+                cylinder,
+            },
+        )?;
+        capture_s += t0.elapsed().as_secs_f64();
+        let base = args.out.join(format!("view{k:03}"));
+        let colour = base.with_extension("color.png");
+        view.shade(&Light::default()).write_png(&colour)?;
+        let albedo = base.with_extension("albedo.png");
+        view.write_albedo_png(&albedo)?;
+        let normal = base.with_extension("normal.png");
+        view.write_normal_png(&normal)?;
+        let depth = base.with_extension("depth16.png");
+        view.write_depth_png16(&depth)?;
+        files.push(json!({
+            "view": k, "angle_rad": angle, "coverage": view.coverage(),
+            "color": colour, "albedo": albedo, "normal": normal, "depth16": depth,
+        }));
+    }
+    let rays = (n * size * size) as f64;
+    let rps = rays / capture_s;
+    let desc = json!({
+        "shape": shape.name(),
+        "views": n, "size": size,
+        "conventions": "view k looks along -d(2πk/N); depth16: 0 = undefined, 1..65535 maps depth/R in [-1,1]; normal: rgb=(n+1)/2, object frame",
+        "load_ms": load_ms, "rays": rays, "rays_per_second": rps, "files": files,
+    });
+    let json_path = args.out.join("capture.json");
+    std::fs::write(&json_path, serde_json::to_string_pretty(&desc)?)?;
+    println!(
+        "captured {} views of {} at {size}×{size} into {}: {rays:.0} rays in {:.1} ms, {rps:.3e} rays/s (load {load_ms:.0} ms)",
+        n,
+        shape.name(),
+        args.out.display(),
+        capture_s * 1e3
+    );
+    Ok(())
 }

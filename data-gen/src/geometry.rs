@@ -1,0 +1,130 @@
+//! Rays, hits, the bounding cylinder and the view conventions (see the crate docs).
+
+use glam::{DVec3, Vec3};
+
+use crate::error::{DataGenError, finite};
+
+/// Horizontal unit direction at angle `alpha` (radians): `d(α) = (cos α, 0, sin α)`.
+#[inline]
+pub fn direction(alpha: f64) -> DVec3 {
+    DVec3::new(alpha.cos(), 0.0, alpha.sin())
+}
+
+/// Screen "right" vector of the view at angle `alpha`: `(sin α, 0, −cos α)`, so that
+/// `right × y = d(α)` and the screen abscissa of `r·d(β)` is `r·sin(α − β)`.
+#[inline]
+pub fn screen_right(alpha: f64) -> DVec3 {
+    DVec3::new(alpha.sin(), 0.0, -alpha.cos())
+}
+
+/// A ray `origin + t·dir`, `t` in world units (`dir` need not be unit, but every ray data-gen
+/// makes has a unit direction).
+#[derive(Clone, Copy, Debug)]
+pub struct Ray {
+    /// Start point.
+    pub origin: DVec3,
+    /// Direction.
+    pub dir: DVec3,
+}
+
+impl Ray {
+    /// A ray from `origin` along `dir`.
+    pub fn new(origin: DVec3, dir: DVec3) -> Self {
+        Self { origin, dir }
+    }
+    /// The point at parameter `t`.
+    #[inline]
+    pub fn at(&self, t: f64) -> DVec3 {
+        self.origin + t * self.dir
+    }
+}
+
+/// The first intersection of a ray with a shape.
+#[derive(Clone, Copy, Debug)]
+pub struct Hit {
+    /// Ray parameter of the hit.
+    pub t: f64,
+    /// Unit surface normal, facing the incoming ray (`normal · dir ≤ 0`).
+    pub normal: DVec3,
+    /// Linear RGB albedo at the hit.
+    pub albedo: Vec3,
+}
+
+/// The cylinder every object is normalised into: radius `R` about the `y` axis, `y ∈ [0, H]`.
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct BoundingCylinder {
+    /// Radius `R` (world units).
+    pub radius: f64,
+    /// Height `H` (world units).
+    pub height: f64,
+}
+
+impl Default for BoundingCylinder {
+    /// `R = 1`, `H = 2`: the cylinder the procedural shapes are built for.
+    fn default() -> Self {
+        Self {
+            radius: 1.0,
+            height: 2.0,
+        }
+    }
+}
+
+impl BoundingCylinder {
+    /// Checks that both dimensions are finite and positive.
+    pub fn validate(&self) -> Result<(), DataGenError> {
+        finite(self.radius, "cylinder radius", 0)?;
+        finite(self.height, "cylinder height", 1)?;
+        if self.radius <= 0.0 || self.height <= 0.0 {
+            return Err(DataGenError::InvalidParameter {
+                name: "bounding cylinder",
+                value: format!("R={}, H={}", self.radius, self.height),
+                reason: "radius and height must be positive",
+            });
+        }
+        Ok(())
+    }
+}
+
+/// A pixel grid over the cylinder's silhouette `[−R, R] × [0, H]` (see the crate docs).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PixelGrid {
+    /// Columns.
+    pub width: usize,
+    /// Rows (row 0 at the top).
+    pub height: usize,
+    /// The cylinder the grid spans.
+    pub cylinder: BoundingCylinder,
+}
+
+impl PixelGrid {
+    /// Horizontal pixel pitch `δx = 2R / W` (world units).
+    #[inline]
+    pub fn pitch_x(&self) -> f64 {
+        2.0 * self.cylinder.radius / self.width as f64
+    }
+    /// Vertical pixel pitch `δy = H / Hpx` (world units).
+    #[inline]
+    pub fn pitch_y(&self) -> f64 {
+        self.cylinder.height / self.height as f64
+    }
+    /// Screen abscissa of the continuous column coordinate `u` (pixel centres at `i + ½`).
+    #[inline]
+    pub fn x_at(&self, u: f64) -> f64 {
+        -self.cylinder.radius + u * self.pitch_x()
+    }
+    /// Height of the continuous row coordinate `v` (row centres at `j + ½`, row 0 at the top).
+    #[inline]
+    pub fn y_at(&self, v: f64) -> f64 {
+        self.cylinder.height - v * self.pitch_y()
+    }
+    /// Centre of pixel `(i, j)` as (screen x, height y).
+    #[inline]
+    pub fn center(&self, i: usize, j: usize) -> (f64, f64) {
+        (self.x_at(i as f64 + 0.5), self.y_at(j as f64 + 0.5))
+    }
+    /// Continuous column coordinate of screen abscissa `x` (inverse of [`Self::x_at`]).
+    #[inline]
+    pub fn u_of(&self, x: f64) -> f64 {
+        (x + self.cylinder.radius) / self.pitch_x()
+    }
+}

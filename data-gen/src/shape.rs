@@ -1,0 +1,527 @@
+//! The [`Shape`] trait and the procedural constructive solids ([`Csg`]: a union of analytic
+//! primitives, each with an albedo).
+//!
+//! Primitives intersect rays analytically (sphere, box, capsule, capped cylinder) or by sphere
+//! tracing their signed distance with a bisection refinement (torus), to about 1e-9 world units.
+//! Rays are assumed to start outside every primitive (data-gen's rays start outside the bounding
+//! cylinder); a primitive reports the first surface crossing with `t > t_min`.
+
+use glam::{DVec3, Vec3};
+
+use crate::geometry::{Hit, Ray};
+
+/// Anything data-gen can sample: ray intersection, inside test, bounds.
+///
+/// Implemented by [`Csg`] (procedural) and [`crate::Mesh`]. All methods are thread-safe and
+/// called from rayon loops.
+pub trait Shape: Send + Sync {
+    /// A short name for reports.
+    fn name(&self) -> &str;
+    /// First hit of `ray` with `t ∈ (t_min, t_max)`, or `None`.
+    fn intersect(&self, ray: &Ray, t_min: f64, t_max: f64) -> Option<Hit>;
+    /// Whether `p` is inside the solid.
+    fn contains(&self, p: DVec3) -> bool;
+    /// Axis-aligned bounds `(min, max)` of the solid.
+    fn bounds(&self) -> (DVec3, DVec3);
+    /// Linear RGB albedo of the surface nearest to `p` (used by voxelisation).
+    fn albedo_at(&self, p: DVec3) -> Vec3;
+    /// Signed distance to the surface (negative inside), when the shape has one. Used for voxel
+    /// normals; shapes without it get normals from the density gradient.
+    fn sdf(&self, _p: DVec3) -> Option<f64> {
+        None
+    }
+}
+
+/// Surface colour of a procedural part (linear RGB).
+#[derive(Clone, Debug, PartialEq)]
+pub enum Albedo {
+    /// One colour.
+    Solid(Vec3),
+    /// A 3D checkerboard of cubic cells of side `cell` (world units).
+    Checker {
+        /// First colour.
+        a: Vec3,
+        /// Second colour.
+        b: Vec3,
+        /// Cell side.
+        cell: f64,
+    },
+    /// `count` vertical stripes around the `y` axis (alternating by azimuth), which make angular
+    /// warping errors visible.
+    Stripes {
+        /// First colour.
+        a: Vec3,
+        /// Second colour.
+        b: Vec3,
+        /// Number of stripe pairs around the axis.
+        count: u32,
+    },
+    /// A façade: `glass` windows on a `wall`, storeys of height `storey`, windows every `pitch`
+    /// along the horizontal coordinates.
+    Windows {
+        /// Wall colour.
+        wall: Vec3,
+        /// Window colour.
+        glass: Vec3,
+        /// Storey height (world units).
+        storey: f64,
+        /// Window pitch (world units).
+        pitch: f64,
+    },
+}
+
+impl Albedo {
+    /// Colour at point `p`.
+    pub fn at(&self, p: DVec3) -> Vec3 {
+        match self {
+            Albedo::Solid(c) => *c,
+            Albedo::Checker { a, b, cell } => {
+                let k = (p / *cell).floor();
+                if (k.x + k.y + k.z).rem_euclid(2.0) < 0.5 {
+                    *a
+                } else {
+                    *b
+                }
+            }
+            Albedo::Stripes { a, b, count } => {
+                let phi = p.z.atan2(p.x) + std::f64::consts::PI;
+                let s = (phi / std::f64::consts::TAU * f64::from(*count) * 2.0).floor() as i64;
+                if s.rem_euclid(2) == 0 { *a } else { *b }
+            }
+            Albedo::Windows {
+                wall,
+                glass,
+                storey,
+                pitch,
+            } => {
+                let fy = (p.y / storey).fract();
+                let fh = ((p.x + p.z) / pitch).rem_euclid(1.0);
+                if (0.3..0.75).contains(&fy) && (0.25..0.75).contains(&fh) {
+                    *glass
+                } else {
+                    *wall
+                }
+            }
+        }
+    }
+}
+
+/// An analytic solid. Coordinates in world units.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Primitive {
+    /// Ball of `radius` about `center`.
+    Sphere {
+        /// Centre.
+        center: DVec3,
+        /// Radius.
+        radius: f64,
+    },
+    /// Box of half extents `half` about `center`, rotated by `yaw` radians about `+y`.
+    Box {
+        /// Centre.
+        center: DVec3,
+        /// Half extents along the box's own axes.
+        half: DVec3,
+        /// Rotation about `+y` (radians).
+        yaw: f64,
+    },
+    /// Segment `a–b` swept by a ball of `radius`.
+    Capsule {
+        /// First end.
+        a: DVec3,
+        /// Second end.
+        b: DVec3,
+        /// Radius.
+        radius: f64,
+    },
+    /// Cylinder of `radius` about segment `a–b`, with flat caps.
+    Cylinder {
+        /// Centre of the first cap.
+        a: DVec3,
+        /// Centre of the second cap.
+        b: DVec3,
+        /// Radius.
+        radius: f64,
+    },
+    /// Torus about `center` with unit `axis`, ring radius `major`, tube radius `minor`.
+    Torus {
+        /// Centre.
+        center: DVec3,
+        /// Unit axis of revolution.
+        axis: DVec3,
+        /// Distance from the centre to the tube's centre line.
+        major: f64,
+        /// Tube radius.
+        minor: f64,
+    },
+}
+
+/// Rotates `v` about `+y` by `angle` radians (right-handed: a quarter turn takes `+z` to `+x`).
+#[inline]
+fn rot_y(v: DVec3, angle: f64) -> DVec3 {
+    // Standard right-handed rotation about +y: x' = x cos + z sin, z' = −x sin + z cos.
+    let (s, c) = angle.sin_cos();
+    DVec3::new(c * v.x + s * v.z, v.y, -s * v.x + c * v.z)
+}
+
+/// Entry and exit parameters of a ray with an axis-aligned box (local frame), with the entry
+/// face's normal.
+fn slab(o: DVec3, d: DVec3, half: DVec3) -> Option<(f64, f64, DVec3, DVec3)> {
+    let mut t0 = f64::NEG_INFINITY;
+    let mut t1 = f64::INFINITY;
+    let mut n0 = DVec3::ZERO;
+    let mut n1 = DVec3::ZERO;
+    for k in 0..3 {
+        let (ok, dk, hk) = (o[k], d[k], half[k]);
+        if dk.abs() < 1e-300 {
+            if ok.abs() > hk {
+                return None;
+            }
+            continue;
+        }
+        let inv = 1.0 / dk;
+        let (mut ta, mut tb) = ((-hk - ok) * inv, (hk - ok) * inv);
+        let mut na = DVec3::ZERO;
+        na[k] = -1.0;
+        let mut nb = -na;
+        if ta > tb {
+            std::mem::swap(&mut ta, &mut tb);
+            std::mem::swap(&mut na, &mut nb);
+        }
+        if ta > t0 {
+            t0 = ta;
+            n0 = na;
+        }
+        if tb < t1 {
+            t1 = tb;
+            n1 = nb;
+        }
+    }
+    (t0 <= t1).then_some((t0, t1, n0, n1))
+}
+
+/// First root `t > t_min` of the unit-direction ray with a sphere.
+fn sphere_hit(ray: &Ray, center: DVec3, radius: f64, t_min: f64) -> Option<f64> {
+    let oc = ray.origin - center;
+    let b = oc.dot(ray.dir);
+    let c = oc.length_squared() - radius * radius;
+    let disc = b * b - c;
+    if disc < 0.0 {
+        return None;
+    }
+    let s = disc.sqrt();
+    [-b - s, -b + s].into_iter().find(|&t| t > t_min)
+}
+
+/// First hit `t > t_min` of a ray with the lateral surface of the infinite cylinder about
+/// segment `a–b`, restricted to the segment's extent. Returns `(t, normal)`.
+fn tube_hit(ray: &Ray, a: DVec3, b: DVec3, radius: f64, t_min: f64) -> Option<(f64, DVec3)> {
+    let axis = (b - a).normalize();
+    let len = (b - a).length();
+    let oa = ray.origin - a;
+    let d_perp = ray.dir - axis * ray.dir.dot(axis);
+    let o_perp = oa - axis * oa.dot(axis);
+    let qa = d_perp.length_squared();
+    if qa < 1e-300 {
+        return None;
+    }
+    let qb = o_perp.dot(d_perp);
+    let qc = o_perp.length_squared() - radius * radius;
+    let disc = qb * qb - qa * qc;
+    if disc < 0.0 {
+        return None;
+    }
+    let s = disc.sqrt();
+    for t in [(-qb - s) / qa, (-qb + s) / qa] {
+        if t <= t_min {
+            continue;
+        }
+        let h = (ray.at(t) - a).dot(axis);
+        if (0.0..=len).contains(&h) {
+            let p = ray.at(t) - a - axis * h;
+            return Some((t, p / radius));
+        }
+    }
+    None
+}
+
+/// Hit of a ray with the disk of `radius` about `c` with unit normal `n`.
+fn disk_hit(ray: &Ray, c: DVec3, n: DVec3, radius: f64, t_min: f64) -> Option<(f64, DVec3)> {
+    let dn = ray.dir.dot(n);
+    if dn.abs() < 1e-300 {
+        return None;
+    }
+    let t = (c - ray.origin).dot(n) / dn;
+    (t > t_min && (ray.at(t) - c).length_squared() <= radius * radius).then_some((t, n))
+}
+
+fn closest(a: Option<(f64, DVec3)>, b: Option<(f64, DVec3)>) -> Option<(f64, DVec3)> {
+    match (a, b) {
+        (Some(x), Some(y)) => Some(if x.0 <= y.0 { x } else { y }),
+        (x, None) => x,
+        (None, y) => y,
+    }
+}
+
+/// Distance from `p` to segment `a–b`.
+fn segment_distance(p: DVec3, a: DVec3, b: DVec3) -> f64 {
+    let ba = b - a;
+    let h = ((p - a).dot(ba) / ba.length_squared()).clamp(0.0, 1.0);
+    (p - a - ba * h).length()
+}
+
+impl Primitive {
+    /// Signed distance from `p` (negative inside). Exact for every primitive.
+    pub fn sdf(&self, p: DVec3) -> f64 {
+        match *self {
+            Primitive::Sphere { center, radius } => (p - center).length() - radius,
+            Primitive::Box { center, half, yaw } => {
+                let q = rot_y(p - center, -yaw).abs() - half;
+                q.max(DVec3::ZERO).length() + q.max_element().min(0.0)
+            }
+            Primitive::Capsule { a, b, radius } => segment_distance(p, a, b) - radius,
+            Primitive::Cylinder { a, b, radius } => {
+                let axis = (b - a).normalize();
+                let len = (b - a).length();
+                let h = (p - a).dot(axis);
+                let r = (p - a - axis * h).length();
+                let dx = r - radius;
+                let dy = (h - 0.5 * len).abs() - 0.5 * len;
+                DVec3::new(dx.max(0.0), dy.max(0.0), 0.0).length() + dx.max(dy).min(0.0)
+            }
+            Primitive::Torus {
+                center,
+                axis,
+                major,
+                minor,
+            } => {
+                let q = p - center;
+                let h = q.dot(axis);
+                let r = (q - axis * h).length();
+                ((r - major).powi(2) + h * h).sqrt() - minor
+            }
+        }
+    }
+
+    /// Axis-aligned bounds `(min, max)`.
+    pub fn bounds(&self) -> (DVec3, DVec3) {
+        match *self {
+            Primitive::Sphere { center, radius } => (center - radius, center + radius),
+            Primitive::Box { center, half, yaw } => {
+                let (s, c) = yaw.sin_cos();
+                let ex = DVec3::new(
+                    c.abs() * half.x + s.abs() * half.z,
+                    half.y,
+                    s.abs() * half.x + c.abs() * half.z,
+                );
+                (center - ex, center + ex)
+            }
+            Primitive::Capsule { a, b, radius } => (a.min(b) - radius, a.max(b) + radius),
+            Primitive::Cylinder { a, b, radius } => {
+                // A cap disk with unit normal u reaches radius·√(1 − u_k²) along axis k.
+                let u = (b - a).normalize();
+                let ext = radius * (DVec3::ONE - u * u).max(DVec3::ZERO).sqrt();
+                (a.min(b) - ext, a.max(b) + ext)
+            }
+            Primitive::Torus {
+                center,
+                major,
+                minor,
+                ..
+            } => (center - (major + minor), center + (major + minor)),
+        }
+    }
+
+    /// First crossing of the surface along `ray` (unit direction) with `t ∈ (t_min, t_max)`, as
+    /// `(t, outward unit normal)`.
+    pub fn intersect(&self, ray: &Ray, t_min: f64, t_max: f64) -> Option<(f64, DVec3)> {
+        let hit = match *self {
+            Primitive::Sphere { center, radius } => {
+                sphere_hit(ray, center, radius, t_min).map(|t| (t, (ray.at(t) - center) / radius))
+            }
+            Primitive::Box { center, half, yaw } => {
+                let o = rot_y(ray.origin - center, -yaw);
+                let d = rot_y(ray.dir, -yaw);
+                let (t0, t1, n0, n1) = slab(o, d, half)?;
+                if t0 > t_min {
+                    Some((t0, rot_y(n0, yaw)))
+                } else if t1 > t_min {
+                    Some((t1, rot_y(n1, yaw)))
+                } else {
+                    None
+                }
+            }
+            Primitive::Capsule { a, b, radius } => {
+                let cap = |c: DVec3| {
+                    sphere_hit(ray, c, radius, t_min).map(|t| (t, (ray.at(t) - c) / radius))
+                };
+                closest(closest(cap(a), cap(b)), tube_hit(ray, a, b, radius, t_min))
+            }
+            Primitive::Cylinder { a, b, radius } => {
+                let axis = (b - a).normalize();
+                let caps = closest(
+                    disk_hit(ray, a, -axis, radius, t_min),
+                    disk_hit(ray, b, axis, radius, t_min),
+                );
+                closest(caps, tube_hit(ray, a, b, radius, t_min))
+            }
+            Primitive::Torus {
+                center,
+                major,
+                minor,
+                ..
+            } => self.sphere_trace(ray, center, major + minor, t_min, t_max),
+        }?;
+        (hit.0 < t_max).then_some(hit)
+    }
+
+    /// Sphere tracing of the exact SDF inside the bounding ball, then bisection to 1e-12.
+    fn sphere_trace(
+        &self,
+        ray: &Ray,
+        center: DVec3,
+        bound: f64,
+        t_min: f64,
+        t_max: f64,
+    ) -> Option<(f64, DVec3)> {
+        let oc = ray.origin - center;
+        let b = oc.dot(ray.dir);
+        let disc = b * b - (oc.length_squared() - bound * bound);
+        if disc < 0.0 {
+            return None;
+        }
+        let s = disc.sqrt();
+        let mut t = (-b - s).max(t_min);
+        let t_end = (-b + s).min(t_max);
+        let mut prev = t;
+        for _ in 0..4096 {
+            if t > t_end {
+                return None;
+            }
+            let d = self.sdf(ray.at(t));
+            if d < 1e-10 {
+                // The crossing lies in [prev, t]: bisect on the sign of the SDF.
+                let (mut lo, mut hi) = (prev, t);
+                if d > 0.0 {
+                    lo = t;
+                    hi = t;
+                }
+                for _ in 0..60 {
+                    let mid = 0.5 * (lo + hi);
+                    if self.sdf(ray.at(mid)) > 0.0 {
+                        lo = mid
+                    } else {
+                        hi = mid
+                    }
+                }
+                let th = hi;
+                return Some((th, self.numeric_normal(ray.at(th))));
+            }
+            prev = t;
+            t += d.max(1e-7);
+        }
+        None
+    }
+
+    /// Outward unit normal from the SDF gradient (central differences).
+    pub fn numeric_normal(&self, p: DVec3) -> DVec3 {
+        let e = 1e-6;
+        let g = DVec3::new(
+            self.sdf(p + DVec3::X * e) - self.sdf(p - DVec3::X * e),
+            self.sdf(p + DVec3::Y * e) - self.sdf(p - DVec3::Y * e),
+            self.sdf(p + DVec3::Z * e) - self.sdf(p - DVec3::Z * e),
+        );
+        g.normalize_or(DVec3::Y)
+    }
+}
+
+/// One primitive of a [`Csg`] with its colour.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Part {
+    /// The solid.
+    pub primitive: Primitive,
+    /// Its surface colour.
+    pub albedo: Albedo,
+}
+
+/// A union of primitives: the procedural shapes of altrep's scenes.
+///
+/// The first hit of a union is the nearest first hit of its parts (rays start outside), so
+/// intersection is exact. Cost: one primitive test per part per ray.
+#[derive(Clone, Debug)]
+pub struct Csg {
+    name: String,
+    parts: Vec<Part>,
+    bounds: (DVec3, DVec3),
+}
+
+impl Csg {
+    /// A union of `parts` named `name`. An empty union is allowed (it is hit by nothing).
+    pub fn new(name: impl Into<String>, parts: Vec<Part>) -> Self {
+        let bounds = parts.iter().fold(
+            (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)),
+            |(lo, hi), p| {
+                let (a, b) = p.primitive.bounds();
+                (lo.min(a), hi.max(b))
+            },
+        );
+        Self {
+            name: name.into(),
+            parts,
+            bounds,
+        }
+    }
+
+    /// The parts of the union.
+    pub fn parts(&self) -> &[Part] {
+        &self.parts
+    }
+
+    fn nearest_part(&self, p: DVec3) -> Option<(&Part, f64)> {
+        self.parts
+            .iter()
+            .map(|part| (part, part.primitive.sdf(p)))
+            .min_by(|a, b| a.1.total_cmp(&b.1))
+    }
+}
+
+impl Shape for Csg {
+    fn name(&self) -> &str {
+        &self.name
+    }
+
+    fn intersect(&self, ray: &Ray, t_min: f64, t_max: f64) -> Option<Hit> {
+        let mut best: Option<(f64, DVec3, &Part)> = None;
+        for part in &self.parts {
+            let limit = best.map_or(t_max, |b| b.0);
+            if let Some((t, n)) = part.primitive.intersect(ray, t_min, limit) {
+                best = Some((t, n, part));
+            }
+        }
+        best.map(|(t, n, part)| {
+            let normal = if n.dot(ray.dir) > 0.0 { -n } else { n };
+            Hit {
+                t,
+                normal,
+                albedo: part.albedo.at(ray.at(t)),
+            }
+        })
+    }
+
+    fn contains(&self, p: DVec3) -> bool {
+        self.parts.iter().any(|part| part.primitive.sdf(p) < 0.0)
+    }
+
+    fn bounds(&self) -> (DVec3, DVec3) {
+        self.bounds
+    }
+
+    fn albedo_at(&self, p: DVec3) -> Vec3 {
+        self.nearest_part(p)
+            .map_or(Vec3::ZERO, |(part, _)| part.albedo.at(p))
+    }
+
+    fn sdf(&self, p: DVec3) -> Option<f64> {
+        self.nearest_part(p).map(|(_, d)| d)
+    }
+}

@@ -6,7 +6,7 @@ use std::path::PathBuf;
 
 use crate::ellipsoid::FilterRule;
 use crate::ellipsoid::SphereQuadrature;
-use crate::ellipsoid::octree::{AnalyticVolume, OctreeParams};
+use crate::ellipsoid::octree::OctreeParams;
 use crate::ellipsoid::report::{
     EigenRow, EllipsoidBenchReport, FilterRow, OctreeRow, SIN2_THETAS, eigen_table, filter_table,
     octree_row, report_quadrature, sin2_fits,
@@ -23,6 +23,10 @@ pub struct EllipsoidBenchArgs {
     /// Seed of every random case (rotations, grass jitter, lawn).
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
+    /// Octree volumes: altrep-data-gen scene shapes (tree, building, sphere, …) or the analytic
+    /// `lawn` and `sphere-torus`, comma-separated.
+    #[arg(long, value_delimiter = ',', default_value = "tree,building,lawn")]
+    pub volumes: Vec<String>,
     /// Octree sizes (voxels per side), comma-separated.
     #[arg(long, value_delimiter = ',', default_value = "128,256")]
     pub sizes: Vec<usize>,
@@ -238,11 +242,8 @@ fn print_octree(
     );
     let mut octree = Vec::new();
     for &n in &args.sizes {
-        for volume in [
-            AnalyticVolume::sphere_torus(n),
-            AnalyticVolume::lawn(n, args.seed),
-        ] {
-            let row = octree_row(&volume, &params)?;
+        for name in &args.volumes {
+            let row = octree_row(name, n, args.seed, &params)?;
             let r = &row.report;
             println!(
                 "  {:<18} {:>9} {:>9} {:>10.2}% {:>12} {:>14} {:>10.2} {:>9.2}",

@@ -71,6 +71,31 @@ pub trait VoxelSource: Sync {
     fn density(&self, x: usize, y: usize, z: usize) -> f32 {
         self.voxel(x, y, z).density
     }
+    /// Axes along which the volume tiles (neighbours wrap around). Default: none.
+    fn periodic(&self) -> [bool; 3] {
+        [false; 3]
+    }
+}
+
+/// `altrep_data_gen`'s voxelised shapes (density, colour, normal; periodic axes honoured).
+impl VoxelSource for altrep_data_gen::Volume {
+    fn dims(&self) -> [usize; 3] {
+        self.dims
+    }
+    fn voxel(&self, x: usize, y: usize, z: usize) -> Voxel {
+        let i = self.index(x, y, z);
+        Voxel {
+            density: self.density[i],
+            color: self.color[i],
+            normal: self.normal[i].map(|n| n.to_array()),
+        }
+    }
+    fn density(&self, x: usize, y: usize, z: usize) -> f32 {
+        self.density[self.index(x, y, z)]
+    }
+    fn periodic(&self) -> [bool; 3] {
+        self.periodic
+    }
 }
 
 /// A dense voxel grid, index `x + nx (y + ny z)` (the layout of `altrep_data_gen`'s volumes).
@@ -403,18 +428,28 @@ fn leaf<S: VoxelSource + ?Sized>(
         normal = Some(n / len);
     }
     if normal.is_some() && rules.isotropic_interior && density >= 1.0 {
-        let full = |xx: Option<usize>, yy: Option<usize>, zz: Option<usize>| match (xx, yy, zz) {
-            (Some(a), Some(b), Some(c)) if a < dims[0] && b < dims[1] && c < dims[2] => {
-                src.density(a, b, c) >= 1.0
+        let periodic = src.periodic();
+        // Neighbour coordinate along `axis` shifted by ±1, wrapped on periodic axes.
+        let step = |c: usize, axis: usize, up: bool| -> Option<usize> {
+            let n = dims[axis];
+            match (up, periodic[axis]) {
+                (true, _) if c + 1 < n => Some(c + 1),
+                (true, true) => Some(0),
+                (false, _) if c > 0 => Some(c - 1),
+                (false, true) => Some(n - 1),
+                _ => None,
             }
-            _ => false,
         };
-        let interior = full(x.checked_sub(1), Some(y), Some(z))
-            && full(Some(x + 1), Some(y), Some(z))
-            && full(Some(x), y.checked_sub(1), Some(z))
-            && full(Some(x), Some(y + 1), Some(z))
-            && full(Some(x), Some(y), z.checked_sub(1))
-            && full(Some(x), Some(y), Some(z + 1));
+        let p = [x, y, z];
+        let interior = (0..3).all(|axis| {
+            [false, true].iter().all(|&up| {
+                step(p[axis], axis, up).is_some_and(|c| {
+                    let mut q = p;
+                    q[axis] = c;
+                    src.density(q[0], q[1], q[2]) >= 1.0
+                })
+            })
+        });
         if interior {
             normal = None;
         }

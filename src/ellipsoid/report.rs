@@ -228,17 +228,47 @@ pub struct OctreeRow {
     pub report: OctreeReport,
 }
 
-/// Samples `volume` into a [`VoxelGrid`] and builds its octree with `params`.
-/// Memory: the grid takes 32 bytes per voxel (537 MB at 256³) while the build runs.
+/// Voxelises the named volume at `n³` and builds its octree with `params`.
+///
+/// Names: `"lawn"` and `"sphere-torus"` ([`AnalyticVolume`], sampled into a [`VoxelGrid`]), or any
+/// `altrep_data_gen` scene shape (voxelised by `altrep_data_gen::voxelize`, one sample per voxel).
+/// Memory: about 32 bytes per voxel (537 MB at 256³) while the build runs.
 pub fn octree_row(
-    volume: &AnalyticVolume,
+    name: &str,
+    n: usize,
+    seed: u64,
     params: &OctreeParams,
 ) -> Result<OctreeRow, EllipsoidError> {
     let start = Instant::now();
-    let grid = VoxelGrid::from_source(volume)?;
-    let voxelize_seconds = start.elapsed().as_secs_f64();
-    let (_octree, mut report) = Octree::build(&grid, params)?;
-    report.volume = format!("{} {}^3", volume.name, volume.n);
+    let built = match name {
+        "lawn" | "sphere-torus" => {
+            let volume = if name == "lawn" {
+                AnalyticVolume::lawn(n, seed)
+            } else {
+                AnalyticVolume::sphere_torus(n)
+            };
+            let grid = VoxelGrid::from_source(&volume)?;
+            let voxelize_seconds = start.elapsed().as_secs_f64();
+            (voxelize_seconds, Octree::build(&grid, params)?)
+        }
+        _ => {
+            let shape = altrep_data_gen::scene_shape(name)
+                .map_err(|e| EllipsoidError::BadVolume(e.to_string()))?;
+            let vp = altrep_data_gen::VoxelParams {
+                dims: [n; 3],
+                min: glam::DVec3::new(-1.0, 0.0, -1.0),
+                max: glam::DVec3::new(1.0, 2.0, 1.0),
+                periodic: [false; 3],
+                supersample: 1,
+            };
+            let volume = altrep_data_gen::voxelize(&shape, &vp)
+                .map_err(|e| EllipsoidError::BadVolume(e.to_string()))?;
+            let voxelize_seconds = start.elapsed().as_secs_f64();
+            (voxelize_seconds, Octree::build(&volume, params)?)
+        }
+    };
+    let (voxelize_seconds, (_octree, mut report)) = built;
+    report.volume = format!("{name} {n}^3");
     Ok(OctreeRow {
         voxelize_seconds,
         report,

@@ -761,3 +761,66 @@ fn octree_from_data_gen_volume_and_periodic_interiors() {
     let (t, _) = Octree::build(&Full(false), &OctreeParams::default()).unwrap();
     assert!(t.nodes().len() > 1);
 }
+
+#[test]
+fn ellipsoid_bench_cli_writes_the_json_keys() {
+    let dir = tempfile::tempdir().unwrap();
+    let json = dir.path().join("bench.json");
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_altrep"))
+        .args([
+            "ellipsoid-bench",
+            "--sections",
+            "eigen,octree",
+            "--batches",
+            "1",
+            "--sizes",
+            "16",
+            "--volumes",
+            "lawn,sphere",
+            "--json",
+        ])
+        .arg(&json)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    let eigen = v["eigen"].as_array().unwrap();
+    assert_eq!(eigen.len(), 4);
+    for row in eigen {
+        for key in [
+            "method",
+            "ns_per_op",
+            "worst_reconstruction",
+            "worst_orthogonality",
+        ] {
+            assert!(!row[key].is_null(), "eigen.{key}");
+        }
+    }
+    assert!(v["filter"].as_array().unwrap().is_empty());
+    assert!(v["sin2_exponent"].is_object());
+    let octree = v["octree"].as_array().unwrap();
+    assert_eq!(octree.len(), 2);
+    for key in ["volume", "nodes", "compression", "build_seconds", "bytes"] {
+        assert!(!octree[0][key].is_null(), "octree.{key}");
+    }
+    // Bad input: an unknown volume is an error message, not a panic.
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_altrep"))
+        .args([
+            "ellipsoid-bench",
+            "--sections",
+            "octree",
+            "--sizes",
+            "8",
+            "--volumes",
+            "nope",
+        ])
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("nope"));
+}

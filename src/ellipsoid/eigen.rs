@@ -11,12 +11,14 @@
 //! 2. **Scale.** Multiply `A` by the power of two `2^k` that brings its largest absolute entry into
 //!    `[1, 2)` (exact: no rounding), so entries from 1e-300 to 1e300 behave alike.
 //! 3. **Normalise.** `B = (A − qI)/p` with `q = tr(A)/3` and `p² = tr((A − qI)²)/6`, so the
-//!    eigenvalues `β` of `B` satisfy `Σβ = 0`, `Σβ² = 6`, i.e. `β_k = 2 cos(φ + 2πk/3)`
-//!    with `cos 3φ = det(B)/2`.
+//!    eigenvalues `β` of `B` satisfy `Σβ = 0`, `Σβ² = 6`: they are the roots of
+//!    `β³ − 3β − det B` (the closed form is `β_k = 2 cos(φ + 2πk/3)`, `cos 3φ = det(B)/2`).
 //! 4. **One well-separated eigenvector.** If `det(B) ≥ 0` the largest `β` is at least `√3` away from
-//!    the other two, else the smallest is (Eberly's observation). Its eigenvector is the largest of the
-//!    three cross products of rows of `B − βI` — well conditioned because of that gap, whatever the
-//!    other two eigenvalues do. Its eigenvalue is then re-read as the Rayleigh quotient `vᵀBv`.
+//!    the other two, else the smallest is (Eberly's observation). That root lies in `[√3, 2]` (up to
+//!    sign) and is found by Newton's method from a quadratic fit, which replaces `acos` and `cos`.
+//!    Its eigenvector is the largest of the three cross products of rows of `B − βI` — well
+//!    conditioned because of that gap, whatever the other two eigenvalues do. Its eigenvalue is then
+//!    re-read as the Rayleigh quotient `vᵀBv`.
 //! 5. **The other two from an exact 2×2 problem.** Build an orthonormal basis `(u, w)` of `v⊥`,
 //!    project `B` onto it, and diagonalise that 2×2 symmetric matrix with one Jacobi rotation
 //!    (closed form, backward stable). This replaces Eberly's second cross-product step and Kopp's QL
@@ -37,8 +39,8 @@
 //!
 //! # Cost
 //!
-//! One `acos`, one `cos`, four square roots, one division and about 150 flops; no iteration, no
-//! branch on the data except the diagonal shortcut. See `benches/eigen.rs` and
+//! Three or four Newton steps, four square roots, a few divisions and about 200 flops; no
+//! transcendental function, no branch on the data except the diagonal shortcut. See `benches/eigen.rs` and
 //! `altrep ellipsoid-bench` for the time per decomposition against nalgebra's `SymmetricEigen`.
 
 use nalgebra::{Matrix3, RealField, Vector3};
@@ -187,7 +189,7 @@ fn canonical_sign<T: EigenScalar>(v: [T; 3]) -> [T; 3] {
 ///
 /// Errors: [`EigenError::NonFinite`] if an upper-triangle entry is NaN or infinite;
 /// [`EigenError::Overflow`] if an eigenvalue overflows (entries near the largest float).
-/// Cost: constant, about 150 flops plus `acos`, `cos` and four square roots.
+/// Cost: constant, about 200 flops, four square roots and a few divisions.
 pub fn sym_eigen3<T: EigenScalar>(a: &Matrix3<T>) -> Result<SymEigen3<T>, EigenError> {
     let upper = [
         (0, 0, a[(0, 0)]),
@@ -287,6 +289,9 @@ fn assemble<T: EigenScalar>(mut pairs: [(T, [T; 3]); 3], k1: i32, k2: i32) -> Sy
     SymEigen3 { values, vectors }
 }
 
+/// Coefficient of `d²` in the starting guess `r(d) ≈ √3 + d/6 + C2 d²` (exact at `d = 2`).
+const C2: f64 = (2.0 - 1.732_050_807_568_877_2 - 1.0 / 3.0) / 4.0;
+
 /// Steps 3–5 on a scaled matrix with a non-zero off-diagonal part. Returns (eigenvalue, unit
 /// eigenvector) pairs in the scaled units, unsorted.
 #[inline(always)]
@@ -311,14 +316,23 @@ fn general_case<T: EigenScalar>(c: [T; 6]) -> [(T, [T; 3]); 3] {
     ];
     let det_b = b[0] * (b[3] * b[5] - b[4] * b[4]) - b[1] * (b[1] * b[5] - b[4] * b[2])
         + b[2] * (b[1] * b[4] - b[3] * b[2]);
-    let half_det = (det_b / two).max(-one).min(one);
-    let phi = half_det.acos() / three;
-    // Step 4: the eigenvalue farthest from the other two, and its eigenvector.
-    let beta = if half_det >= zero {
-        two * phi.cos()
-    } else {
-        two * (phi + T::lit(2.0 * std::f64::consts::FRAC_PI_3)).cos()
-    };
+    // Step 4: the eigenvalue farthest from the other two, and its eigenvector. The eigenvalues of B
+    // are the roots of β³ − 3β − det B; for det B ≥ 0 the farthest is the largest, r ∈ [√3, 2],
+    // else minus the largest root of β³ − 3β + det B. Newton from a quadratic fit of r(d) (exact
+    // at d = 0 and d = 2, error < 3e-3) converges monotonically (g convex and increasing on
+    // [√3, 2]); three to four steps reach the last ulp — cheaper than acos + cos.
+    let d = det_b.abs().min(two);
+    let mut r = T::lit(3f64.sqrt()) + d * (T::lit(1.0 / 6.0) + d * T::lit(C2));
+    for _ in 0..8 {
+        let g = r * r * r - three * r - d;
+        let gp = three * (r * r - one);
+        let step = g / gp;
+        r -= step;
+        if step.abs() <= T::lit(4.0) * T::default_epsilon() * r {
+            break;
+        }
+    }
+    let beta = if det_b >= zero { r } else { -r };
     let r0 = [b[0] - beta, b[1], b[2]];
     let r1 = [b[1], b[3] - beta, b[4]];
     let r2 = [b[2], b[4], b[5] - beta];

@@ -22,6 +22,8 @@ enum Command {
     Capture(cli::capture::CaptureArgs),
     /// Ellipsoid micro-primitives: eigen-solver, filter rules, sin²θ law and octree report.
     EllipsoidBench(cli::ellipsoid_bench::EllipsoidBenchArgs),
+    /// Benchmark the trilinear least-squares fit: solvers, regularisation λ, quantisation.
+    FitBench(cli::fit_bench::FitBenchArgs),
 }
 
 fn main() {
@@ -30,6 +32,7 @@ fn main() {
         Command::Demo(args) => cli::demo::run(args),
         Command::Capture(args) => cli::capture::run(args),
         Command::EllipsoidBench(args) => cli::ellipsoid_bench::run(args),
+        Command::FitBench(args) => cli::fit_bench::run(args),
     };
     if let Err(e) = result {
         eprintln!("altrep: error: {e}");

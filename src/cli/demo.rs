@@ -58,6 +58,7 @@ pub fn sections() -> Vec<(&'static str, SectionFn)> {
     vec![
         ("captures", captures_section),
         ("parallax", super::parallax::demo_section),
+        ("ellipsoid", super::ellipsoid_bench::demo_section),
     ]
 }
 

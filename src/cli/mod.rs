@@ -3,6 +3,7 @@
 
 pub mod capture;
 pub mod demo;
+pub mod ellipsoid_bench;
 pub mod fit_bench;
 pub mod parallax;
 

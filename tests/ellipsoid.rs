@@ -11,7 +11,7 @@ use altrep::ellipsoid::filter::{FilterCase, fit_sin2_exponent, rotate, rotation_
 use altrep::ellipsoid::octree::{
     AnalyticVolume, Octree, OctreeParams, Voxel, VoxelGrid, VoxelSource,
 };
-use altrep::ellipsoid::rng::SplitMix64;
+use altrep::ellipsoid::rng::{RandomGeometry, SplitMix64};
 use altrep::ellipsoid::{
     EigenError, Ellipsoid, EllipsoidError, FilterRule, Phong, SphereQuadrature, filter,
     filter_errors,
@@ -299,13 +299,13 @@ fn filtering_identical_ellipsoids_returns_that_ellipsoid() {
         let e = triaxial(
             seed,
             [
-                rng.uniform(0.01, 3.0),
-                rng.uniform(0.01, 3.0),
-                rng.uniform(0.01, 3.0),
+                rng.range(0.01, 3.0),
+                rng.range(0.01, 3.0),
+                rng.range(0.01, 3.0),
             ],
         );
         let k = 1 + (seed as usize % 7);
-        let weights: Vec<f64> = (0..k).map(|_| rng.uniform(0.0, 2.0) + 1e-3).collect();
+        let weights: Vec<f64> = (0..k).map(|_| rng.range(0.0, 2.0) + 1e-3).collect();
         for rule in FilterRule::ALL {
             let f = filter(&vec![e; k], &weights, rule).unwrap();
             let (q, qf) = (e.quadratic_form(), f.quadratic_form());

@@ -46,7 +46,7 @@
 use nalgebra::{Matrix3, RealField, Vector3};
 
 use super::error::EigenError;
-use super::rng::SplitMix64;
+use super::rng::{RandomGeometry, SplitMix64};
 
 /// Scalar types the solver runs in (`f32`, `f64`): a real field plus exact power-of-two scaling.
 pub trait EigenScalar: RealField + Copy {
@@ -540,7 +540,7 @@ pub fn adversarial_suite(seed: u64) -> Vec<EigenCase> {
         let mut m = Matrix3::zeros();
         for r in 0..3 {
             for c in r..3 {
-                let x = rng.uniform(-1.0, 1.0);
+                let x = rng.range(-1.0, 1.0);
                 m[(r, c)] = x;
                 m[(c, r)] = x;
             }
@@ -618,9 +618,9 @@ mod tests {
         for _ in 0..200 {
             let r = rng.rotation();
             let d = [
-                rng.uniform(-3.0, -1.0),
-                rng.uniform(0.0, 1.0),
-                rng.uniform(2.0, 5.0),
+                rng.range(-3.0, -1.0),
+                rng.range(0.0, 1.0),
+                rng.range(2.0, 5.0),
             ];
             let a = rotated(&r, d);
             let ours = sym_eigen3(&a).unwrap();

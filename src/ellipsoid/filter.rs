@@ -279,11 +279,11 @@ impl FilterCase {
         let mut ellipsoids = Vec::with_capacity(n);
         let mut weights = Vec::with_capacity(n);
         for _ in 0..n {
-            let tilt = rng.uniform(0.0, 25f64.to_radians());
-            let az = rng.uniform(0.0, std::f64::consts::TAU);
+            let tilt = rng.range(0.0, 25f64.to_radians());
+            let az = rng.range(0.0, std::f64::consts::TAU);
             let axis = Vector3::new(tilt.sin() * az.cos(), tilt.cos(), tilt.sin() * az.sin());
             ellipsoids.push(Ellipsoid::spheroid(axis, 1.0, 0.05)?.normalized()?);
-            weights.push(rng.uniform(0.5, 1.0));
+            weights.push(rng.range(0.5, 1.0));
         }
         Ok(Self {
             name: "grass".into(),

@@ -1011,13 +1011,13 @@ impl AnalyticVolume {
         for i in 0..16 {
             let (gx, gz) = ((i % 4) as f64, (i / 4) as f64);
             let base = [
-                0.125 + 0.25 * gx + rng.uniform(-0.06, 0.06),
+                0.125 + 0.25 * gx + rng.range(-0.06, 0.06),
                 0.08,
-                0.125 + 0.25 * gz + rng.uniform(-0.06, 0.06),
+                0.125 + 0.25 * gz + rng.range(-0.06, 0.06),
             ];
-            let tilt = rng.uniform(0.0, 0.35);
-            let az = rng.uniform(0.0, std::f64::consts::TAU);
-            let h = rng.uniform(0.6, 0.85);
+            let tilt = rng.range(0.0, 0.35);
+            let az = rng.range(0.0, std::f64::consts::TAU);
+            let h = rng.range(0.6, 0.85);
             let tip = [
                 (base[0] + h * tilt.sin() * az.cos()).clamp(0.03, 0.97),
                 base[1] + h * tilt.cos(),

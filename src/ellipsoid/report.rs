@@ -17,7 +17,7 @@ use super::error::{EigenError, EllipsoidError};
 use super::filter::{FilterCase, FilterRule, Sin2Fit, filter, filter_errors, fit_sin2_exponent};
 use super::octree::{AnalyticVolume, Octree, OctreeParams, OctreeReport, VoxelGrid};
 use super::quadrature::SphereQuadrature;
-use super::rng::SplitMix64;
+use super::rng::{RandomGeometry, SplitMix64};
 
 /// One row of the eigen table.
 #[derive(Debug, Clone, PartialEq, Serialize)]
@@ -112,9 +112,9 @@ pub fn timing_set(seed: u64, n: usize) -> Vec<Matrix3<f64>> {
         .map(|_| {
             let r = rng.rotation();
             let d = Matrix3::from_diagonal(&nalgebra::Vector3::new(
-                rng.uniform(-1.0, 1.0),
-                rng.uniform(-1.0, 1.0),
-                rng.uniform(-1.0, 1.0),
+                rng.range(-1.0, 1.0),
+                rng.range(-1.0, 1.0),
+                rng.range(-1.0, 1.0),
             ));
             let m = r * d * r.transpose();
             (m + m.transpose()) * 0.5

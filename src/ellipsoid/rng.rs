@@ -1,45 +1,21 @@
-//! A tiny seeded random generator for reproducible test cases (rotations, jitter).
-//!
-//! The library needs random numbers only to build its own test and benchmark cases; a full `rand`
-//! dependency would be heavier than these 30 lines. SplitMix64 (Steele, Lea & Flood 2014) passes
-//! BigCrush and is the usual seeder of xoshiro generators; it is not cryptographic.
+//! Random rotations and directions for reproducible test cases, drawn from data-gen's seeded
+//! [`SplitMix64`] (the project's one generator).
 
 use nalgebra::{Matrix3, UnitQuaternion, Vector3};
 
-/// SplitMix64: a 64-bit seeded generator. Same seed, same sequence, on every platform.
-#[derive(Clone, Debug)]
-pub struct SplitMix64 {
-    state: u64,
-}
+pub use altrep_data_gen::SplitMix64;
 
-impl SplitMix64 {
-    /// A generator started from `seed`.
-    pub fn new(seed: u64) -> Self {
-        Self { state: seed }
-    }
-
-    /// The next 64 random bits.
-    pub fn next_u64(&mut self) -> u64 {
-        self.state = self.state.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.state;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^ (z >> 31)
-    }
-
-    /// A uniform number in `[0, 1)` with 53 random bits.
-    pub fn next_f64(&mut self) -> f64 {
-        (self.next_u64() >> 11) as f64 * (1.0 / (1u64 << 53) as f64)
-    }
-
-    /// A uniform number in `[lo, hi)`.
-    pub fn uniform(&mut self, lo: f64, hi: f64) -> f64 {
-        lo + (hi - lo) * self.next_f64()
-    }
-
+/// Random rotations and unit vectors from a seeded generator.
+pub trait RandomGeometry {
     /// A rotation drawn uniformly from SO(3) (Shoemake's uniform unit quaternion), as a matrix
     /// whose columns are the rotated x, y, z axes (orthonormal, determinant +1).
-    pub fn rotation(&mut self) -> Matrix3<f64> {
+    fn rotation(&mut self) -> Matrix3<f64>;
+    /// A unit vector drawn uniformly on the sphere.
+    fn unit_vector(&mut self) -> Vector3<f64>;
+}
+
+impl RandomGeometry for SplitMix64 {
+    fn rotation(&mut self) -> Matrix3<f64> {
         let u1 = self.next_f64();
         let u2 = self.next_f64() * std::f64::consts::TAU;
         let u3 = self.next_f64() * std::f64::consts::TAU;
@@ -50,10 +26,9 @@ impl SplitMix64 {
             .into_inner()
     }
 
-    /// A unit vector drawn uniformly on the sphere.
-    pub fn unit_vector(&mut self) -> Vector3<f64> {
-        let z = self.uniform(-1.0, 1.0);
-        let phi = self.uniform(0.0, std::f64::consts::TAU);
+    fn unit_vector(&mut self) -> Vector3<f64> {
+        let z = self.range(-1.0, 1.0);
+        let phi = self.range(0.0, std::f64::consts::TAU);
         let r = (1.0 - z * z).max(0.0).sqrt();
         Vector3::new(r * phi.cos(), r * phi.sin(), z)
     }

@@ -22,8 +22,12 @@ pub fn node_count(cells: usize, periodic: bool) -> usize {
 ///
 /// Node coordinate `u·cells`. Non-periodic: `u` is clamped to `[0, 1]` (a GPU's clamp-to-edge),
 /// and `u = 1` gives `(cells − 1, cells, 1)`. Periodic: `u·cells` is taken modulo `cells`, and
-/// `i1 = (i0 + 1) mod cells`. A NaN `u` gives `t = NaN` (and so a NaN value), never a panic.
+/// `i1 = (i0 + 1) mod cells`. A NaN `u` gives `t = NaN` (and so a NaN value), never a panic;
+/// so does `cells = 0` (an invalid axis), with nodes `(0, 0)`.
 pub fn axis_weight(u: f64, cells: usize, periodic: bool) -> (usize, usize, f64) {
+    if cells == 0 {
+        return (0, 0, f64::NAN);
+    }
     let a = cells as f64;
     if periodic {
         let mut s = (u * a).rem_euclid(a);

@@ -45,6 +45,23 @@ pub fn axis_weight(u: f64, cells: usize, periodic: bool) -> (usize, usize, f64) 
     }
 }
 
+/// [`axis_weight`] of every sample position of `samples`, per axis, for a grid of `cells`
+/// cells: the per-sample work of evaluating a grid at all samples is then one [`TrilinearGrid`]
+/// blend. Cost: `Nx + Ny + Nz` calls.
+pub(crate) fn sample_weights(
+    samples: &SampleGrid,
+    cells: [usize; 3],
+    periodic: [bool; 3],
+) -> [Vec<(usize, usize, f64)>; 3] {
+    [0, 1, 2].map(|a| {
+        samples
+            .coords(a)
+            .iter()
+            .map(|&u| axis_weight(u, cells[a], periodic[a]))
+            .collect()
+    })
+}
+
 /// Samples `d(i, j, k)` of a function on a fine `Nx × Ny × Nz` grid over `[0, 1]³`, each defined
 /// or not.
 ///

@@ -202,28 +202,29 @@ pub struct ErrorStats {
 /// Cost: one pass over the samples and a selection for the percentile.
 pub fn error_stats(samples: &SampleGrid, grid: &TrilinearGrid) -> ErrorStats {
     let [nx, ny, _] = samples.dims();
-    let (cells, periodic) = (grid.cells(), grid.periodic());
-    let w: Vec<Vec<(usize, usize, f64)>> = (0..3)
-        .map(|a| {
-            samples
-                .coords(a)
-                .iter()
-                .map(|&u| axis_weight(u, cells[a], periodic[a]))
-                .collect()
-        })
-        .collect();
-    let mut errors: Vec<f64> = samples
+    let w = grid::sample_weights(samples, grid.cells(), grid.periodic());
+    // Per z-slice: the errors, their sum of squares and their maximum.
+    let slices: Vec<(Vec<f64>, f64, f64)> = samples
         .values()
         .par_chunks(nx * ny)
         .enumerate()
-        .flat_map_iter(|(k, slice)| {
-            let w = &w;
-            slice.iter().enumerate().filter_map(move |(idx, v)| {
-                v.map(|d| (d - grid.blend([w[0][idx % nx], w[1][idx / nx], w[2][k]])).abs())
-            })
+        .map(|(k, slice)| {
+            let mut errs = Vec::with_capacity(slice.len());
+            let (mut ss, mut mx) = (0.0f64, 0.0f64);
+            for (j, row) in slice.chunks_exact(nx).enumerate() {
+                for (i, v) in row.iter().enumerate() {
+                    if let Some(d) = v {
+                        let e = (d - grid.blend([w[0][i], w[1][j], w[2][k]])).abs();
+                        ss += e * e;
+                        mx = mx.max(e);
+                        errs.push(e);
+                    }
+                }
+            }
+            (errs, ss, mx)
         })
         .collect();
-    let count = errors.len();
+    let count: usize = slices.iter().map(|s| s.0.len()).sum();
     if count == 0 {
         return ErrorStats {
             rms: 0.0,
@@ -232,8 +233,12 @@ pub fn error_stats(samples: &SampleGrid, grid: &TrilinearGrid) -> ErrorStats {
             count,
         };
     }
-    let sum_sq: f64 = errors.par_iter().map(|e| e * e).sum();
-    let max = errors.par_iter().cloned().reduce(|| 0.0, f64::max);
+    let sum_sq: f64 = slices.iter().map(|s| s.1).sum();
+    let max = slices.iter().map(|s| s.2).fold(0.0, f64::max);
+    let mut errors = Vec::with_capacity(count);
+    for s in &slices {
+        errors.extend_from_slice(&s.0);
+    }
     let rank = ((0.99 * count as f64).ceil() as usize).clamp(1, count) - 1;
     let (_, p99, _) = errors.select_nth_unstable_by(rank, f64::total_cmp);
     ErrorStats {

@@ -265,7 +265,7 @@ pub struct FitTiming {
     pub evaluation_s: f64,
 }
 
-/// Error after quantising the node values to `bits` bits ([`quantize`]).
+/// Error after quantising the node values to `bits` bits ([`quantize()`]).
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct QuantizedError {
     /// Bits per node value.

@@ -67,15 +67,25 @@ pub struct ImageError {
 
 fn check(a: &RgbaImage, b: &RgbaImage, mask: Option<&[bool]>) -> Result<(), MetricsError> {
     if (a.width, a.height) != (b.width, b.height) || a.pixels.len() != b.pixels.len() {
-        return Err(MetricsError::SizeMismatch { a: (a.width, a.height), b: (b.width, b.height) });
+        return Err(MetricsError::SizeMismatch {
+            a: (a.width, a.height),
+            b: (b.width, b.height),
+        });
     }
     if let Some(m) = mask
         && m.len() != a.pixels.len()
     {
-        return Err(MetricsError::MaskSize { mask: m.len(), pixels: a.pixels.len() });
+        return Err(MetricsError::MaskSize {
+            mask: m.len(),
+            pixels: a.pixels.len(),
+        });
     }
     for (which, img) in [("first", a), ("second", b)] {
-        if let Some(index) = img.pixels.iter().position(|p| p.iter().any(|c| !c.is_finite())) {
+        if let Some(index) = img
+            .pixels
+            .iter()
+            .position(|p| p.iter().any(|c| !c.is_finite()))
+        {
             return Err(MetricsError::NonFinite { which, index });
         }
     }
@@ -83,7 +93,11 @@ fn check(a: &RgbaImage, b: &RgbaImage, mask: Option<&[bool]>) -> Result<(), Metr
 }
 
 /// Compares `image` with `reference`. Cost: one pass over the pixels.
-pub fn compare(image: &RgbaImage, reference: &RgbaImage, options: &CompareOptions) -> Result<ImageError, MetricsError> {
+pub fn compare(
+    image: &RgbaImage,
+    reference: &RgbaImage,
+    options: &CompareOptions,
+) -> Result<ImageError, MetricsError> {
     check(image, reference, options.mask)?;
     let (mut sum2, mut max_abs, mut above, mut n) = (0.0f64, 0.0f64, 0usize, 0usize);
     for (k, (p, q)) in image.pixels.iter().zip(&reference.pixels).enumerate() {
@@ -115,7 +129,11 @@ pub fn compare(image: &RgbaImage, reference: &RgbaImage, options: &CompareOption
 
 /// PSNR in dB for a peak of 1: `10·log10(1/mse)`, infinite when `mse = 0`.
 pub fn psnr_from_mse(mse: f64) -> f64 {
-    if mse <= 0.0 { f64::INFINITY } else { -10.0 * mse.log10() }
+    if mse <= 0.0 {
+        f64::INFINITY
+    } else {
+        -10.0 * mse.log10()
+    }
 }
 
 /// PSNR of `image` against `reference` over all pixels (see [`compare`]).
@@ -125,7 +143,11 @@ pub fn psnr(image: &RgbaImage, reference: &RgbaImage) -> Result<f64, MetricsErro
 
 /// Silhouette intersection over union: pixels with `alpha > alpha_threshold` form each
 /// silhouette. Two empty silhouettes give 1.
-pub fn silhouette_iou(a: &RgbaImage, b: &RgbaImage, alpha_threshold: f32) -> Result<f64, MetricsError> {
+pub fn silhouette_iou(
+    a: &RgbaImage,
+    b: &RgbaImage,
+    alpha_threshold: f32,
+) -> Result<f64, MetricsError> {
     check(a, b, None)?;
     let (mut inter, mut union) = (0usize, 0usize);
     for (p, q) in a.pixels.iter().zip(&b.pixels) {
@@ -133,7 +155,11 @@ pub fn silhouette_iou(a: &RgbaImage, b: &RgbaImage, alpha_threshold: f32) -> Res
         inter += usize::from(x && y);
         union += usize::from(x || y);
     }
-    Ok(if union == 0 { 1.0 } else { inter as f64 / union as f64 })
+    Ok(if union == 0 {
+        1.0
+    } else {
+        inter as f64 / union as f64
+    })
 }
 
 #[cfg(test)]
@@ -141,14 +167,26 @@ mod tests {
     use super::*;
 
     fn img(pixels: Vec<[f32; 4]>, w: usize) -> RgbaImage {
-        RgbaImage { width: w, height: pixels.len() / w, pixels }
+        RgbaImage {
+            width: w,
+            height: pixels.len() / w,
+            pixels,
+        }
     }
 
     #[test]
     fn known_errors() {
         let a = img(vec![[0.0; 4], [1.0; 4]], 2);
         let b = img(vec![[0.0; 4], [0.5, 1.0, 1.0, 1.0]], 2);
-        let e = compare(&a, &b, &CompareOptions { mask: None, threshold: 0.1 }).unwrap();
+        let e = compare(
+            &a,
+            &b,
+            &CompareOptions {
+                mask: None,
+                threshold: 0.1,
+            },
+        )
+        .unwrap();
         // One channel off by 0.5 among 8: MSE = 0.25/8.
         assert!((e.rmse - (0.25f64 / 8.0).sqrt()).abs() < 1e-12);
         assert!((e.psnr_db - 10.0 * (8.0f64 / 0.25).log10()).abs() < 1e-9);
@@ -156,23 +194,66 @@ mod tests {
         assert_eq!(e.share_above, 0.5);
         // Masking the wrong pixel out leaves identical images.
         let m = [true, false];
-        let e = compare(&a, &b, &CompareOptions { mask: Some(&m), threshold: 0.0 }).unwrap();
+        let e = compare(
+            &a,
+            &b,
+            &CompareOptions {
+                mask: Some(&m),
+                threshold: 0.0,
+            },
+        )
+        .unwrap();
         assert_eq!(e.psnr_db, f64::INFINITY);
         assert_eq!(e.pixels, 1);
     }
 
     #[test]
     fn iou_and_errors() {
-        let a = img(vec![[0.0, 0.0, 0.0, 1.0], [0.0, 0.0, 0.0, 1.0], [0.0; 4]], 3);
-        let b = img(vec![[0.0, 0.0, 0.0, 1.0], [0.0; 4], [0.0, 0.0, 0.0, 1.0]], 3);
+        let a = img(
+            vec![[0.0, 0.0, 0.0, 1.0], [0.0, 0.0, 0.0, 1.0], [0.0; 4]],
+            3,
+        );
+        let b = img(
+            vec![[0.0, 0.0, 0.0, 1.0], [0.0; 4], [0.0, 0.0, 0.0, 1.0]],
+            3,
+        );
         assert!((silhouette_iou(&a, &b, 0.5).unwrap() - 1.0 / 3.0).abs() < 1e-12);
         let c = img(vec![[0.0; 4]; 2], 2);
-        assert!(matches!(compare(&a, &c, &CompareOptions::default()), Err(MetricsError::SizeMismatch { .. })));
+        assert!(matches!(
+            compare(&a, &c, &CompareOptions::default()),
+            Err(MetricsError::SizeMismatch { .. })
+        ));
         let m = [false; 3];
-        assert_eq!(compare(&a, &b, &CompareOptions { mask: Some(&m), threshold: 0.0 }), Err(MetricsError::NothingToCompare));
+        assert_eq!(
+            compare(
+                &a,
+                &b,
+                &CompareOptions {
+                    mask: Some(&m),
+                    threshold: 0.0
+                }
+            ),
+            Err(MetricsError::NothingToCompare)
+        );
         let m = [true; 2];
-        assert!(matches!(compare(&a, &b, &CompareOptions { mask: Some(&m), threshold: 0.0 }), Err(MetricsError::MaskSize { .. })));
+        assert!(matches!(
+            compare(
+                &a,
+                &b,
+                &CompareOptions {
+                    mask: Some(&m),
+                    threshold: 0.0
+                }
+            ),
+            Err(MetricsError::MaskSize { .. })
+        ));
         let n = img(vec![[f32::NAN, 0.0, 0.0, 1.0], [0.0; 4], [0.0; 4]], 3);
-        assert!(matches!(psnr(&n, &b), Err(MetricsError::NonFinite { which: "first", index: 0 })));
+        assert!(matches!(
+            psnr(&n, &b),
+            Err(MetricsError::NonFinite {
+                which: "first",
+                index: 0
+            })
+        ));
     }
 }

@@ -32,7 +32,10 @@ pub struct CaptureArgs {
 }
 
 /// Loads the shape named by `--mesh` or `--shape` (shared by the subcommands that take them).
-pub fn load_shape(mesh: Option<&PathBuf>, shape: Option<&str>) -> Result<Box<dyn Shape>, Box<dyn std::error::Error + Send + Sync>> {
+pub fn load_shape(
+    mesh: Option<&PathBuf>,
+    shape: Option<&str>,
+) -> Result<Box<dyn Shape>, Box<dyn std::error::Error + Send + Sync>> {
     match (mesh, shape) {
         (Some(path), _) => Ok(Box::new(Mesh::load_obj(path, &MeshLoadOptions::default())?)),
         (None, Some(name)) => Ok(Box::new(scene_shape(name)?)),
@@ -48,13 +51,22 @@ pub fn run(args: CaptureArgs) -> CliResult {
     let cylinder = BoundingCylinder::default();
     let size = args.size as usize;
     let n = args.views as usize;
-    std::fs::create_dir_all(&args.out).map_err(|e| format!("cannot create {}: {e}", args.out.display()))?;
+    std::fs::create_dir_all(&args.out)
+        .map_err(|e| format!("cannot create {}: {e}", args.out.display()))?;
     let mut capture_s = 0.0;
     let mut files = Vec::new();
     for k in 0..n {
         let angle = std::f64::consts::TAU * k as f64 / n as f64;
         let t0 = Instant::now();
-        let view = capture_view(shape.as_ref(), &ViewParams { angle, width: size, height: size, cylinder })?;
+        let view = capture_view(
+            shape.as_ref(),
+            &ViewParams {
+                angle,
+                width: size,
+                height: size,
+                cylinder,
+            },
+        )?;
         capture_s += t0.elapsed().as_secs_f64();
         let base = args.out.join(format!("view{k:03}"));
         let colour = base.with_extension("color.png");

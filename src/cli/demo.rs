@@ -50,7 +50,8 @@ pub struct DemoSection {
 }
 
 /// Signature of a demo section.
-pub type SectionFn = fn(&DemoContext) -> Result<DemoSection, Box<dyn std::error::Error + Send + Sync>>;
+pub type SectionFn =
+    fn(&DemoContext) -> Result<DemoSection, Box<dyn std::error::Error + Send + Sync>>;
 
 /// The sections of the demo, in order.
 pub fn sections() -> Vec<(&'static str, SectionFn)> {
@@ -61,7 +62,11 @@ pub fn sections() -> Vec<(&'static str, SectionFn)> {
 pub fn run(args: DemoArgs) -> CliResult {
     std::fs::create_dir_all(&args.out)
         .map_err(|e| format!("cannot create output folder {}: {e}", args.out.display()))?;
-    let ctx = DemoContext { out: &args.out, quick: args.quick, light: Light::default() };
+    let ctx = DemoContext {
+        out: &args.out,
+        quick: args.quick,
+        light: Light::default(),
+    };
     let list = sections();
     let bar = ProgressBar::new(list.len() as u64).with_style(
         ProgressStyle::with_template("{bar:30} {pos}/{len} {msg} [{elapsed}]")
@@ -80,7 +85,12 @@ pub fn run(args: DemoArgs) -> CliResult {
         let s = section(&ctx).map_err(|e| format!("demo section '{name}' failed: {e}"))?;
         let ms = t0.elapsed().as_secs_f64() * 1e3;
         report.insert(s.name.clone(), json!({ "wall_ms": ms, "results": s.json }));
-        md += &format!("## {}\n\n{}\n\n_Section wall time: {:.0} ms._\n\n", s.name, s.markdown.trim_end(), ms);
+        md += &format!(
+            "## {}\n\n{}\n\n_Section wall time: {:.0} ms._\n\n",
+            s.name,
+            s.markdown.trim_end(),
+            ms
+        );
         bar.inc(1);
     }
     bar.finish_with_message("done");
@@ -98,7 +108,9 @@ pub const DEMO_SHAPES: &[&str] = &["truck", "pear", "tree", "chair", "building"]
 
 /// Captures and ground truth of the bundled scene: a few views per shape with albedo, normals and
 /// depth, and ground-truth renders beside them.
-fn captures_section(ctx: &DemoContext) -> Result<DemoSection, Box<dyn std::error::Error + Send + Sync>> {
+fn captures_section(
+    ctx: &DemoContext,
+) -> Result<DemoSection, Box<dyn std::error::Error + Send + Sync>> {
     let dir = ctx.out.join("captures");
     let (size, truth_size, k) = if ctx.quick { (32, 64, 2) } else { (64, 128, 4) };
     let cylinder = BoundingCylinder::default();
@@ -113,7 +125,15 @@ fn captures_section(ctx: &DemoContext) -> Result<DemoSection, Box<dyn std::error
         let t0 = Instant::now();
         let mut coverage = 0.0;
         for (v, &angle) in angles.iter().enumerate() {
-            let view = capture_view(&shape, &ViewParams { angle, width: size, height: size, cylinder })?;
+            let view = capture_view(
+                &shape,
+                &ViewParams {
+                    angle,
+                    width: size,
+                    height: size,
+                    cylinder,
+                },
+            )?;
             coverage += view.coverage() / angles.len() as f64;
             view.write_albedo_png(&dir.join(format!("{name}_view{v}_albedo.png")))?;
             view.write_normal_png(&dir.join(format!("{name}_view{v}_normal.png")))?;
@@ -138,7 +158,11 @@ fn captures_section(ctx: &DemoContext) -> Result<DemoSection, Box<dyn std::error
         md += &format!("![{name}](captures/{name}_truth.png) ");
     }
     md += "\n";
-    Ok(DemoSection { name: "captures".into(), json: json!(rows), markdown: md })
+    Ok(DemoSection {
+        name: "captures".into(),
+        json: json!(rows),
+        markdown: md,
+    })
 }
 
 /// A square ground-truth render of `shape` at `angle` (premultiplied linear RGBA).
@@ -150,5 +174,15 @@ pub fn truth_image(
     light: Light,
     cylinder: BoundingCylinder,
 ) -> Result<RgbaImage, altrep_data_gen::DataGenError> {
-    render_truth(shape, &TruthParams { angle, width: size, height: size, supersample, light, cylinder })
+    render_truth(
+        shape,
+        &TruthParams {
+            angle,
+            width: size,
+            height: size,
+            supersample,
+            light,
+            cylinder,
+        },
+    )
 }

@@ -14,6 +14,7 @@
 
 pub mod cli;
 pub mod cylinder;
+pub mod fit;
 pub mod metrics;
 pub mod mip;
 

@@ -21,10 +21,10 @@ pub struct CaptureArgs {
     #[arg(long)]
     pub shape: Option<String>,
     /// Number of views, at angles 2πk/N.
-    #[arg(long, default_value_t = 8, value_parser = clap::value_parser!(u32).range(1..=4096))]
+    #[arg(long, default_value_t = 8, allow_negative_numbers = true, value_parser = clap::value_parser!(u32).range(1..=4096))]
     pub views: u32,
     /// Width and height of each view in pixels.
-    #[arg(long, default_value_t = 64, value_parser = clap::value_parser!(u32).range(1..=16384))]
+    #[arg(long, default_value_t = 64, allow_negative_numbers = true, value_parser = clap::value_parser!(u32).range(1..=16384))]
     pub size: u32,
     /// Output folder.
     #[arg(long, default_value = "altrep-out/capture")]

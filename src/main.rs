@@ -20,6 +20,8 @@ enum Command {
     Demo(cli::demo::DemoArgs),
     /// Capture N orthographic views (colour, depth, normals) of an OBJ mesh.
     Capture(cli::capture::CaptureArgs),
+    /// Cylindrical texture of a mesh or shape: exact and fitted-offset renderers against ground truth.
+    Cylinder(cli::cylinder::CylinderArgs),
 }
 
 fn main() {
@@ -27,6 +29,7 @@ fn main() {
     let result = match cli.command {
         Command::Demo(args) => cli::demo::run(args),
         Command::Capture(args) => cli::capture::run(args),
+        Command::Cylinder(args) => cli::cylinder::run(args),
     };
     if let Err(e) = result {
         eprintln!("altrep: error: {e}");

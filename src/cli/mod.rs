@@ -2,6 +2,7 @@
 //! `clap::Args` struct and a `run` function; `src/main.rs` only dispatches.
 
 pub mod capture;
+pub mod cylinder;
 pub mod demo;
 
 /// Error type of the command-line layer: a message for the user, already formatted.

@@ -59,17 +59,28 @@
 //! `L/2 + 1` sector tests per pixel. Offset texture: `Ax·(Ay + 1)·Aα` coefficients (α periodic),
 //! 2 bytes each at 16 bits.
 
+mod eval;
 pub mod frame;
+mod offset;
 mod render;
 mod texture;
 mod warp;
 
+pub use eval::{
+    EvalParams, EvalReport, MethodRow, OffsetError, SWEEP_GRIDS, SweepRow, evaluate, sweep,
+    sweep_markdown,
+};
+pub use offset::{
+    FitSupport, OffsetMode, OffsetParams, OffsetReport, OffsetSamples, OffsetTexture,
+    SilhouetteMask, sample_offsets,
+};
 pub use render::{CylinderRender, ExactMethod, RenderParams, render_exact};
 pub use texture::{CylindricalTexture, Slice, Texel};
 pub use warp::{DrawOrder, Edge, Fragment, RadiusModel, SliceView};
 
 use altrep_data_gen::{DataGenError, Projection};
 
+use crate::fit::FitError;
 use crate::metrics::MetricsError;
 
 /// What went wrong in building, fitting, rendering or measuring a cylindrical texture.
@@ -78,6 +89,9 @@ pub enum CylinderError {
     /// Capture or ground truth failed.
     #[error(transparent)]
     DataGen(#[from] DataGenError),
+    /// The offset fit failed.
+    #[error(transparent)]
+    Fit(#[from] FitError),
     /// An image comparison failed.
     #[error(transparent)]
     Metrics(#[from] MetricsError),

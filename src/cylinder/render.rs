@@ -78,6 +78,9 @@ pub struct CylinderRender {
     pub sub_height: usize,
     /// Per sub-sample (row-major, row 0 at the top) the visible point, `None` where empty.
     pub fragments: Vec<Option<Fragment>>,
+    /// Per sub-sample the column its fetched offset named, after refinement (fitted renderers
+    /// only; empty for the exact ones), for offset errors.
+    pub named: Vec<Option<f64>>,
     /// Total sector tests of inverse warping or of hybrid refinement (0 for other renderers).
     pub steps: u64,
     /// Total sub-sample writes (direct warping's overdraw; the mesh's depth-test passes).
@@ -132,12 +135,12 @@ pub fn render_exact(
 ) -> Result<CylinderRender, CylinderError> {
     match method {
         ExactMethod::Mesh => render_mesh(texture, params),
-        ExactMethod::Direct(order, model) => render_rows(texture, params, |row, out| {
+        ExactMethod::Direct(order, model) => render_rows(texture, params, false, |row, out, _| {
             let slice = texture.slice_at_height(row.y);
             let view = SliceView::new(&slice, params.angle, model);
             (0, view.direct(row.xs, out, order))
         }),
-        ExactMethod::Inverse(model) => render_rows(texture, params, |row, out| {
+        ExactMethod::Inverse(model) => render_rows(texture, params, false, |row, out, _| {
             let slice = texture.slice_at_height(row.y);
             let view = SliceView::new(&slice, params.angle, model);
             let mut steps = 0u64;
@@ -160,11 +163,13 @@ pub(crate) struct SubRow<'a> {
 }
 
 /// Runs `per_row` on every sub-sample row in parallel, then shades and averages. `per_row`
-/// fills the row's fragments and returns `(steps, writes)`.
+/// fills the row's fragments (and named columns when `track_named`, else it gets an empty
+/// slice) and returns `(steps, writes)`.
 pub(crate) fn render_rows(
     texture: &CylindricalTexture,
     params: &RenderParams,
-    per_row: impl Fn(&SubRow, &mut [Option<Fragment>]) -> (u64, u64) + Sync,
+    track_named: bool,
+    per_row: impl Fn(&SubRow, &mut [Option<Fragment>], &mut [Option<f64>]) -> (u64, u64) + Sync,
 ) -> Result<CylinderRender, CylinderError> {
     params.validate()?;
     let k = params.supersample;
@@ -178,15 +183,22 @@ pub(crate) fn render_rows(
         .map(|i| sub.x_at(i as f64 + 0.5) / radius)
         .collect();
     let mut fragments = vec![None; sub.width * sub.height];
+    let mut named = vec![None; if track_named { fragments.len() } else { 0 }];
+    let mut named_rows: Vec<&mut [Option<f64>]> = if track_named {
+        named.chunks_mut(sub.width).collect()
+    } else {
+        (0..sub.height).map(|_| Default::default()).collect()
+    };
     let (steps, writes) = fragments
         .par_chunks_mut(sub.width)
+        .zip(named_rows.par_iter_mut())
         .enumerate()
-        .map(|(j, out)| {
+        .map(|(j, (out, named))| {
             let row = SubRow {
                 y: sub.y_at(j as f64 + 0.5),
                 xs: &xs,
             };
-            per_row(&row, out)
+            per_row(&row, out, named)
         })
         .reduce(|| (0, 0), |a, b| (a.0 + b.0, a.1 + b.1));
     let image = shade_and_average(&fragments, sub.width, params);
@@ -195,6 +207,7 @@ pub(crate) fn render_rows(
         sub_width: sub.width,
         sub_height: sub.height,
         fragments,
+        named,
         steps,
         writes,
     })
@@ -275,7 +288,7 @@ fn render_mesh(
             })
         })
         .collect();
-    render_rows(texture, params, |row, out| {
+    render_rows(texture, params, false, |row, out, _| {
         // The strip (between vertex rows s and s + 1) that holds this height.
         let v = row_coordinate(row.y, &cyl, rows);
         let s = ((v.floor() + 1.0).max(0.0) as usize).min(rows);

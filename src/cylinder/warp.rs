@@ -227,6 +227,37 @@ impl<'a> SliceView<'a> {
         }
     }
 
+    /// The interval `[lo, hi]` covered by the visible edges (the silhouette's extent), or
+    /// `None` when no edge is visible.
+    pub fn silhouette(&self) -> Option<(f64, f64)> {
+        self.visible
+            .iter()
+            .flatten()
+            .flatten()
+            .fold(None, |acc: Option<(f64, f64)>, v| {
+                Some(acc.map_or((v.lo, v.hi), |(lo, hi)| (lo.min(v.lo), hi.max(v.hi))))
+            })
+    }
+
+    /// A Newton step of the march: for sector `s` crossed in direction `step` (see
+    /// [`RaySectors`]), where abscissa `x` lies along its visible edge (the one whose interval is
+    /// nearest `x`), counted in sectors from the sector's front half-line:
+    /// `t = (x − x_front)/(x_back − x_front)`, `t ∈ [0, 1]` inside this sector, `t ≥ 1` behind
+    /// it. `None` when the sector has no visible edge or the edge is parallel to the screen.
+    pub fn sectors_to(&self, s: usize, x: f64, step: i64) -> Option<f64> {
+        let dist = |v: &VisibleEdge| (v.lo - x).max(x - v.hi).max(0.0);
+        let v = self.visible[s % self.columns()]
+            .iter()
+            .flatten()
+            .min_by(|a, b| dist(a).total_cmp(&dist(b)))?;
+        let (xa, xb) = (self.x(v.edge.a), self.x(v.edge.b));
+        // Column `a` lies on half-line `s`, column `b` on `s + 1`: the front one is `b` when the
+        // march goes down the sectors (right half), `a` otherwise.
+        let (front, back) = if step < 0 { (xb, xa) } else { (xa, xb) };
+        let slope = back - front;
+        (slope != 0.0).then(|| (x - front) / slope)
+    }
+
     /// Inverse warping of one screen sample at abscissa `x` (units of `R`): march the sectors the
     /// ray crosses front to back ([`ray_sectors`]), stop at the first with a visible edge
     /// covering `x`. Returns the fragment (if any) and the number of sectors examined (the cost).

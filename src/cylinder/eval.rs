@@ -23,7 +23,7 @@ use super::offset::{
     OffsetMode, OffsetParams, OffsetReport, OffsetSamples, OffsetTexture, sample_offsets,
 };
 use super::render::{CylinderRender, ExactMethod, RenderParams, render_exact};
-use super::texture::CylindricalTexture;
+use super::texture::{CylindricalTexture, RowPyramid};
 use super::warp::{DrawOrder, RadiusModel};
 use crate::metrics::{CompareOptions, compare, psnr_from_mse, silhouette_iou};
 
@@ -50,6 +50,9 @@ pub struct EvalParams {
     /// Offset jump between neighbouring sub-samples that marks an occlusion boundary (texels).
     /// Default 2.
     pub jump_texels: f64,
+    /// Image sizes of the vertical-minification measurement ([`MinificationRow`]). Default
+    /// `[32, 16, 8]`.
+    pub minify_sizes: Vec<usize>,
     /// The light.
     #[serde(skip)]
     pub light: Light,
@@ -67,6 +70,7 @@ impl Default for EvalParams {
             hybrid_steps: vec![1, 2, 4],
             tolerance_px: 1.0,
             jump_texels: 2.0,
+            minify_sizes: vec![32, 16, 8],
             light: Light::default(),
         }
     }
@@ -183,6 +187,81 @@ pub struct EvalReport {
     pub offset: OffsetReport,
     /// One row per renderer.
     pub rows: Vec<MethodRow>,
+    /// Vertical minification with and without the row pyramid.
+    pub minification: Vec<MinificationRow>,
+}
+
+/// Vertical minification at one image size: exact inverse warping with one sample per pixel (as
+/// a shader draws), from the full texture and from the pyramid level chosen for the size,
+/// against the 4 × 4 supersampled ground truth (MSE averaged over the angles).
+#[derive(Clone, Debug, Serialize)]
+pub struct MinificationRow {
+    /// Image size (pixels, square).
+    pub size: usize,
+    /// Pyramid level chosen ([`RowPyramid::level_for`]).
+    pub level: usize,
+    /// Rows of that level.
+    pub rows: usize,
+    /// PSNR reading level 0 (dB).
+    pub psnr_level0_db: f64,
+    /// PSNR reading the chosen level (dB).
+    pub psnr_pyramid_db: f64,
+}
+
+/// Measures vertical minification (see [`MinificationRow`]). Cost: per size and angle one
+/// ground-truth image (16 rays per pixel) and two inverse warps.
+pub fn minification(
+    shape: &dyn Shape,
+    texture: &CylindricalTexture,
+    params: &EvalParams,
+) -> Result<Vec<MinificationRow>, CylinderError> {
+    let pyramid = RowPyramid::build(texture)?;
+    params
+        .minify_sizes
+        .iter()
+        .map(|&size| {
+            let level = pyramid.level_for(size);
+            let (mut mse0, mut mse) = (0.0, 0.0);
+            for n in 0..params.angles {
+                let angle = (n as f64 + 0.37) * TAU / params.angles as f64;
+                let truth = render_truth(
+                    shape,
+                    &TruthParams {
+                        angle,
+                        width: size,
+                        height: size,
+                        supersample: 4,
+                        light: params.light,
+                        cylinder: texture.cylinder(),
+                    },
+                )?;
+                let p = RenderParams {
+                    angle,
+                    width: size,
+                    height: size,
+                    supersample: 1,
+                    light: params.light,
+                };
+                let m = ExactMethod::Inverse(RadiusModel::General);
+                for (tex, acc) in [(texture, &mut mse0), (&pyramid.levels()[level], &mut mse)] {
+                    let e = compare(
+                        &render_exact(tex, m, &p)?.image,
+                        &truth,
+                        &CompareOptions::default(),
+                    )?;
+                    *acc += e.rmse * e.rmse;
+                }
+            }
+            let a = params.angles.max(1) as f64;
+            Ok(MinificationRow {
+                size,
+                level,
+                rows: pyramid.levels()[level].rows(),
+                psnr_level0_db: psnr_from_mse(mse0 / a),
+                psnr_pyramid_db: psnr_from_mse(mse / a),
+            })
+        })
+        .collect()
 }
 
 impl EvalReport {
@@ -238,6 +317,16 @@ impl EvalReport {
                 r.precompute_ms,
                 r.bytes,
             );
+        }
+        if !self.minification.is_empty() {
+            s += "\nVertical minification (inverse warping, 1 sample per pixel, vs 4×4 truth):\n\n\
+                  | size | level (rows) | PSNR level 0 dB | PSNR pyramid dB |\n|---|---|---|---|\n";
+            for m in &self.minification {
+                s += &format!(
+                    "| {0}² | {1} ({2}) | {3:.2} | {4:.2} |\n",
+                    m.size, m.level, m.rows, m.psnr_level0_db, m.psnr_pyramid_db
+                );
+            }
         }
         s
     }
@@ -480,6 +569,7 @@ pub fn evaluate(shape: &dyn Shape, params: &EvalParams) -> Result<EvalReport, Cy
             offsets.render(&texture, mode, params.tolerance_px, p)
         })?);
     }
+    let minification = minification(shape, &texture, params)?;
     Ok(EvalReport {
         shape: shape.name().to_string(),
         texture_size: [texture.columns(), texture.rows()],
@@ -489,6 +579,7 @@ pub fn evaluate(shape: &dyn Shape, params: &EvalParams) -> Result<EvalReport, Cy
         texture_bytes: tex_bytes,
         offset: offsets.report,
         rows,
+        minification,
     })
 }
 

@@ -67,15 +67,15 @@ mod texture;
 mod warp;
 
 pub use eval::{
-    EvalParams, EvalReport, MethodRow, OffsetError, SWEEP_GRIDS, SweepRow, evaluate, sweep,
-    sweep_markdown,
+    EvalParams, EvalReport, MethodRow, MinificationRow, OffsetError, SWEEP_GRIDS, SweepRow,
+    evaluate, minification, sweep, sweep_markdown,
 };
 pub use offset::{
     FitSupport, OffsetMode, OffsetParams, OffsetReport, OffsetSamples, OffsetTexture,
     SilhouetteMask, sample_offsets,
 };
 pub use render::{CylinderRender, ExactMethod, RenderParams, render_exact};
-pub use texture::{CylindricalTexture, Slice, Texel};
+pub use texture::{CylindricalTexture, RowPyramid, Slice, Texel};
 pub use warp::{DrawOrder, Edge, Fragment, RadiusModel, SliceView};
 
 use altrep_data_gen::{DataGenError, Projection};
@@ -89,6 +89,9 @@ pub enum CylinderError {
     /// Capture or ground truth failed.
     #[error(transparent)]
     DataGen(#[from] DataGenError),
+    /// The row pyramid could not be built.
+    #[error(transparent)]
+    Mip(#[from] crate::mip::MipError),
     /// The offset fit failed.
     #[error(transparent)]
     Fit(#[from] FitError),

@@ -338,6 +338,99 @@ impl CylindricalTexture {
     }
 }
 
+/// Channels per texel in the row pyramid: per sign, coverage and coverage-weighted radius,
+/// albedo and normal.
+const PYRAMID_CHANNELS: usize = 16;
+
+/// Vertical minification (SPEC §6, §10): the rows of a texture as a mip pyramid built by
+/// [`crate::mip`] (exact area-weighted box, clamp at the top and bottom). Columns are kept: they
+/// are the capture angles, which the warps need.
+///
+/// How the pyramid is built with the foundation's 2D pyramid: the texture becomes a `1 × Ly`
+/// image whose texel is a whole row (`16·L` channels); halving a width of 1 keeps it 1, so the
+/// levels halve the rows only. A texel carries, separately for positive and negative radii,
+/// its coverage `w` (1 where defined with that sign) and `w·r`, `w·albedo`, `w·normal`. A coarse
+/// texel is defined when the sign with the larger coverage covers at least half its footprint;
+/// its values are that sign's coverage-weighted means, so radii of both signs are never
+/// averaged into a point near the axis.
+#[derive(Clone, Debug)]
+pub struct RowPyramid {
+    levels: Vec<CylindricalTexture>,
+}
+
+impl RowPyramid {
+    /// Builds the pyramid of `texture` (level 0 is the texture itself). Cost: about
+    /// `2·16·L·Ly` multiply-adds per level.
+    pub fn build(texture: &CylindricalTexture) -> Result<Self, CylinderError> {
+        let (l, rows) = (texture.columns, texture.rows);
+        let mut data = vec![0.0f32; rows * l * PYRAMID_CHANNELS];
+        for (t, out) in texture.texels.iter().zip(data.chunks_mut(PYRAMID_CHANNELS)) {
+            if let Some(t) = t {
+                let o = if t.is_negative() { 8 } else { 0 };
+                out[o] = 1.0;
+                out[o + 1] = t.radius;
+                out[o + 2..o + 5].copy_from_slice(&t.albedo.to_array());
+                out[o + 5..o + 8].copy_from_slice(&t.normal.to_array());
+            }
+        }
+        let base = crate::mip::Texture::new(1, rows, l * PYRAMID_CHANNELS, data)?;
+        let pyramid = crate::mip::Pyramid::build(
+            base,
+            crate::mip::PyramidParams {
+                wrap: [crate::mip::WrapMode::Clamp; 2],
+                ..Default::default()
+            },
+        )?;
+        let levels = pyramid
+            .levels()
+            .iter()
+            .map(|level| {
+                let texels = level
+                    .data
+                    .chunks(PYRAMID_CHANNELS)
+                    .map(|c| {
+                        let o = if c[8] > c[0] { 8 } else { 0 };
+                        let w = c[o];
+                        (w >= 0.5).then(|| Texel {
+                            radius: c[o + 1] / w,
+                            albedo: Vec3::from_slice(&c[o + 2..o + 5]) / w,
+                            normal: Vec3::from_slice(&c[o + 5..o + 8]) / w,
+                        })
+                    })
+                    .collect();
+                CylindricalTexture {
+                    columns: l,
+                    rows: level.height,
+                    cylinder: texture.cylinder,
+                    texels,
+                }
+            })
+            .collect();
+        Ok(Self { levels })
+    }
+
+    /// The levels, finest first (`Ly`, `Ly/2`, … rows, down to 1).
+    pub fn levels(&self) -> &[CylindricalTexture] {
+        &self.levels
+    }
+
+    /// The level for an image that samples `screen_rows` rows over the cylinder's height:
+    /// `round(log2(Ly / screen_rows))` (Heckbert's `D` of [`crate::mip`] for the rows, nearest
+    /// level), clamped to the pyramid.
+    pub fn level_for(&self, screen_rows: usize) -> usize {
+        let d = self.levels[0].rows as f64 / screen_rows.max(1) as f64;
+        (d.log2().round().max(0.0) as usize).min(self.levels.len() - 1)
+    }
+
+    /// Bytes of all levels as stored (8 per texel).
+    pub fn storage_bytes(&self) -> usize {
+        self.levels
+            .iter()
+            .map(CylindricalTexture::storage_bytes)
+            .sum()
+    }
+}
+
 fn check_prefilter(prefilter: usize) -> Result<(), CylinderError> {
     if prefilter % 2 == 0 {
         return Err(CylinderError::InvalidParameter {
@@ -383,6 +476,37 @@ impl Slice {
 mod tests {
     use super::*;
     use altrep_data_gen::{Sample, SampleGrid};
+
+    #[test]
+    fn row_pyramid_halves_rows_and_keeps_signs_apart() {
+        let g = grid(
+            4,
+            vec![
+                Some(0.2),
+                Some(0.4),
+                None,
+                Some(-0.5),
+                Some(0.6),
+                None,
+                None,
+                Some(0.5),
+            ],
+        );
+        let t = CylindricalTexture::from_samples(&g).unwrap();
+        let p = RowPyramid::build(&t).unwrap();
+        assert_eq!(p.levels().len(), 2);
+        let top = &p.levels()[1];
+        assert_eq!((top.columns(), top.rows()), (4, 1));
+        assert!((top.get(0, 0).unwrap().radius - 0.4).abs() < 1e-6);
+        // Half covered: kept.
+        assert!((top.get(1, 0).unwrap().radius - 0.4).abs() < 1e-6);
+        assert!(top.get(2, 0).is_none());
+        // One negative, one positive: a tie, the positive wins; never their mean 0.
+        assert!((top.get(3, 0).unwrap().radius - 0.5).abs() < 1e-6);
+        assert_eq!(p.level_for(2), 0);
+        assert_eq!(p.level_for(1), 1);
+        assert_eq!(p.storage_bytes(), 64 + 32);
+    }
 
     fn grid(width: usize, samples: Vec<Option<f32>>) -> SampleGrid {
         let height = samples.len() / width;

@@ -8,6 +8,7 @@
 
 use glam::{DVec3, Vec3};
 
+use crate::error::DataGenError;
 use crate::geometry::{Hit, Ray};
 
 /// Anything data-gen can sample: ray intersection, inside test, bounds.
@@ -271,6 +272,58 @@ fn segment_distance(p: DVec3, a: DVec3, b: DVec3) -> f64 {
 }
 
 impl Primitive {
+    /// Checks that every coordinate is finite, radii and half extents are positive, segments
+    /// have distinct ends and a torus axis is non-zero. Degenerate primitives are rejected here
+    /// so that intersection and distance never see them.
+    pub fn validate(&self) -> Result<(), DataGenError> {
+        let bad = |reason: &'static str| {
+            Err(DataGenError::InvalidParameter {
+                name: "primitive",
+                value: format!("{self:?}"),
+                reason,
+            })
+        };
+        let finite3 = |v: DVec3| v.is_finite();
+        match *self {
+            Primitive::Sphere { center, radius } => {
+                if !finite3(center) || !radius.is_finite() || radius <= 0.0 {
+                    return bad("a sphere needs a finite centre and a positive radius");
+                }
+            }
+            Primitive::Box { center, half, yaw } => {
+                if !finite3(center)
+                    || !finite3(half)
+                    || !yaw.is_finite()
+                    || half.min_element() <= 0.0
+                {
+                    return bad("a box needs finite values and positive half extents");
+                }
+            }
+            Primitive::Capsule { a, b, radius } | Primitive::Cylinder { a, b, radius } => {
+                if !finite3(a) || !finite3(b) || !radius.is_finite() || radius <= 0.0 {
+                    return bad("a capsule or cylinder needs finite ends and a positive radius");
+                }
+                if (b - a).length() <= 1e-12 * (1.0 + a.length()) {
+                    return bad("a capsule or cylinder needs two distinct ends");
+                }
+            }
+            Primitive::Torus {
+                center,
+                axis,
+                major,
+                minor,
+            } => {
+                if !finite3(center) || !finite3(axis) || axis.length() < 1e-12 {
+                    return bad("a torus needs a finite centre and a non-zero axis");
+                }
+                if !(major.is_finite() && minor.is_finite() && major > 0.0 && minor > 0.0) {
+                    return bad("a torus needs positive radii");
+                }
+            }
+        }
+        Ok(())
+    }
+
     /// Signed distance from `p` (negative inside). Exact for every primitive.
     pub fn sdf(&self, p: DVec3) -> f64 {
         match *self {
@@ -457,7 +510,17 @@ pub struct Csg {
 
 impl Csg {
     /// A union of `parts` named `name`. An empty union is allowed (it is hit by nothing).
-    pub fn new(name: impl Into<String>, parts: Vec<Part>) -> Self {
+    /// A torus axis is normalised here.
+    ///
+    /// Errors: [`DataGenError::InvalidParameter`] naming the first degenerate primitive (see
+    /// [`Primitive::validate`]).
+    pub fn new(name: impl Into<String>, mut parts: Vec<Part>) -> Result<Self, DataGenError> {
+        for part in &mut parts {
+            part.primitive.validate()?;
+            if let Primitive::Torus { axis, .. } = &mut part.primitive {
+                *axis = axis.normalize();
+            }
+        }
         let bounds = parts.iter().fold(
             (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)),
             |(lo, hi), p| {
@@ -465,11 +528,11 @@ impl Csg {
                 (lo.min(a), hi.max(b))
             },
         );
-        Self {
+        Ok(Self {
             name: name.into(),
             parts,
             bounds,
-        }
+        })
     }
 
     /// The parts of the union.

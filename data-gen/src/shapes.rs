@@ -251,5 +251,5 @@ pub fn scene_shape(name: &str) -> Result<Csg, DataGenError> {
             });
         }
     };
-    Ok(Csg::new(name, parts))
+    Csg::new(name, parts)
 }

@@ -17,6 +17,7 @@ fn one(primitive: Primitive) -> Csg {
             albedo: Albedo::Solid(Vec3::splat(0.5)),
         }],
     )
+    .unwrap()
 }
 
 /// Tolerance on depth, in units of the pixel pitch: the analytic intersections are exact to

@@ -220,7 +220,11 @@ fn pear_offset_error_and_hybrid_psnr_at_15x8x16() {
     assert!(fitted.offset_near.rms > 5.0 * fitted.offset_away.rms);
     // Measured against exact inverse warping: plain 42.23 dB, m = 2 42.53 dB, m = 4 42.90 dB;
     // with m = 4 more than 99 % of the sub-samples read the exact column (p99 = 0).
-    assert!(fitted.psnr_vs_inverse_db >= 41.5, "{}", fitted.psnr_vs_inverse_db);
+    assert!(
+        fitted.psnr_vs_inverse_db >= 41.5,
+        "{}",
+        fitted.psnr_vs_inverse_db
+    );
     assert!(row("hybrid-m2").psnr_vs_inverse_db >= 41.8);
     let m4 = row("hybrid-m4");
     assert!(m4.psnr_vs_inverse_db >= 42.2, "{}", m4.psnr_vs_inverse_db);

@@ -4,11 +4,16 @@
 
 use std::path::PathBuf;
 
-use crate::cylinder::{EvalParams, OffsetParams, SWEEP_GRIDS, evaluate, sweep, sweep_markdown};
+use altrep_data_gen::{RgbaImage, scene_shape};
 use serde_json::json;
 
 use super::CliResult;
 use super::capture::load_shape;
+use super::demo::{DemoContext, DemoSection, truth_image};
+use crate::cylinder::{
+    CylindricalTexture, EvalParams, ExactMethod, OffsetMode, OffsetParams, OffsetTexture,
+    RadiusModel, RenderParams, SWEEP_GRIDS, evaluate, render_exact, sweep, sweep_markdown,
+};
 
 /// Arguments of `altrep cylinder`.
 #[derive(clap::Args, Debug)]
@@ -94,6 +99,105 @@ pub fn run(args: CylinderArgs) -> CliResult {
         println!("wrote {}", path.display());
     }
     Ok(())
+}
+
+/// The demo section: the pear's cylindrical texture (shaded and signed radius), reconstructions
+/// at three angles beside the ground truth (truth | mesh | inverse | fitted | hybrid m = 2), and
+/// the table of every renderer (pear in quick mode; pear and truck otherwise).
+pub fn demo_section(
+    ctx: &DemoContext,
+) -> Result<DemoSection, Box<dyn std::error::Error + Send + Sync>> {
+    let dir = ctx.out.join("cylinder");
+    std::fs::create_dir_all(&dir).map_err(|e| format!("cannot create {}: {e}", dir.display()))?;
+    let params = if ctx.quick {
+        EvalParams {
+            angles: 2,
+            size: 32,
+            minify_sizes: vec![16],
+            light: ctx.light,
+            ..EvalParams::default()
+        }
+    } else {
+        EvalParams {
+            angles: 8,
+            size: 64,
+            light: ctx.light,
+            ..EvalParams::default()
+        }
+    };
+    let pear = scene_shape("pear")?;
+    let texture = CylindricalTexture::capture(&pear, &params.texture, params.prefilter)?;
+    texture
+        .shade(&ctx.light)
+        .write_png(&dir.join("pear_texture.png"))?;
+    texture
+        .radius_image()
+        .write_png(&dir.join("pear_radius.png"))?;
+    let offsets = OffsetTexture::fit(&texture, &params.offset)?;
+    let mut md = String::from(
+        "The pear's cylindrical texture (256 × 64, shaded; signed radius: red positive, blue \
+         negative), then at three angles: ground truth | mesh reference | inverse warping | \
+         fitted offsets | hybrid m = 2.\n\n![texture](cylinder/pear_texture.png) \
+         ![radius](cylinder/pear_radius.png)\n\n",
+    );
+    let size = params.size;
+    for (n, angle) in [0.4, 2.0, 4.4].into_iter().enumerate() {
+        let p = RenderParams {
+            angle,
+            width: size,
+            height: size,
+            supersample: params.supersample,
+            light: ctx.light,
+        };
+        let truth = truth_image(
+            &pear,
+            angle,
+            size,
+            params.supersample,
+            ctx.light,
+            texture.cylinder(),
+        )?;
+        let mesh = render_exact(&texture, ExactMethod::Mesh, &p)?.image;
+        let inverse = render_exact(&texture, ExactMethod::Inverse(RadiusModel::General), &p)?.image;
+        let fitted = offsets
+            .render(&texture, OffsetMode::Plain, params.tolerance_px, &p)?
+            .image;
+        let hybrid = offsets
+            .render(
+                &texture,
+                OffsetMode::Hybrid { steps: 2 },
+                params.tolerance_px,
+                &p,
+            )?
+            .image;
+        let row = RgbaImage::side_by_side(&[&truth, &mesh, &inverse, &fitted, &hybrid]);
+        let file = format!("pear_angle{n}.png");
+        row.over([0.1, 0.1, 0.12]).write_png(&dir.join(&file))?;
+        md += &format!("α = {angle}: ![pear at {angle}](cylinder/{file})\n\n");
+    }
+    let shapes: &[&str] = if ctx.quick {
+        &["pear"]
+    } else {
+        &["pear", "truck"]
+    };
+    let mut results = Vec::new();
+    for name in shapes {
+        let shape = scene_shape(name)?;
+        let report = evaluate(&shape, &params)?;
+        md += &report.markdown();
+        md += "\n";
+        results.push(json!({
+            "shape": name,
+            "renderers": report.rows.iter().map(|r| r.json()).collect::<Vec<_>>(),
+            "offset": report.offset,
+            "minification": report.minification,
+        }));
+    }
+    Ok(DemoSection {
+        name: "cylinder".into(),
+        json: json!(results),
+        markdown: md,
+    })
 }
 
 #[cfg(test)]

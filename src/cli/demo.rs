@@ -55,7 +55,10 @@ pub type SectionFn =
 
 /// The sections of the demo, in order.
 pub fn sections() -> Vec<(&'static str, SectionFn)> {
-    vec![("captures", captures_section)]
+    vec![
+        ("captures", captures_section),
+        ("cylinder", super::cylinder::demo_section),
+    ]
 }
 
 /// Runs `altrep demo`.

@@ -1,29 +1,38 @@
 //! `altrep cylinder` — captures a cylindrical texture of a mesh or a procedural shape, fits its
 //! offset texture and prints the table of every renderer against the ground truth (and, with
-//! `--sweep`, the sweep of the offset grid).
+//! `--sweep`, the sweep of the offset grid). `--suite` does it for the six evaluation shapes and
+//! adds a summary across them.
 
 use std::path::PathBuf;
 
-use altrep_data_gen::{RgbaImage, scene_shape};
+use altrep_data_gen::{Mesh, MeshLoadOptions, RgbaImage, Shape, scene_shape};
 use serde_json::json;
 
 use super::CliResult;
 use super::capture::load_shape;
 use super::demo::{DemoContext, DemoSection, truth_image};
 use crate::cylinder::{
-    CylindricalTexture, EvalParams, ExactMethod, OffsetMode, OffsetParams, OffsetTexture,
-    RadiusModel, RenderParams, SWEEP_GRIDS, evaluate, render_exact, sweep, sweep_markdown,
+    CylindricalTexture, EvalParams, EvalReport, ExactMethod, OffsetMode, OffsetParams,
+    OffsetTexture, RadiusModel, RenderParams, SWEEP_GRIDS, evaluate, render_exact, sweep,
+    sweep_markdown,
 };
 
 /// Arguments of `altrep cylinder`.
 #[derive(clap::Args, Debug)]
 pub struct CylinderArgs {
     /// OBJ mesh to represent.
-    #[arg(long, conflicts_with = "shape", required_unless_present = "shape")]
+    #[arg(long, conflicts_with_all = ["shape", "suite"], required_unless_present_any = ["shape", "suite"])]
     pub mesh: Option<PathBuf>,
     /// Procedural shape instead (sphere, box, torus, capsule, pear, truck, chair, tree, building).
-    #[arg(long)]
+    #[arg(long, conflicts_with = "suite")]
     pub shape: Option<String>,
+    /// Measure the six evaluation shapes (truck, pear, tree, chair, and the teapot and beetle
+    /// meshes of `--meshes`, skipped with a message when absent) and print a summary.
+    #[arg(long)]
+    pub suite: bool,
+    /// Folder of the evaluation meshes for `--suite`.
+    #[arg(long, default_value = "../shared/data/meshes")]
+    pub meshes: PathBuf,
     /// Cells of the fitted offset grid, `AxxAyxAα` (x, rows, angles; the angle axis is periodic).
     #[arg(long, default_value = "15x8x16", value_parser = parse_grid)]
     pub grid: [usize; 3],
@@ -60,7 +69,22 @@ pub fn parse_grid(s: &str) -> Result<[usize; 3], String> {
 
 /// Runs `altrep cylinder`.
 pub fn run(args: CylinderArgs) -> CliResult {
-    let shape = load_shape(args.mesh.as_ref(), args.shape.as_deref())?;
+    let shapes: Vec<Box<dyn Shape>> = if args.suite {
+        let mut shapes = Vec::new();
+        for name in ["truck", "pear", "tree", "chair"] {
+            shapes.push(Box::new(scene_shape(name)?) as Box<dyn Shape>);
+        }
+        for name in ["teapot", "beetle"] {
+            let path = args.meshes.join(format!("{name}.obj"));
+            match Mesh::load_obj(&path, &MeshLoadOptions::default()) {
+                Ok(mesh) => shapes.push(Box::new(mesh)),
+                Err(e) => eprintln!("altrep: skipping {name}: {e}"),
+            }
+        }
+        shapes
+    } else {
+        vec![load_shape(args.mesh.as_ref(), args.shape.as_deref())?]
+    };
     let params = EvalParams {
         offset: OffsetParams {
             cells: args.grid,
@@ -70,19 +94,20 @@ pub fn run(args: CylinderArgs) -> CliResult {
         size: args.size as usize,
         ..EvalParams::default()
     };
-    let report = evaluate(shape.as_ref(), &params)?;
-    println!("{}", report.markdown());
-    let sweep_rows = if args.sweep {
-        let rows = sweep(shape.as_ref(), &params, &SWEEP_GRIDS)?;
-        println!("{}", sweep_markdown(shape.name(), &rows));
-        Some(rows)
-    } else {
-        None
-    };
-    if let Some(path) = &args.json {
-        let out = json!({
+    let mut results = Vec::new();
+    let mut reports = Vec::new();
+    for shape in &shapes {
+        let report = evaluate(shape.as_ref(), &params)?;
+        println!("{}", report.markdown());
+        let sweep_rows = if args.sweep {
+            let rows = sweep(shape.as_ref(), &params, &SWEEP_GRIDS)?;
+            println!("{}", sweep_markdown(shape.name(), &rows));
+            Some(rows)
+        } else {
+            None
+        };
+        results.push(json!({
             "shape": report.shape,
-            "params": params,
             "texture": {
                 "size": report.texture_size,
                 "coverage": report.coverage,
@@ -92,13 +117,82 @@ pub fn run(args: CylinderArgs) -> CliResult {
             },
             "offset": report.offset,
             "renderers": report.rows.iter().map(|r| r.json()).collect::<Vec<_>>(),
+            "minification": report.minification,
             "sweep": sweep_rows,
-        });
+        }));
+        reports.push(report);
+    }
+    if reports.len() > 1 {
+        println!("{}", summary_markdown(&reports));
+    }
+    if let Some(path) = &args.json {
+        let out = if results.len() == 1 {
+            let mut one = results.remove(0);
+            one["params"] = json!(params);
+            one
+        } else {
+            json!({ "params": params, "shapes": results })
+        };
         std::fs::write(path, serde_json::to_string_pretty(&out)?)
             .map_err(|e| format!("cannot write {}: {e}", path.display()))?;
         println!("wrote {}", path.display());
     }
     Ok(())
+}
+
+/// Two summary tables across shapes: PSNR against the ground truth (and IoU) per renderer, then
+/// the offsets' error split and costs.
+pub fn summary_markdown(reports: &[EvalReport]) -> String {
+    let methods: Vec<&str> = reports[0].rows.iter().map(|r| r.method.as_str()).collect();
+    let mut s = String::from("PSNR dB against the ground truth (silhouette IoU):\n\n| shape |");
+    for m in &methods {
+        s += &format!(" {m} |");
+    }
+    s += "\n|---|";
+    s += &"---|".repeat(methods.len());
+    s += "\n";
+    for r in reports {
+        s += &format!("| {} |", r.shape);
+        for m in &methods {
+            s += &r.row(m).map_or(" – |".to_string(), |x| {
+                format!(" {:.1} ({:.3}) |", x.psnr_db, x.iou)
+            });
+        }
+        s += "\n";
+    }
+    s += "\nOffsets (texels, RMS / p99; away from / near discontinuities), vs inverse warping, \
+          costs:\n\n| shape | fitted all | away | near | hybrid m=4 all | fitted / m=4 vs inverse dB | \
+          inverse steps | m=4 steps | precompute ms (sampling, assembly, solve, quantisation) | bytes |\n\
+          |---|---|---|---|---|---|---|---|---|---|\n";
+    for r in reports {
+        let (Some(f), Some(h), Some(i)) = (r.row("fitted"), r.row("hybrid-m4"), r.row("inverse"))
+        else {
+            continue;
+        };
+        s += &format!(
+            "| {} | {:.2} / {:.2} | {:.2} / {:.2} | {:.2} / {:.2} | {:.2} / {:.2} | {:.1} / {:.1} | {:.1} | {:.2} | {:.0} ({:.0}, {:.1}, {:.1}, {:.1}) | {} |\n",
+            r.shape,
+            f.offset.rms,
+            f.offset.p99,
+            f.offset_away.rms,
+            f.offset_away.p99,
+            f.offset_near.rms,
+            f.offset_near.p99,
+            h.offset.rms,
+            h.offset.p99,
+            f.psnr_vs_inverse_db,
+            h.psnr_vs_inverse_db,
+            i.mean_steps.unwrap_or(0.0),
+            h.mean_steps.unwrap_or(0.0),
+            f.precompute_ms,
+            r.offset.sampling_s * 1e3,
+            r.offset.assembly_s * 1e3,
+            r.offset.solve_s * 1e3,
+            r.offset.quantization_s * 1e3,
+            f.bytes,
+        );
+    }
+    s
 }
 
 /// The demo section: the pear's cylindrical texture (shaded and signed radius), reconstructions

@@ -274,8 +274,8 @@ impl EvalReport {
     pub fn markdown(&self) -> String {
         let mut s = format!(
             "**{}** — texture {}×{} ({:.1} % defined, {:.1} % negative radii), capture {:.0} ms; \
-             offsets {}×{}×{} cells ({} coefficients, {} B): sampling {:.0} ms, assembly {:.1} ms, \
-             solve {:.1} ms, {} of {} samples fitted\n\n",
+             offsets {}×{}×{} cells ({} coefficients, {} B with the mask): sampling {:.0} ms, \
+             assembly {:.1} ms, solve {:.1} ms, quantisation {:.1} ms, {} of {} samples fitted\n\n",
             self.shape,
             self.texture_size[0],
             self.texture_size[1],
@@ -290,6 +290,7 @@ impl EvalReport {
             self.offset.sampling_s * 1e3,
             self.offset.assembly_s * 1e3,
             self.offset.solve_s * 1e3,
+            self.offset.quantization_s * 1e3,
             self.offset.fitted,
             self.offset.defined,
         );
@@ -598,6 +599,8 @@ pub struct SweepRow {
     pub assembly_ms: f64,
     /// Solve (ms).
     pub solve_ms: f64,
+    /// Quantisation to 16 bits (ms).
+    pub quantization_ms: f64,
     /// Solver iterations.
     pub iterations: usize,
     /// Fit RMS over the fine samples where `k` is defined (texels).
@@ -652,6 +655,7 @@ pub fn sweep(
                 sampling_ms: off.report.sampling_s * 1e3,
                 assembly_ms: off.report.assembly_s * 1e3,
                 solve_ms: off.report.solve_s * 1e3,
+                quantization_ms: off.report.quantization_s * 1e3,
                 iterations: off.report.fit.solver.iterations,
                 fit_rms: off.report.error_defined.rms,
                 plain: measure(OffsetMode::Plain)?,
@@ -664,12 +668,12 @@ pub fn sweep(
 /// A Markdown table of a sweep.
 pub fn sweep_markdown(shape: &str, rows: &[SweepRow]) -> String {
     let mut s = format!(
-        "**{shape}** — offset grid sweep (sampling {:.0} ms shared)\n\n| grid | coefficients | bytes | assembly ms | solve ms | iterations | fit RMS | offset RMS / p99 | away RMS | near RMS | PSNR plain | PSNR hybrid m=2 | vs inverse (plain / m=2) |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|\n",
+        "**{shape}** — offset grid sweep (sampling {:.0} ms shared)\n\n| grid | coefficients | bytes | assembly ms | solve ms | quantisation ms | iterations | fit RMS | offset RMS / p99 | away RMS | near RMS | PSNR plain | PSNR hybrid m=2 | vs inverse (plain / m=2) |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n",
         rows.first().map_or(0.0, |r| r.sampling_ms)
     );
     for r in rows {
         s += &format!(
-            "| {}×{}×{} | {} | {} | {:.1} | {:.1} | {} | {:.2} | {:.2} / {:.2} | {:.2} | {:.2} | {:.2} | {:.2} | {:.2} / {:.2} |\n",
+            "| {}×{}×{} | {} | {} | {:.1} | {:.1} | {:.1} | {} | {:.2} | {:.2} / {:.2} | {:.2} | {:.2} | {:.2} | {:.2} | {:.2} / {:.2} |\n",
             r.cells[0],
             r.cells[1],
             r.cells[2],
@@ -677,6 +681,7 @@ pub fn sweep_markdown(shape: &str, rows: &[SweepRow]) -> String {
             r.bytes,
             r.assembly_ms,
             r.solve_ms,
+            r.quantization_ms,
             r.iterations,
             r.fit_rms,
             r.plain.offset.rms,

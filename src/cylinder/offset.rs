@@ -121,10 +121,12 @@ pub struct OffsetReport {
     pub mean_sampling_steps: f64,
     /// Sampling time (s).
     pub sampling_s: f64,
-    /// Assembly of the normal equations (s).
+    /// Choosing the fitted samples ([`FitSupport`]) and assembling the normal equations (s).
     pub assembly_s: f64,
     /// Solve (s).
     pub solve_s: f64,
+    /// Quantisation of the coefficients (with the fit's own error statistics) (s).
+    pub quantization_s: f64,
     /// Error of the stored (dequantised) offsets over every defined fine sample, texels.
     pub error_defined: ErrorStats,
     /// The fit's own report (error over the fitted samples, coefficient range, quantisation,
@@ -133,9 +135,9 @@ pub struct OffsetReport {
 }
 
 impl OffsetReport {
-    /// Precomputation time: sampling + assembly + solve, milliseconds.
+    /// Precomputation time: sampling + assembly + solve + quantisation, milliseconds.
     pub fn precompute_ms(&self) -> f64 {
-        (self.sampling_s + self.assembly_s + self.solve_s) * 1e3
+        (self.sampling_s + self.assembly_s + self.solve_s + self.quantization_s) * 1e3
     }
 }
 
@@ -400,11 +402,13 @@ impl OffsetTexture {
         }
         let l = texture.columns();
         let data = &samples.grid;
+        let t0 = Instant::now();
         let kept = match params.support {
             FitSupport::All => data.values().to_vec(),
             FitSupport::Continuous { jump } => continuous_only(data, jump, l),
         };
         let fitted_grid = fit::SampleGrid::new(data.dims(), kept)?;
+        let support_s = t0.elapsed().as_secs_f64();
         let fit_params = FitParams {
             cells: params.cells,
             periodic: [false, false, true],
@@ -430,8 +434,9 @@ impl OffsetTexture {
             fitted: fitted_grid.defined_count(),
             mean_sampling_steps: samples.steps as f64 / data.values().len() as f64,
             sampling_s: samples.sampling_s,
-            assembly_s: fitted.report.timing.assembly_s,
+            assembly_s: support_s + fitted.report.timing.assembly_s,
             solve_s: fitted.report.timing.solve_s,
+            quantization_s: fitted.report.timing.evaluation_s,
             error_defined: offset_error(data, &grid, l),
             fit: fitted.report,
         };
@@ -456,7 +461,8 @@ impl OffsetTexture {
 
     /// The fitted offset `k̂` (texels) at screen abscissa `x` (units of `R`), continuous row
     /// coordinate `v` and camera angle `alpha`, and whether `x` lies inside the silhouette mask
-    /// (always `true` without a mask): one trilinear fetch (plus one bilinear fetch of the mask).
+    /// (always `true` without a mask): one trilinear fetch (plus one bilinear fetch of the mask),
+    /// clamped to the range of the fitted samples.
     /// Outside the mask the fetch is clamped to its edge. `None` when the mask says the slice is
     /// empty.
     #[inline]
@@ -474,7 +480,11 @@ impl OffsetTexture {
             (v + 0.5) / self.rows as f64,
             (alpha / TAU).rem_euclid(1.0),
         ]);
-        Some((k, inside))
+        // The coefficients overshoot the data (up to several times its range, the source's
+        // 8-bit problem); past ±L/2 a fetched offset would wrap to the far side of the object.
+        // A clamp to the fitted data's range is free in a shader.
+        let data = &self.report.fit.data;
+        Some((k.clamp(data.min, data.max), inside))
     }
 
     /// Renders `texture` as a shader would with this offset texture: per sub-sample one fetch

@@ -297,3 +297,74 @@ fn chair_legs_in_line_with_the_axis_are_lost() {
     assert!(legs < 0.5, "legs covered {legs:.3}");
     assert!(top > 0.85, "seat and back covered {top:.3}");
 }
+
+/// `altrep cylinder` end to end: the JSON holds one object per renderer with the documented keys;
+/// bad input is a message and a failure, not a panic.
+#[test]
+fn cylinder_command_writes_its_json() {
+    let dir = tempfile::tempdir().unwrap();
+    let json = dir.path().join("cyl.json");
+    let run = |args: &[&str]| {
+        std::process::Command::new(env!("CARGO_BIN_EXE_altrep"))
+            .arg("cylinder")
+            .args(args)
+            .output()
+            .unwrap()
+    };
+    let out = run(&[
+        "--shape",
+        "sphere",
+        "--angles",
+        "1",
+        "--size",
+        "16",
+        "--grid",
+        "8x4x8",
+        "--json",
+        json.to_str().unwrap(),
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    let rows = v["renderers"].as_array().unwrap();
+    let methods: Vec<&str> = rows.iter().map(|r| r["method"].as_str().unwrap()).collect();
+    for m in [
+        "mesh",
+        "direct-btf",
+        "inverse",
+        "fitted",
+        "hybrid-m1",
+        "hybrid-m2",
+        "hybrid-m4",
+    ] {
+        assert!(methods.contains(&m), "{m} missing from {methods:?}");
+    }
+    for r in rows {
+        for key in [
+            "method",
+            "psnr_db",
+            "iou",
+            "offset_rms_texels",
+            "offset_p99_texels",
+            "mean_steps",
+            "precompute_ms",
+            "bytes",
+        ] {
+            assert!(r.get(key).is_some(), "{key} missing in {r}");
+        }
+    }
+    for bad in [
+        &["--shape", "sphere", "--grid", "0x8x16"][..],
+        &["--shape", "no-such-shape"],
+        &["--mesh", "/no/such/file.obj"],
+    ] {
+        let out = run(bad);
+        assert!(!out.status.success(), "{bad:?} succeeded");
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(!err.contains("panicked"), "{bad:?}: {err}");
+    }
+}

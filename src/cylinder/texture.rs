@@ -208,10 +208,12 @@ impl CylindricalTexture {
         self.cylinder
     }
 
-    /// Texel at column `c`, row `j` (`None` if undefined; columns wrap modulo `L`).
+    /// Texel at column `c`, row `j` (`None` if undefined or `j ≥ Ly`; columns wrap modulo `L`).
     #[inline]
     pub fn get(&self, c: usize, j: usize) -> Option<&Texel> {
-        self.texels[j * self.columns + c % self.columns].as_ref()
+        self.texels
+            .get(j * self.columns + c % self.columns)?
+            .as_ref()
     }
 
     /// All texels, row-major.

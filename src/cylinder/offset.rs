@@ -532,12 +532,9 @@ impl OffsetTexture {
                     continue;
                 }
                 let plain = || {
-                    let xh = view.x_at_column(u)?;
-                    if (xh - x).abs() <= tolerance {
-                        view.point_at_column(u)
-                    } else {
-                        None
-                    }
+                    view.point_at_column(u)
+                        .filter(|(xh, _)| (xh - x).abs() <= tolerance)
+                        .map(|(_, f)| f)
                 };
                 *o = match mode {
                     OffsetMode::Plain => plain(),

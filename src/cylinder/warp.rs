@@ -344,37 +344,29 @@ impl<'a> SliceView<'a> {
         writes
     }
 
-    /// The point of the slice named by the fractional column `u` (as a fetched offset names it):
-    /// on the edge `(⌊u⌋, ⌊u⌋ + 1)` when it exists, else the nearer of the two samples when it is
-    /// defined. `None` when neither is.
-    pub fn point_at_column(&self, u: f64) -> Option<Fragment> {
+    /// The point of the slice named by the fractional column `u` (as a fetched offset names it),
+    /// with its screen abscissa: on the edge `(⌊u⌋, ⌊u⌋ + 1)` when it exists, else the nearer
+    /// of the two samples when it is defined. `None` when neither is.
+    pub fn point_at_column(&self, u: f64) -> Option<(f64, Fragment)> {
         let l = self.columns();
         let a = (u.floor() as i64).rem_euclid(l as i64) as usize;
         let t = u - u.floor();
         if let Some(e) = self.edge(a) {
-            return Some(self.fragment(&e, t));
+            let x = self.x(e.a) + t * (self.x(e.b) - self.x(e.a));
+            return Some((x, self.fragment(&e, t)));
         }
         let c = if t < 0.5 { a } else { (a + 1) % l };
-        let (_, z) = self.projection(c)?;
+        let (x, depth) = self.projection(c)?;
         let texel = self.texel(c);
-        Some(Fragment {
-            column: c as f64,
-            depth: z,
-            albedo: texel.albedo,
-            normal: texel.normal,
-        })
-    }
-
-    /// Screen abscissa of the point [`Self::point_at_column`] names.
-    pub fn x_at_column(&self, u: f64) -> Option<f64> {
-        let l = self.columns();
-        let a = (u.floor() as i64).rem_euclid(l as i64) as usize;
-        let t = u - u.floor();
-        if let Some(e) = self.edge(a) {
-            return Some(self.x(e.a) + t * (self.x(e.b) - self.x(e.a)));
-        }
-        let c = if t < 0.5 { a } else { (a + 1) % l };
-        self.projection(c).map(|p| p.0)
+        Some((
+            x,
+            Fragment {
+                column: c as f64,
+                depth,
+                albedo: texel.albedo,
+                normal: texel.normal,
+            },
+        ))
     }
 
     /// The sector that holds the sample of column `c`: `c` for a positive radius, `c + L/2` for a

@@ -14,9 +14,11 @@
 
 pub mod cli;
 pub mod cylinder;
+pub mod ellipsoid;
 pub mod fit;
 pub mod metrics;
 pub mod mip;
+pub mod parallax;
 
 pub use altrep_data_gen as data_gen;
 pub use altrep_solvers as solvers;

@@ -22,6 +22,12 @@ enum Command {
     Capture(cli::capture::CaptureArgs),
     /// Cylindrical texture of a mesh or shape: exact and fitted-offset renderers against ground truth.
     Cylinder(cli::cylinder::CylinderArgs),
+    /// Ellipsoid micro-primitives: eigen-solver, filter rules, sin²θ law and octree report.
+    EllipsoidBench(cli::ellipsoid_bench::EllipsoidBenchArgs),
+    /// Benchmark the trilinear least-squares fit: solvers, regularisation λ, quantisation.
+    FitBench(cli::fit_bench::FitBenchArgs),
+    /// Images with parallax: march steps per bound type, violations, bytes, and quality vs ground truth.
+    Parallax(cli::parallax::ParallaxArgs),
 }
 
 fn main() {
@@ -30,6 +36,9 @@ fn main() {
         Command::Demo(args) => cli::demo::run(args),
         Command::Capture(args) => cli::capture::run(args),
         Command::Cylinder(args) => cli::cylinder::run(args),
+        Command::EllipsoidBench(args) => cli::ellipsoid_bench::run(args),
+        Command::FitBench(args) => cli::fit_bench::run(args),
+        Command::Parallax(args) => cli::parallax::run(args),
     };
     if let Err(e) = result {
         eprintln!("altrep: error: {e}");

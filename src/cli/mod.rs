@@ -4,6 +4,9 @@
 pub mod capture;
 pub mod cylinder;
 pub mod demo;
+pub mod ellipsoid_bench;
+pub mod fit_bench;
+pub mod parallax;
 
 /// Error type of the command-line layer: a message for the user, already formatted.
 pub type CliResult = Result<(), Box<dyn std::error::Error + Send + Sync>>;

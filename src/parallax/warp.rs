@@ -1,0 +1,620 @@
+//! Direct and inverse warping of one view, and the combination of two warped views.
+//!
+//! Both warps share one piece test ([`hit_piece`]) so they agree exactly (see the module docs of
+//! [`crate::parallax`]).
+
+use altrep_data_gen::{Light, PixelGrid, RgbaImage};
+use glam::Vec3;
+use rayon::prelude::*;
+
+use super::images::{ParallaxImages, TexelGeom, View};
+use super::{ParallaxError, finite, in_range, invalid};
+
+/// Where a ray crosses a view's height field.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Crossing {
+    /// Column of the texel owning the piece that was hit.
+    pub texel: usize,
+    /// Whether the piece is the texel's right half (`[x_i, x_i + δx/2]`) or its left half.
+    pub right: bool,
+    /// Position along the piece, `0 ≤ t < 1` from its left end.
+    pub t: f64,
+    /// Abscissa of the crossing in the view frame, `x_t` (world units).
+    pub x_t: f64,
+    /// Depth of the crossing in the screen frame, `z_e` (world units, toward the camera).
+    pub z_e: f64,
+}
+
+/// Outcome of one march.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct MarchResult {
+    /// The first crossing, if the ray meets the height field within the range.
+    pub hit: Option<Crossing>,
+    /// Cells visited (one texel fetch each); 0 when the range is empty.
+    pub steps: u32,
+}
+
+/// Which warping algorithm renders the views.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum WarpMethod {
+    /// Per pixel, march the ray through the height field (the shader's algorithm), bounded by the
+    /// cylinder.
+    Inverse,
+    /// Per row, draw the front-facing pieces back to front (painter's order).
+    Direct,
+}
+
+/// Screen of a render: the impostor quad `[−R, R] × [0, H]` sampled by `width × height` pixels.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RenderParams {
+    /// Screen columns.
+    pub width: usize,
+    /// Screen rows; each screen row reads the nearest view row (rows warp independently).
+    pub height: usize,
+    /// Rays per pixel, spread evenly across the pixel horizontally (≥ 1). Vertically every ray
+    /// of a pixel reads the same view row.
+    pub supersample: usize,
+    /// The light shading albedo and normals.
+    pub light: Light,
+    /// Warp a mip level when the screen is coarser than the views: level
+    /// `round(log2(max(Lx/width, Ly/height)))` of [`ParallaxImages::level`] (nearest level, as
+    /// `GL_LINEAR_MIPMAP_NEAREST`). With `false`, level 0 is point-sampled. Measured at 128² → 32²
+    /// against a 4×4-supersampled truth: +0.6 dB on fine detail (tree), −1 to −3 dB on coarse
+    /// detail (truck, building, pear), where box-filtered depth mixes front and back surfaces;
+    /// the coarse level also needs about 4× fewer march steps.
+    pub mip: bool,
+}
+
+impl RenderParams {
+    /// A screen of the views' own size, one ray per pixel (texel = pixel).
+    pub fn native(images: &ParallaxImages) -> Self {
+        Self {
+            width: images.params.width,
+            height: images.params.height,
+            supersample: 1,
+            light: Light::default(),
+            mip: true,
+        }
+    }
+
+    /// The mip level this screen reads from views of `width × height` texels.
+    pub fn mip_level(&self, width: usize, height: usize) -> usize {
+        if !self.mip {
+            return 0;
+        }
+        let ratio = (width as f64 / self.width as f64).max(height as f64 / self.height as f64);
+        ratio.log2().round().max(0.0) as usize
+    }
+
+    fn validate(&self) -> Result<(), ParallaxError> {
+        if self.width == 0 || self.height == 0 || self.supersample == 0 {
+            return Err(invalid(
+                "render size",
+                format!("{}×{} ×{}", self.width, self.height, self.supersample),
+                "width, height and supersampling must be at least 1",
+            ));
+        }
+        Ok(())
+    }
+
+    /// Screen abscissae of the rays of one row, ascending.
+    pub(crate) fn sample_xs(&self, r: f64) -> Vec<f64> {
+        let grid = PixelGrid {
+            width: self.width,
+            height: self.height,
+            cylinder: altrep_data_gen::BoundingCylinder {
+                radius: r,
+                height: 1.0,
+            },
+        };
+        let k = self.supersample as f64;
+        (0..self.width * self.supersample)
+            .map(|s| {
+                grid.x_at((s / self.supersample) as f64 + ((s % self.supersample) as f64 + 0.5) / k)
+            })
+            .collect()
+    }
+
+    /// View row read by screen row `j`.
+    pub(crate) fn view_row(&self, j: usize, view_height: usize) -> usize {
+        let v = (j as f64 + 0.5) * view_height as f64 / self.height as f64;
+        (v.floor() as usize).min(view_height - 1)
+    }
+}
+
+/// Entry and exit abscissae `(x1, x2)` of the ray `X` seen under θ through the cylinder of radius
+/// `r` (module docs: `x1 = X cos θ − h sin θ`, `x2 = X cos θ + h sin θ`).
+#[inline]
+pub fn cylinder_range(x: f64, cos_t: f64, sin_t: f64, r: f64) -> (f64, f64) {
+    let h = (r * r - x * x).max(0.0).sqrt();
+    (x * cos_t - h * sin_t, x * cos_t + h * sin_t)
+}
+
+/// End points `((x_a, z_a), (x_b, z_b))`, `x_a < x_b`, of a texel's half piece.
+#[inline]
+pub(crate) fn piece(
+    grid: &PixelGrid,
+    g: &TexelGeom,
+    i: usize,
+    right: bool,
+) -> ((f64, f64), (f64, f64)) {
+    let xc = grid.x_at(i as f64 + 0.5);
+    if right {
+        ((xc, g.z), (grid.x_at(i as f64 + 1.0), g.zr))
+    } else {
+        ((grid.x_at(i as f64), g.zl), (xc, g.z))
+    }
+}
+
+/// The ray `X` under θ against one piece: `Some((t, x_t, z_e))` iff `x_e(a) ≤ X < x_e(b)`.
+#[inline]
+pub(crate) fn hit_piece(
+    a: (f64, f64),
+    b: (f64, f64),
+    x: f64,
+    co: f64,
+    si: f64,
+) -> Option<(f64, f64, f64)> {
+    let ea = a.0 * co + a.1 * si;
+    let eb = b.0 * co + b.1 * si;
+    if ea <= x && x < eb {
+        let t = (x - ea) / (eb - ea);
+        let xt = a.0 + t * (b.0 - a.0);
+        let zt = a.1 + t * (b.1 - a.1);
+        Some((t, xt, zt * co - xt * si))
+    } else {
+        None
+    }
+}
+
+#[inline]
+fn try_piece(
+    grid: &PixelGrid,
+    row: &[TexelGeom],
+    i: usize,
+    right: bool,
+    x: f64,
+    co: f64,
+    si: f64,
+) -> Option<Crossing> {
+    let g = &row[i];
+    if !g.defined {
+        return None;
+    }
+    let (a, b) = piece(grid, g, i, right);
+    hit_piece(a, b, x, co, si).map(|(t, x_t, z_e)| Crossing {
+        texel: i,
+        right,
+        t,
+        x_t,
+        z_e,
+    })
+}
+
+/// Cell index `c ∈ [−1, W−1]` of abscissa `x` (cell `c` spans `[x_c, x_{c+1}]`).
+#[inline]
+fn cell(grid: &PixelGrid, x: f64) -> i64 {
+    let u = (x + grid.cylinder.radius) / grid.pitch_x() - 0.5;
+    (u.floor().max(-1.0) as i64).min(grid.width as i64 - 1)
+}
+
+/// Marches one row of a view: cells from the one holding `x1` to the one holding `x2` (toward
+/// +x when `sin θ ≥ 0`), testing in each the pieces in the ray's order, and stops at the first
+/// crossing. `co, si` are `cos θ, sin θ`.
+pub(crate) fn march_row(
+    grid: &PixelGrid,
+    row: &[TexelGeom],
+    x: f64,
+    co: f64,
+    si: f64,
+    x1: f64,
+    x2: f64,
+) -> MarchResult {
+    let w = grid.width as i64;
+    // Widen by a hair so that an end lying on a cell boundary (a texel centre) visits the cell
+    // holding the piece that starts there, whatever the rounding of `cell`.
+    let eps = 1e-9 * grid.pitch_x();
+    let mut steps = 0u32;
+    if si >= 0.0 {
+        if x1 > x2 {
+            return MarchResult {
+                hit: None,
+                steps: 0,
+            };
+        }
+        let (c1, c2) = (cell(grid, x1 - eps), cell(grid, x2 + eps));
+        for c in c1..=c2 {
+            steps += 1;
+            if c >= 0
+                && let Some(h) = try_piece(grid, row, c as usize, true, x, co, si)
+            {
+                return MarchResult {
+                    hit: Some(h),
+                    steps,
+                };
+            }
+            if c + 1 < w
+                && let Some(h) = try_piece(grid, row, (c + 1) as usize, false, x, co, si)
+            {
+                return MarchResult {
+                    hit: Some(h),
+                    steps,
+                };
+            }
+        }
+    } else {
+        if x1 < x2 {
+            return MarchResult {
+                hit: None,
+                steps: 0,
+            };
+        }
+        let (c1, c2) = (cell(grid, x1 + eps), cell(grid, x2 - eps));
+        for c in (c2..=c1).rev() {
+            steps += 1;
+            if c + 1 < w
+                && let Some(h) = try_piece(grid, row, (c + 1) as usize, false, x, co, si)
+            {
+                return MarchResult {
+                    hit: Some(h),
+                    steps,
+                };
+            }
+            if c >= 0
+                && let Some(h) = try_piece(grid, row, c as usize, true, x, co, si)
+            {
+                return MarchResult {
+                    hit: Some(h),
+                    steps,
+                };
+            }
+        }
+    }
+    MarchResult { hit: None, steps }
+}
+
+/// Inverse warping of one ray (the shader's algorithm): row `j` of view `k` seen under `theta`,
+/// screen abscissa `x`, marched from `range.0` (`x1`) toward `range.1` (`x2`), one cell per step.
+/// Pass [`cylinder_range`] with [`ParallaxImages::march_radius`] for the unbounded march.
+/// Cost: `O(steps)`. Errors: an index out of range, a non-finite input.
+pub fn march(
+    images: &ParallaxImages,
+    k: usize,
+    j: usize,
+    x: f64,
+    theta: f64,
+    range: (f64, f64),
+) -> Result<MarchResult, ParallaxError> {
+    let v = &images.views[in_range("view index", k, images.views.len())?];
+    in_range("row", j, v.height)?;
+    for (name, value) in [
+        ("screen abscissa", x),
+        ("theta", theta),
+        ("x1", range.0),
+        ("x2", range.1),
+    ] {
+        finite(name, value)?;
+    }
+    let row = &v.geom[j * v.width..(j + 1) * v.width];
+    Ok(march_row(
+        &images.pixel_grid(),
+        row,
+        x,
+        theta.cos(),
+        theta.sin(),
+        range.0,
+        range.1,
+    ))
+}
+
+/// Direct warping of row `j` of view `k` under `theta` onto the screen abscissae `xs` (ascending):
+/// the front-facing pieces are drawn back to front (decreasing `x_t` for θ ≥ 0, increasing for
+/// θ < 0), each over the rays with `x_e(a) ≤ X < x_e(b)`; the last drawn wins. `out[s]` gets the
+/// crossing seen by ray `xs[s]`. Cost: `O(Lx + len(xs))` per row.
+///
+/// Errors: an index out of range, `out` shorter than `xs`, a non-finite `theta` or abscissa,
+/// abscissae not ascending.
+pub fn warp_row_direct(
+    images: &ParallaxImages,
+    k: usize,
+    j: usize,
+    theta: f64,
+    xs: &[f64],
+    out: &mut [Option<Crossing>],
+) -> Result<(), ParallaxError> {
+    let v = &images.views[in_range("view index", k, images.views.len())?];
+    in_range("row", j, v.height)?;
+    finite("theta", theta)?;
+    if out.len() < xs.len() {
+        return Err(invalid(
+            "output length",
+            out.len(),
+            "must be at least the number of abscissae",
+        ));
+    }
+    if xs.iter().any(|x| !x.is_finite()) || xs.windows(2).any(|w| w[0] > w[1]) {
+        return Err(invalid(
+            "screen abscissae",
+            xs.len(),
+            "must be finite and ascending",
+        ));
+    }
+    let row = &v.geom[j * v.width..(j + 1) * v.width];
+    warp_row_direct_impl(&images.pixel_grid(), row, theta.cos(), theta.sin(), xs, out);
+    Ok(())
+}
+
+pub(crate) fn warp_row_direct_impl(
+    grid: &PixelGrid,
+    row: &[TexelGeom],
+    co: f64,
+    si: f64,
+    xs: &[f64],
+    out: &mut [Option<Crossing>],
+) {
+    out[..xs.len()].fill(None);
+    let mut draw = |i: usize, right: bool| {
+        let g = &row[i];
+        if !g.defined {
+            return;
+        }
+        let (a, b) = piece(grid, g, i, right);
+        let ea = a.0 * co + a.1 * si;
+        let eb = b.0 * co + b.1 * si;
+        if eb <= ea {
+            return; // seen from behind or edge-on
+        }
+        let start = xs.partition_point(|&x| x < ea);
+        let end = xs.partition_point(|&x| x < eb);
+        for s in start..end {
+            if let Some((t, x_t, z_e)) = hit_piece(a, b, xs[s], co, si) {
+                out[s] = Some(Crossing {
+                    texel: i,
+                    right,
+                    t,
+                    x_t,
+                    z_e,
+                });
+            }
+        }
+    };
+    if si >= 0.0 {
+        for i in (0..row.len()).rev() {
+            draw(i, true);
+            draw(i, false);
+        }
+    } else {
+        for i in 0..row.len() {
+            draw(i, false);
+            draw(i, true);
+        }
+    }
+}
+
+/// Albedo and (unnormalised) normal at a crossing of row `j` of `view`: linear interpolation along
+/// joined segments, the texel's own values on flat ends.
+pub(crate) fn crossing_attributes(view: &View, j: usize, c: &Crossing) -> (Vec3, Vec3) {
+    let base = j * view.width;
+    let k = base + c.texel;
+    let g = &view.geom[k];
+    let t = c.t as f32;
+    let (a, n) = (view.albedo[k], view.normal[k]);
+    if c.right {
+        if g.link_r {
+            let s = 0.5 * t;
+            (
+                a + s * (view.albedo[k + 1] - a),
+                n + s * (view.normal[k + 1] - n),
+            )
+        } else {
+            (a, n)
+        }
+    } else if g.link_l {
+        let (ma, mn) = (
+            0.5 * (view.albedo[k - 1] + a),
+            0.5 * (view.normal[k - 1] + n),
+        );
+        (ma + t * (a - ma), mn + t * (n - mn))
+    } else {
+        (a, n)
+    }
+}
+
+/// Shaded linear RGB at a crossing.
+pub(crate) fn shade_crossing(view: &View, j: usize, c: &Crossing, light: &Light) -> Vec3 {
+    let (a, n) = crossing_attributes(view, j, c);
+    light.shade(a, n.normalize_or_zero())
+}
+
+/// Warps view `k` alone under `theta` onto a screen: returns the crossing of every ray
+/// (`height` rows of `width·supersample` rays) and the shaded image (alpha = share of rays that
+/// hit). Inverse warping marches from the cylinder of [`ParallaxImages::march_radius`].
+///
+/// Errors: `k` out of range, a zero screen size, a non-finite `theta`.
+pub fn warp_view(
+    images: &ParallaxImages,
+    k: usize,
+    theta: f64,
+    method: WarpMethod,
+    screen: &RenderParams,
+) -> Result<(Vec<Option<Crossing>>, RgbaImage), ParallaxError> {
+    screen.validate()?;
+    finite("theta", theta)?;
+    if k >= images.views.len() {
+        return Err(invalid(
+            "view index",
+            k,
+            "must be below the number of views",
+        ));
+    }
+    let xs = screen.sample_xs(images.params.cylinder.radius);
+    let n = xs.len();
+    let view = &images.views[k];
+    let mut crossings = vec![None; n * screen.height];
+    crossings
+        .par_chunks_mut(n)
+        .enumerate()
+        .for_each(|(js, out)| {
+            let j = screen.view_row(js, view.height);
+            warp_row_into(images, k, j, theta, method, &xs, out);
+        });
+    let mut img = RgbaImage::new(screen.width, screen.height);
+    let inv = 1.0 / screen.supersample as f32;
+    for js in 0..screen.height {
+        let j = screen.view_row(js, view.height);
+        for (s, c) in crossings[js * n..(js + 1) * n].iter().enumerate() {
+            if let Some(c) = c {
+                let col = shade_crossing(view, j, c, &screen.light) * inv;
+                let p = &mut img.pixels[js * screen.width + s / screen.supersample];
+                p[0] += col.x;
+                p[1] += col.y;
+                p[2] += col.z;
+                p[3] += inv;
+            }
+        }
+    }
+    Ok((crossings, img))
+}
+
+fn warp_row_into(
+    images: &ParallaxImages,
+    k: usize,
+    j: usize,
+    theta: f64,
+    method: WarpMethod,
+    xs: &[f64],
+    out: &mut [Option<Crossing>],
+) {
+    match method {
+        WarpMethod::Direct => {
+            let v = &images.views[k];
+            let row = &v.geom[j * v.width..(j + 1) * v.width];
+            warp_row_direct_impl(&images.pixel_grid(), row, theta.cos(), theta.sin(), xs, out);
+        }
+        WarpMethod::Inverse => {
+            let (co, si) = (theta.cos(), theta.sin());
+            let v = &images.views[k];
+            let row = &v.geom[j * v.width..(j + 1) * v.width];
+            let grid = images.pixel_grid();
+            let r = images.march_radius();
+            for (o, &x) in out.iter_mut().zip(xs) {
+                let (x1, x2) = cylinder_range(x, co, si, r);
+                *o = march_row(&grid, row, x, co, si, x1, x2).hit;
+            }
+        }
+    }
+}
+
+/// Renders the object at display angle `alpha`: the two bracketing views are warped and combined
+/// per ray — undefined in both: nothing; defined in one: that one; in both: the shaded colours
+/// blended by angular proportion ([`ParallaxImages::bracketing`]). Returns premultiplied linear
+/// RGBA (alpha = share of the pixel's rays that hit). When the screen is coarser than the views
+/// and `screen.mip` is set, a mip level is warped instead ([`RenderParams::mip_level`]). Cost:
+/// `height·width·supersample` rays, two warps each (`O(steps)` inverse, `O(Lx)` per row direct),
+/// rows in parallel.
+///
+/// Errors: a zero screen size, a non-finite angle.
+pub fn render(
+    images: &ParallaxImages,
+    alpha: f64,
+    method: WarpMethod,
+    screen: &RenderParams,
+) -> Result<RgbaImage, ParallaxError> {
+    screen.validate()?;
+    let level = screen
+        .mip_level(images.params.width, images.params.height)
+        .min(images.mip_levels() - 1);
+    if level > 0 {
+        let coarse = images.level(level)?;
+        let screen = RenderParams {
+            mip: false,
+            ..*screen
+        };
+        return render(&coarse, alpha, method, &screen);
+    }
+    let [(k1, t1, w1), (k2, t2, w2)] = images.bracketing(alpha)?;
+    let xs = screen.sample_xs(images.params.cylinder.radius);
+    let n = xs.len();
+    let mut img = RgbaImage::new(screen.width, screen.height);
+    let inv = 1.0 / screen.supersample as f32;
+    img.pixels
+        .par_chunks_mut(screen.width)
+        .enumerate()
+        .for_each(|(js, px)| {
+            let mut a = vec![None; n];
+            let mut b = vec![None; n];
+            let (v1, v2) = (&images.views[k1], &images.views[k2]);
+            let j1 = screen.view_row(js, v1.height);
+            let j2 = screen.view_row(js, v2.height);
+            warp_row_into(images, k1, j1, t1, method, &xs, &mut a);
+            warp_row_into(images, k2, j2, t2, method, &xs, &mut b);
+            for s in 0..n {
+                let col = match (&a[s], &b[s]) {
+                    (None, None) => continue,
+                    (Some(c), None) => shade_crossing(v1, j1, c, &screen.light),
+                    (None, Some(c)) => shade_crossing(v2, j2, c, &screen.light),
+                    (Some(c), Some(d)) => {
+                        w1 as f32 * shade_crossing(v1, j1, c, &screen.light)
+                            + w2 as f32 * shade_crossing(v2, j2, d, &screen.light)
+                    }
+                } * inv;
+                let p = &mut px[s / screen.supersample];
+                p[0] += col.x;
+                p[1] += col.y;
+                p[2] += col.z;
+                p[3] += inv;
+            }
+        });
+    Ok(img)
+}
+
+/// Renders at the views' own resolution (one ray per pixel centre, where stored bounds are valid)
+/// with the march ranges of `bounds`: the shader's path. Returns the image (combined as in
+/// [`render`]) and the total march steps of both warped views. With bounds of any kind the image
+/// is the same as [`render`]'s at native resolution; only the steps differ.
+///
+/// Errors: bounds built for other images, a non-finite angle.
+pub fn render_bounded(
+    images: &ParallaxImages,
+    bounds: &super::Bounds,
+    alpha: f64,
+    light: &Light,
+) -> Result<(RgbaImage, u64), ParallaxError> {
+    bounds.check(images)?;
+    let p = &images.params;
+    let (w, h) = (p.width, p.height);
+    let grid = images.pixel_grid();
+    let pair = images.bracketing(alpha)?;
+    let mut img = RgbaImage::new(w, h);
+    let steps: u64 = img
+        .pixels
+        .par_chunks_mut(w)
+        .enumerate()
+        .map(|(j, px)| {
+            let mut steps = 0u64;
+            for (i, pixel) in px.iter_mut().enumerate() {
+                let x = grid.x_at(i as f64 + 0.5);
+                let mut cols = [None, None];
+                for (slot, &(k, theta, _)) in pair.iter().enumerate() {
+                    let (co, si) = (theta.cos(), theta.sin());
+                    let view = &images.views[k];
+                    let row = &view.geom[j * w..(j + 1) * w];
+                    if let Some((x1, x2)) = bounds.range_cs(k, j * w + i, x, co, si) {
+                        let r = march_row(&grid, row, x, co, si, x1, x2);
+                        steps += u64::from(r.steps);
+                        cols[slot] = r.hit.map(|c| shade_crossing(view, j, &c, light));
+                    }
+                }
+                let col = match cols {
+                    [None, None] => continue,
+                    [Some(a), None] => a,
+                    [None, Some(b)] => b,
+                    [Some(a), Some(b)] => pair[0].2 as f32 * a + pair[1].2 as f32 * b,
+                };
+                *pixel = [col.x, col.y, col.z, 1.0];
+            }
+            steps
+        })
+        .sum();
+    Ok((img, steps))
+}

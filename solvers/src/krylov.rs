@@ -307,7 +307,45 @@ pub fn pbicg<Op: LinearOperator + ?Sized>(
 ) -> Result<Solution, SolverError> {
     let t0 = Instant::now();
     let m = build_preconditioner(a, params.preconditioner)?;
-    pbicg_impl(a, &*m, b, params, t0)
+    // With entries available, store Aᵀ once (one O(nnz) transpose) so that every Aᵀ·p̃ is a
+    // parallel row product rather than a serial scatter.
+    match a.to_csr() {
+        Some(csr) => {
+            let op = ExplicitTranspose {
+                a,
+                at: csr.transpose_view().to_csr(),
+            };
+            pbicg_impl(&op, &*m, b, params, t0)
+        }
+        None => pbicg_impl(a, &*m, b, params, t0),
+    }
+}
+
+/// `A` together with a stored CSR copy of `Aᵀ`, used for `Aᵀ·x`.
+struct ExplicitTranspose<'a, Op: ?Sized> {
+    a: &'a Op,
+    at: sprs::CsMat<f64>,
+}
+
+impl<Op: LinearOperator + ?Sized> LinearOperator for ExplicitTranspose<'_, Op> {
+    fn nrows(&self) -> usize {
+        self.a.nrows()
+    }
+    fn ncols(&self) -> usize {
+        self.a.ncols()
+    }
+    fn apply(&self, x: &[f64], y: &mut [f64]) {
+        self.a.apply(x, y);
+    }
+    fn apply_transpose(&self, x: &[f64], y: &mut [f64]) {
+        self.at.apply(x, y);
+    }
+    fn to_csr(&self) -> Option<sprs::CsMat<f64>> {
+        self.a.to_csr()
+    }
+    fn check_finite(&self) -> Result<(), SolverError> {
+        self.a.check_finite()
+    }
 }
 
 /// [`pbicg`] with a preconditioner supplied by the caller (`params.preconditioner` is ignored).

@@ -262,6 +262,19 @@ pub fn run(args: FitBenchArgs) -> CliResult {
         }));
     }
 
+    // Time split of one complete default fit.
+    let default_fit = fitter.fit(&base)?;
+    let tm = default_fit.report.timing;
+    println!(
+        "\ntime split of the default fit ({}+{}, λ = {DEFAULT_LAMBDA:e}): sampling {:.1} ms, assembly {:.1} ms, solve {:.1} ms, evaluation (errors, 8/16-bit quantisation) {:.1} ms",
+        base.solver.name(),
+        base.preconditioner.name(),
+        sampling_ms,
+        tm.assembly_s * 1e3,
+        tm.solve_s * 1e3,
+        tm.evaluation_s * 1e3
+    );
+
     // λ table with the default solver.
     println!(
         "\nλ sweep ({}+{}; data range [{:.4}, {:.4}])",
@@ -378,6 +391,12 @@ pub fn run(args: FitBenchArgs) -> CliResult {
             "sampling_ms": sampling_ms,
             "assembly_ms": assembly_ms,
             "design_matrix_ms": design_ms,
+            "default_fit_ms": {
+                "sampling": sampling_ms,
+                "assembly": tm.assembly_s * 1e3,
+                "solve": tm.solve_s * 1e3,
+                "evaluation": tm.evaluation_s * 1e3,
+            },
             "tolerance": args.tolerance,
             "threads": rayon::current_num_threads(),
             "data_min": data.min,

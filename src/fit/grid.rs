@@ -22,8 +22,12 @@ pub fn node_count(cells: usize, periodic: bool) -> usize {
 ///
 /// Node coordinate `u·cells`. Non-periodic: `u` is clamped to `[0, 1]` (a GPU's clamp-to-edge),
 /// and `u = 1` gives `(cells − 1, cells, 1)`. Periodic: `u·cells` is taken modulo `cells`, and
-/// `i1 = (i0 + 1) mod cells`. A NaN `u` gives `t = NaN` (and so a NaN value), never a panic.
+/// `i1 = (i0 + 1) mod cells`. A NaN `u` gives `t = NaN` (and so a NaN value), never a panic;
+/// so does `cells = 0` (an invalid axis), with nodes `(0, 0)`.
 pub fn axis_weight(u: f64, cells: usize, periodic: bool) -> (usize, usize, f64) {
+    if cells == 0 {
+        return (0, 0, f64::NAN);
+    }
     let a = cells as f64;
     if periodic {
         let mut s = (u * a).rem_euclid(a);
@@ -39,6 +43,23 @@ pub fn axis_weight(u: f64, cells: usize, periodic: bool) -> (usize, usize, f64) 
         let t = if u.is_nan() { f64::NAN } else { s - i0 as f64 };
         (i0, i0 + 1, t)
     }
+}
+
+/// [`axis_weight`] of every sample position of `samples`, per axis, for a grid of `cells`
+/// cells: the per-sample work of evaluating a grid at all samples is then one [`TrilinearGrid`]
+/// blend. Cost: `Nx + Ny + Nz` calls.
+pub(crate) fn sample_weights(
+    samples: &SampleGrid,
+    cells: [usize; 3],
+    periodic: [bool; 3],
+) -> [Vec<(usize, usize, f64)>; 3] {
+    [0, 1, 2].map(|a| {
+        samples
+            .coords(a)
+            .iter()
+            .map(|&u| axis_weight(u, cells[a], periodic[a]))
+            .collect()
+    })
 }
 
 /// Samples `d(i, j, k)` of a function on a fine `Nx × Ny × Nz` grid over `[0, 1]³`, each defined

@@ -43,9 +43,11 @@
 //!   `t = s·N − ½ = u·A`, exactly `eval`'s node coordinate, so one fetch returns `g(u)` (up to
 //!   the GPU's 8-bit sub-texel weight precision, modelled by [`TrilinearGrid::eval_texture`]).
 //!
-//! ## Cost (15 × 8 × 16 cells, 2.1 million samples, 2 cores; see `altrep fit-bench`)
-//! Assembly: tens of milliseconds; solve (PCG + Jacobi): milliseconds; error evaluation: tens
-//! of milliseconds.
+//! ## Cost (15 × 8 × 16 cells, z periodic, 128 × 64 × 256 samples of which 1.26 million defined,
+//! 2 shared cores; `altrep fit-bench`, figures in `bench/RESULTS.md`)
+//! Assembly of the normal equations ≈ 35–40 ms; solve with PCG + Jacobi ≈ 6 ms (60 iterations);
+//! error and quantisation report ≈ 0.15–0.35 s. LSQR/LSMR need the 1.26 M × 2304 design matrix
+//! (≈ 0.4 s to build, 120 MB) and take ≈ 0.5–2 s per solve: use them as a cross-check only.
 
 pub mod assemble;
 pub mod dense;
@@ -158,7 +160,8 @@ pub struct FitParams {
     /// Regularisation weight λ ≥ 0, dimensionless. Default [`DEFAULT_LAMBDA`].
     pub lambda: f64,
     /// Solver. Default [`Method::Pcg`]: the normal matrix is symmetric, and CG does BiCG's
-    /// iterations with half the products (measured by `altrep fit-bench`).
+    /// iterations with half the products (`altrep fit-bench`: 60 iterations each, 62 vs 122
+    /// products, ≈ 6 vs 13 ms).
     pub solver: Method,
     /// Preconditioner. Default Jacobi (for LSQR/LSMR: column scaling).
     pub preconditioner: PreconditionerKind,
@@ -202,28 +205,29 @@ pub struct ErrorStats {
 /// Cost: one pass over the samples and a selection for the percentile.
 pub fn error_stats(samples: &SampleGrid, grid: &TrilinearGrid) -> ErrorStats {
     let [nx, ny, _] = samples.dims();
-    let (cells, periodic) = (grid.cells(), grid.periodic());
-    let w: Vec<Vec<(usize, usize, f64)>> = (0..3)
-        .map(|a| {
-            samples
-                .coords(a)
-                .iter()
-                .map(|&u| axis_weight(u, cells[a], periodic[a]))
-                .collect()
-        })
-        .collect();
-    let mut errors: Vec<f64> = samples
+    let w = grid::sample_weights(samples, grid.cells(), grid.periodic());
+    // Per z-slice: the errors, their sum of squares and their maximum.
+    let slices: Vec<(Vec<f64>, f64, f64)> = samples
         .values()
         .par_chunks(nx * ny)
         .enumerate()
-        .flat_map_iter(|(k, slice)| {
-            let w = &w;
-            slice.iter().enumerate().filter_map(move |(idx, v)| {
-                v.map(|d| (d - grid.blend([w[0][idx % nx], w[1][idx / nx], w[2][k]])).abs())
-            })
+        .map(|(k, slice)| {
+            let mut errs = Vec::with_capacity(slice.len());
+            let (mut ss, mut mx) = (0.0f64, 0.0f64);
+            for (j, row) in slice.chunks_exact(nx).enumerate() {
+                for (i, v) in row.iter().enumerate() {
+                    if let Some(d) = v {
+                        let e = (d - grid.blend([w[0][i], w[1][j], w[2][k]])).abs();
+                        ss += e * e;
+                        mx = mx.max(e);
+                        errs.push(e);
+                    }
+                }
+            }
+            (errs, ss, mx)
         })
         .collect();
-    let count = errors.len();
+    let count: usize = slices.iter().map(|s| s.0.len()).sum();
     if count == 0 {
         return ErrorStats {
             rms: 0.0,
@@ -232,8 +236,12 @@ pub fn error_stats(samples: &SampleGrid, grid: &TrilinearGrid) -> ErrorStats {
             count,
         };
     }
-    let sum_sq: f64 = errors.par_iter().map(|e| e * e).sum();
-    let max = errors.par_iter().cloned().reduce(|| 0.0, f64::max);
+    let sum_sq: f64 = slices.iter().map(|s| s.1).sum();
+    let max = slices.iter().map(|s| s.2).fold(0.0, f64::max);
+    let mut errors = Vec::with_capacity(count);
+    for s in &slices {
+        errors.extend_from_slice(&s.0);
+    }
     let rank = ((0.99 * count as f64).ceil() as usize).clamp(1, count) - 1;
     let (_, p99, _) = errors.select_nth_unstable_by(rank, f64::total_cmp);
     ErrorStats {
@@ -257,7 +265,7 @@ pub struct FitTiming {
     pub evaluation_s: f64,
 }
 
-/// Error after quantising the node values to `bits` bits ([`quantize`]).
+/// Error after quantising the node values to `bits` bits ([`quantize()`]).
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct QuantizedError {
     /// Bits per node value.

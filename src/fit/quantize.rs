@@ -83,6 +83,7 @@ impl Quantized {
             self.codes.iter().map(|&q| q as f64).collect(),
         )?;
         let [nx, ny, _] = samples.dims();
+        let w = super::grid::sample_weights(samples, raw.cells(), raw.periodic());
         // Σ1, ΣG, Σd, ΣG², ΣGd over defined samples.
         let sums = samples
             .values()
@@ -90,14 +91,16 @@ impl Quantized {
             .enumerate()
             .map(|(k, slice)| {
                 let mut s = [0.0f64; 5];
-                for (idx, v) in slice.iter().enumerate() {
-                    if let Some(d) = v {
-                        let g = raw.eval(samples.position(idx % nx, idx / nx, k));
-                        s[0] += 1.0;
-                        s[1] += g;
-                        s[2] += d;
-                        s[3] += g * g;
-                        s[4] += g * d;
+                for (j, row) in slice.chunks_exact(nx).enumerate() {
+                    for (i, v) in row.iter().enumerate() {
+                        if let Some(d) = v {
+                            let g = raw.blend([w[0][i], w[1][j], w[2][k]]);
+                            s[0] += 1.0;
+                            s[1] += g;
+                            s[2] += d;
+                            s[3] += g * g;
+                            s[4] += g * d;
+                        }
                     }
                 }
                 s

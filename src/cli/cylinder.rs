@@ -162,7 +162,7 @@ pub fn summary_markdown(reports: &[EvalReport]) -> String {
     }
     s += "\nOffsets (texels, RMS / p99; away from / near discontinuities), vs inverse warping, \
           costs:\n\n| shape | fitted all | away | near | hybrid m=4 all | fitted / m=4 vs inverse dB | \
-          inverse steps | m=4 steps | precompute ms (sampling, assembly, solve, quantisation) | bytes |\n\
+          inverse steps | m=4 steps | precompute ms (capture, sampling, assembly, solve, quantisation) | bytes |\n\
           |---|---|---|---|---|---|---|---|---|---|\n";
     for r in reports {
         let (Some(f), Some(h), Some(i)) = (r.row("fitted"), r.row("hybrid-m4"), r.row("inverse"))
@@ -170,7 +170,7 @@ pub fn summary_markdown(reports: &[EvalReport]) -> String {
             continue;
         };
         s += &format!(
-            "| {} | {:.2} / {:.2} | {:.2} / {:.2} | {:.2} / {:.2} | {:.2} / {:.2} | {:.1} / {:.1} | {:.1} | {:.2} | {:.0} ({:.0}, {:.1}, {:.1}, {:.1}) | {} |\n",
+            "| {} | {:.2} / {:.2} | {:.2} / {:.2} | {:.2} / {:.2} | {:.2} / {:.2} | {:.1} / {:.1} | {:.1} | {:.2} | {:.0} ({:.0}, {:.0}, {:.1}, {:.1}, {:.1}) | {} |\n",
             r.shape,
             f.offset.rms,
             f.offset.p99,
@@ -185,6 +185,7 @@ pub fn summary_markdown(reports: &[EvalReport]) -> String {
             i.mean_steps.unwrap_or(0.0),
             h.mean_steps.unwrap_or(0.0),
             f.precompute_ms,
+            r.capture_ms,
             r.offset.sampling_s * 1e3,
             r.offset.assembly_s * 1e3,
             r.offset.solve_s * 1e3,

@@ -66,8 +66,10 @@ pub enum FitSupport {
 /// Parameters of [`OffsetTexture::fit`].
 #[derive(Clone, Copy, Debug, PartialEq, Serialize)]
 pub struct OffsetParams {
-    /// Cells of the fitted grid `[Ax, Ay, Aα]`. Default `[15, 8, 16]` (the source's; the sweep of
-    /// [`super::sweep`] is the justification).
+    /// Cells of the fitted grid `[Ax, Ay, Aα]`. Default `[15, 8, 16]`, the source's: in the
+    /// [`super::sweep`] over the six evaluation shapes it is the knee (mean 18.7 dB plain, 19.9
+    /// dB hybrid m = 2, against 16.9 / 18.4 at 8×4×8 and 19.7 / 20.9 at 31×16×32 for 7.5× the
+    /// coefficients and 6× the fit time).
     pub cells: [usize; 3],
     /// Fine samples `[Nx, Ny, Nα]`; `Ny = 0` means one per texture row. Default `[64, 0, 64]`.
     pub samples: [usize; 3],

@@ -20,6 +20,8 @@ enum Command {
     Demo(cli::demo::DemoArgs),
     /// Capture N orthographic views (colour, depth, normals) of an OBJ mesh.
     Capture(cli::capture::CaptureArgs),
+    /// Cylindrical texture of a mesh or shape: exact and fitted-offset renderers against ground truth.
+    Cylinder(cli::cylinder::CylinderArgs),
     /// Ellipsoid micro-primitives: eigen-solver, filter rules, sin²θ law and octree report.
     EllipsoidBench(cli::ellipsoid_bench::EllipsoidBenchArgs),
     /// Benchmark the trilinear least-squares fit: solvers, regularisation λ, quantisation.
@@ -33,6 +35,7 @@ fn main() {
     let result = match cli.command {
         Command::Demo(args) => cli::demo::run(args),
         Command::Capture(args) => cli::capture::run(args),
+        Command::Cylinder(args) => cli::cylinder::run(args),
         Command::EllipsoidBench(args) => cli::ellipsoid_bench::run(args),
         Command::FitBench(args) => cli::fit_bench::run(args),
         Command::Parallax(args) => cli::parallax::run(args),

@@ -57,6 +57,7 @@ pub type SectionFn =
 pub fn sections() -> Vec<(&'static str, SectionFn)> {
     vec![
         ("captures", captures_section),
+        ("cylinder", super::cylinder::demo_section),
         ("parallax", super::parallax::demo_section),
         ("ellipsoid", super::ellipsoid_bench::demo_section),
     ]

@@ -2,6 +2,7 @@
 //! `clap::Args` struct and a `run` function; `src/main.rs` only dispatches.
 
 pub mod capture;
+pub mod cylinder;
 pub mod demo;
 pub mod ellipsoid_bench;
 pub mod fit_bench;

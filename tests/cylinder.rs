@@ -1,0 +1,370 @@
+//! Cylindrical textures against the ray-cast ground truth (SPEC §6).
+
+use altrep::cylinder::{
+    CylinderRender, CylindricalTexture, DrawOrder, ExactMethod, RadiusModel, RenderParams,
+    render_exact,
+};
+use altrep::data_gen::{
+    CylinderParams, Light, RgbaImage, Shape, TruthParams, render_truth, scene_shape,
+};
+use altrep::metrics::{psnr, silhouette_iou};
+
+/// Albedo prefilter of the captures (3 × 3 rays per texel, the library default).
+const PREFILTER: usize = 3;
+
+fn texture(shape: &dyn Shape) -> CylindricalTexture {
+    CylindricalTexture::capture(shape, &CylinderParams::default(), PREFILTER).unwrap()
+}
+
+fn truth(shape: &dyn Shape, p: &RenderParams) -> RgbaImage {
+    render_truth(
+        shape,
+        &TruthParams {
+            angle: p.angle,
+            width: p.width,
+            height: p.height,
+            supersample: p.supersample,
+            light: p.light,
+            cylinder: Default::default(),
+        },
+    )
+    .unwrap()
+}
+
+fn params(angle: f64, size: usize, supersample: usize) -> RenderParams {
+    RenderParams {
+        angle,
+        width: size,
+        height: size,
+        supersample,
+        light: Light::default(),
+    }
+}
+
+const EXACT: [ExactMethod; 4] = [
+    ExactMethod::Mesh,
+    ExactMethod::Direct(DrawOrder::BackToFront, RadiusModel::General),
+    ExactMethod::Direct(DrawOrder::FrontToBack, RadiusModel::General),
+    ExactMethod::Inverse(RadiusModel::General),
+];
+
+/// A sphere on the axis (radius 0.8, striped by azimuth) is star-shaped: every exact renderer
+/// reconstructs it to ≥ 40 dB against the 4 × 4 supersampled ground truth at 64² pixels
+/// (measured: 41.8–43.8 dB; without the albedo prefilter 38.6–42.0 dB).
+#[test]
+fn sphere_on_axis_all_exact_renderers_reach_40_db() {
+    let shape = scene_shape("sphere").unwrap();
+    let tex = texture(&shape);
+    for angle in [0.0, 0.7, 2.9] {
+        let p = params(angle, 64, 4);
+        let gt = truth(&shape, &p);
+        for m in EXACT {
+            let r = render_exact(&tex, m, &p).unwrap();
+            let db = psnr(&r.image, &gt).unwrap();
+            let iou = silhouette_iou(&r.image, &gt, 0.5).unwrap();
+            assert!(db >= 40.0, "{} at α = {angle}: {db:.2} dB", m.name());
+            assert!(iou > 0.995, "{} at α = {angle}: IoU {iou:.4}", m.name());
+        }
+    }
+}
+
+/// Wrapped difference of two columns, in texels.
+fn column_distance(a: f64, b: f64, columns: usize) -> f64 {
+    let l = columns as f64;
+    let d = (a - b).rem_euclid(l);
+    d.min(l - d)
+}
+
+/// Sub-samples covered by `a` but not `b` that have no sub-sample covered by `b` within `reach`
+/// sub-samples (Chebyshev distance).
+fn coverage_outliers(a: &CylinderRender, b: &CylinderRender, reach: i64) -> usize {
+    let (w, h) = (a.sub_width as i64, a.sub_height as i64);
+    let covered = |r: &CylinderRender, i: i64, j: i64| {
+        i >= 0 && j >= 0 && i < w && j < h && r.fragments[(j * w + i) as usize].is_some()
+    };
+    let mut outliers = 0;
+    for j in 0..h {
+        for i in 0..w {
+            if covered(a, i, j) && !covered(b, i, j) {
+                let near = (-reach..=reach)
+                    .any(|dj| (-reach..=reach).any(|di| covered(b, i + di, j + dj)));
+                outliers += usize::from(!near);
+            }
+        }
+    }
+    outliers
+}
+
+/// On the truck (parts off the axis, negative radii, holes), direct warping draws what the mesh
+/// reference draws to within one texel: where both cover a sub-sample they read columns at most
+/// one texel apart (measured: ≥ 99.8 % of sub-samples; the rest are ties where an inner and an
+/// outer surface meet), and every sub-sample covered by only one of them lies within one pixel of
+/// the other's coverage (measured: within one sub-sample, but 2–4 of ~10⁴).
+#[test]
+fn truck_direct_warping_matches_the_mesh_within_one_texel() {
+    let shape = scene_shape("truck").unwrap();
+    let tex = texture(&shape);
+    let k = 3;
+    for angle in [0.0, 0.5, 2.2, 3.5, 5.0] {
+        let p = params(angle, 64, k);
+        let mesh = render_exact(&tex, ExactMethod::Mesh, &p).unwrap();
+        for order in [DrawOrder::BackToFront, DrawOrder::FrontToBack] {
+            let direct =
+                render_exact(&tex, ExactMethod::Direct(order, RadiusModel::General), &p).unwrap();
+            let (mut both, mut far) = (0usize, 0usize);
+            for (a, b) in mesh.fragments.iter().zip(&direct.fragments) {
+                if let (Some(a), Some(b)) = (a, b) {
+                    both += 1;
+                    far += usize::from(column_distance(a.column, b.column, tex.columns()) > 1.0);
+                }
+            }
+            assert!(both > 5000);
+            assert!(
+                (far as f64) < 0.002 * both as f64,
+                "α = {angle} {order:?}: {far} of {both} sub-samples read columns > 1 texel apart"
+            );
+            for (a, b) in [(&mesh, &direct), (&direct, &mesh)] {
+                let outliers = coverage_outliers(a, b, k as i64);
+                assert!(
+                    outliers <= 4,
+                    "α = {angle} {order:?}: {outliers} coverage outliers"
+                );
+            }
+        }
+    }
+}
+
+/// The three exact warps are one algorithm seen three ways: inverse warping and direct warping in
+/// both orders give identical fragments, so their costs can be compared on equal terms.
+#[test]
+fn inverse_and_direct_warping_agree_exactly() {
+    let shape = scene_shape("tree").unwrap();
+    let tex = texture(&shape);
+    let p = params(1.1, 48, 2);
+    let inv = render_exact(&tex, ExactMethod::Inverse(RadiusModel::General), &p).unwrap();
+    for m in &EXACT[1..3] {
+        let r = render_exact(&tex, *m, &p).unwrap();
+        let same = inv
+            .fragments
+            .iter()
+            .zip(&r.fragments)
+            .filter(|(a, b)| match (a, b) {
+                (Some(a), Some(b)) => (a.column - b.column).abs() < 1e-9,
+                (None, None) => true,
+                _ => false,
+            })
+            .count();
+        assert!(
+            same as f64 >= 0.999 * inv.fragments.len() as f64,
+            "{}: {same} of {}",
+            m.name(),
+            inv.fragments.len()
+        );
+    }
+    assert!(inv.mean_steps() > 1.0);
+}
+
+/// No seam at α = 0: the angle just below 0 and the same angle plus 2π give the same image, and
+/// the images at and on both sides of 0 are continuous.
+#[test]
+fn no_seam_at_alpha_zero_for_exact_renderers() {
+    let shape = scene_shape("pear").unwrap();
+    let tex = texture(&shape);
+    let eps = 1e-3;
+    for m in [
+        ExactMethod::Mesh,
+        ExactMethod::Inverse(RadiusModel::General),
+    ] {
+        let below = render_exact(&tex, m, &params(-eps, 48, 2)).unwrap();
+        let wrapped = render_exact(&tex, m, &params(std::f64::consts::TAU - eps, 48, 2)).unwrap();
+        let at = render_exact(&tex, m, &params(0.0, 48, 2)).unwrap();
+        let above = render_exact(&tex, m, &params(eps, 48, 2)).unwrap();
+        assert!(
+            psnr(&below.image, &wrapped.image).unwrap() > 60.0,
+            "{}",
+            m.name()
+        );
+        for img in [&below, &above] {
+            let db = psnr(&img.image, &at.image).unwrap();
+            assert!(db > 40.0, "{}: {db:.1} dB across α = 0", m.name());
+        }
+    }
+}
+
+/// On the pear at the source's 15 × 8 × 16 grid (defaults: silhouette mask, fit where the offset
+/// is continuous, 16-bit coefficients), 4 angles, 48² pixels with 3 × 3 sub-samples: the offset
+/// error and the hybrid image against exact inverse warping, asserted at what was measured
+/// (stated per line) with a margin of about 10 %. The error concentrates near silhouettes and
+/// occlusion jumps: away from them the fitted offset is within a texel almost everywhere.
+#[test]
+fn pear_offset_error_and_hybrid_psnr_at_15x8x16() {
+    use altrep::cylinder::{EvalParams, evaluate};
+    let shape = scene_shape("pear").unwrap();
+    let params = EvalParams {
+        angles: 4,
+        size: 48,
+        ..EvalParams::default()
+    };
+    assert_eq!(params.offset.cells, [15, 8, 16]);
+    let report = evaluate(&shape, &params).unwrap();
+    let row = |m: &str| report.row(m).unwrap();
+    let fitted = row("fitted");
+    // Measured: RMS 1.17, p99 4.46 texels over all defined sub-samples.
+    assert!(fitted.offset.rms <= 1.3, "{:?}", fitted.offset);
+    assert!(fitted.offset.p99 <= 5.0, "{:?}", fitted.offset);
+    // Measured: away RMS 0.21, p99 0.99; near RMS 1.78, p99 7.45.
+    assert!(fitted.offset_away.rms <= 0.25, "{:?}", fitted.offset_away);
+    assert!(fitted.offset_away.p99 <= 1.1, "{:?}", fitted.offset_away);
+    assert!(fitted.offset_near.rms <= 2.0, "{:?}", fitted.offset_near);
+    assert!(fitted.offset_near.p99 <= 8.2, "{:?}", fitted.offset_near);
+    assert!(fitted.offset_near.rms > 5.0 * fitted.offset_away.rms);
+    // Measured against exact inverse warping: plain 42.23 dB, m = 2 42.53 dB, m = 4 42.90 dB;
+    // with m = 4 more than 99 % of the sub-samples read the exact column (p99 = 0).
+    assert!(
+        fitted.psnr_vs_inverse_db >= 41.5,
+        "{}",
+        fitted.psnr_vs_inverse_db
+    );
+    assert!(row("hybrid-m2").psnr_vs_inverse_db >= 41.8);
+    let m4 = row("hybrid-m4");
+    assert!(m4.psnr_vs_inverse_db >= 42.2, "{}", m4.psnr_vs_inverse_db);
+    assert!(m4.offset.p99 <= 0.05, "{:?}", m4.offset);
+    assert!(m4.offset_away.rms <= 0.05, "{:?}", m4.offset_away);
+    // The exact renderers it approximates: 33.91 dB against the ground truth.
+    assert!(row("inverse").psnr_db >= 33.0);
+    assert!(fitted.psnr_db >= row("inverse").psnr_db - 1.0);
+}
+
+/// The fitted offset has no seam at α = 0: its angle axis is periodic, so the offsets fetched
+/// just below and just above 0 agree and the images at 2π − ε and −ε are the same.
+#[test]
+fn no_seam_at_alpha_zero_for_fitted_offsets() {
+    use altrep::cylinder::{OffsetMode, OffsetParams, OffsetTexture};
+    let shape = scene_shape("pear").unwrap();
+    let tex = texture(&shape);
+    let off = OffsetTexture::fit(&tex, &OffsetParams::default()).unwrap();
+    let eps = 1e-4;
+    let mut worst = 0.0f64;
+    for x in [-0.5, -0.2, 0.0, 0.3, 0.55] {
+        for v in [10.0, 30.5, 50.0] {
+            let (below, _) = off.offset(x, v, -eps).unwrap();
+            let (above, _) = off.offset(x, v, eps).unwrap();
+            let (wrapped, _) = off.offset(x, v, std::f64::consts::TAU - eps).unwrap();
+            assert!((below - wrapped).abs() < 1e-9);
+            worst = worst.max((below - above).abs());
+        }
+    }
+    assert!(worst < 0.05, "offsets jump by {worst} texels across α = 0");
+    for mode in [OffsetMode::Plain, OffsetMode::Hybrid { steps: 2 }] {
+        let render = |a: f64| off.render(&tex, mode, 1.0, &params(a, 48, 2)).unwrap();
+        let (below, above) = (render(-eps), render(eps));
+        let wrapped = render(std::f64::consts::TAU - eps);
+        assert!(psnr(&below.image, &wrapped.image).unwrap() > 60.0);
+        assert!(psnr(&below.image, &above.image).unwrap() > 40.0);
+    }
+}
+
+/// The chair's known failure, stated rather than hidden: its four legs stand parallel to the
+/// axis, two by two in line with it, so a column ray meets only a leg's outer face (about 3
+/// columns of 256) and never the faces that turn toward the other legs. Exact inverse warping of
+/// its texture covers (measured over 6 angles) only 34–67 % of the true coverage in the rows of
+/// the legs, against 83–92 % in the rows of the seat and back, and the image stays below 24 dB.
+#[test]
+fn chair_legs_in_line_with_the_axis_are_lost() {
+    let shape = scene_shape("chair").unwrap();
+    let tex = texture(&shape);
+    let (mut legs, mut legs_true, mut top, mut top_true) = (0.0, 0.0, 0.0, 0.0);
+    for angle in [0.0, 0.3, std::f64::consts::FRAC_PI_4, 1.2, 2.0, 3.5] {
+        let p = params(angle, 64, 3);
+        let gt = truth(&shape, &p);
+        let r = render_exact(&tex, ExactMethod::Inverse(RadiusModel::General), &p).unwrap();
+        assert!(psnr(&r.image, &gt).unwrap() < 24.0);
+        for j in 0..64 {
+            // Pixel rows below y = 0.8 hold only legs (the seat starts at y = 0.85).
+            let below_seat = 2.0 - (j as f64 + 0.5) / 32.0 < 0.8;
+            for i in 0..64 {
+                let (t, c) = (gt.get(i, j)[3] as f64, r.image.get(i, j)[3] as f64);
+                if below_seat {
+                    (legs, legs_true) = (legs + c.min(t), legs_true + t);
+                } else {
+                    (top, top_true) = (top + c.min(t), top_true + t);
+                }
+            }
+        }
+    }
+    let (legs, top) = (legs / legs_true, top / top_true);
+    // Measured: legs 0.400 of the true coverage, seat and back 0.909.
+    assert!(legs < 0.5, "legs covered {legs:.3}");
+    assert!(top > 0.85, "seat and back covered {top:.3}");
+}
+
+/// `altrep cylinder` end to end: the JSON holds one object per renderer with the documented keys;
+/// bad input is a message and a failure, not a panic.
+#[test]
+fn cylinder_command_writes_its_json() {
+    let dir = tempfile::tempdir().unwrap();
+    let json = dir.path().join("cyl.json");
+    let run = |args: &[&str]| {
+        std::process::Command::new(env!("CARGO_BIN_EXE_altrep"))
+            .arg("cylinder")
+            .args(args)
+            .output()
+            .unwrap()
+    };
+    let out = run(&[
+        "--shape",
+        "sphere",
+        "--angles",
+        "1",
+        "--size",
+        "16",
+        "--grid",
+        "8x4x8",
+        "--json",
+        json.to_str().unwrap(),
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    let rows = v["renderers"].as_array().unwrap();
+    let methods: Vec<&str> = rows.iter().map(|r| r["method"].as_str().unwrap()).collect();
+    for m in [
+        "mesh",
+        "direct-btf",
+        "inverse",
+        "fitted",
+        "hybrid-m1",
+        "hybrid-m2",
+        "hybrid-m4",
+    ] {
+        assert!(methods.contains(&m), "{m} missing from {methods:?}");
+    }
+    for r in rows {
+        for key in [
+            "method",
+            "psnr_db",
+            "iou",
+            "offset_rms_texels",
+            "offset_p99_texels",
+            "mean_steps",
+            "precompute_ms",
+            "bytes",
+        ] {
+            assert!(r.get(key).is_some(), "{key} missing in {r}");
+        }
+    }
+    for bad in [
+        &["--shape", "sphere", "--grid", "0x8x16"][..],
+        &["--shape", "no-such-shape"],
+        &["--mesh", "/no/such/file.obj"],
+    ] {
+        let out = run(bad);
+        assert!(!out.status.success(), "{bad:?} succeeded");
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(!err.contains("panicked"), "{bad:?}: {err}");
+    }
+}

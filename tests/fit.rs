@@ -385,11 +385,26 @@ proptest! {
                 prop_assert!(r.grid.values().iter().all(|v| v.is_finite()));
                 let rep = &r.report;
                 prop_assert!(rep.error.rms.is_finite() && rep.error.max.is_finite());
-                prop_assert!(rep.solver.converged, "{:?}", rep.solver.stop_reason);
-                prop_assert!(
-                    rep.error.rms <= rep.data.std_dev * (1.0 + 1e-6) + 1e-9 * scale,
-                    "rms {} > mean-fit {}", rep.error.rms, rep.data.std_dev
-                );
+                if rep.solver.converged {
+                    prop_assert!(
+                        rep.error.rms <= rep.data.std_dev * (1.0 + 1e-6) + 1e-9 * scale,
+                        "rms {} > mean-fit {}", rep.error.rms, rep.data.std_dev
+                    );
+                } else {
+                    // Honest non-convergence is allowed for the non-symmetric methods only:
+                    // BiCGSTAB can stagnate on near-singular systems with a handful of samples
+                    // (seen: 1 defined sample on a 4×4×5 node grid). The symmetric methods, the
+                    // default among them, must converge on every draw.
+                    prop_assert!(
+                        matches!(solver, Method::Bicgstab | Method::Pbicg),
+                        "{solver:?} did not converge: {:?}", rep.solver.stop_reason
+                    );
+                    let honest = matches!(
+                        rep.solver.stop_reason,
+                        StopReason::MaxIterations | StopReason::Breakdown { .. }
+                    );
+                    prop_assert!(honest, "stop reason {:?}", rep.solver.stop_reason);
+                }
             }
         }
     }

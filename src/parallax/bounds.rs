@@ -583,70 +583,91 @@ fn pixel_points(
         let Some((a, b)) = rs.pieces[id as usize] else {
             continue;
         };
-        let (dx, dz) = (b.0 - a.0, b.1 - a.1);
-        let len2 = dx * dx + dz * dz;
-        let t_foot = if len2 > 0.0 {
-            -(a.0 * dx + a.1 * dz) / len2
-        } else {
-            0.0
-        };
-        // Crossing on the piece's line at angle th: (t, t, z_e, z_e); a piece seen edge-on
-        // (only possible at an interval end) gives both its ends.
-        let on_line = |th: f64| -> (f64, f64, f64, f64) {
-            let (co, si) = (th.cos(), th.sin());
-            let xe_a = a.0 * co + a.1 * si;
-            let xe_b = b.0 * co + b.1 * si;
-            let ze = |t: f64| {
-                let (px, pz) = (a.0 + t * dx, a.1 + t * dz);
-                pz * co - px * si
-            };
-            if xe_b - xe_a > 1e-14 * r {
-                let t = ((x - xe_a) / (xe_b - xe_a)).clamp(0.0, 1.0);
-                let z = ze(t);
-                (t, t, z, z)
-            } else {
-                let (z0, z1) = (ze(0.0), ze(1.0));
-                (0.0, 1.0, z0.min(z1), z0.max(z1))
-            }
-        };
         let half = usize::from(mid >= 0.0);
-        // Boxes over the sub-intervals cut by the uniform grid strictly inside (ea, eb).
-        let mut m = (ea / step).floor() as i64 + 1;
-        let mut s_a = ea;
-        let mut end_a = on_line(ea);
-        loop {
-            let gm = m as f64 * step;
-            let s_b = if gm < eb { gm } else { eb };
-            let end_b = on_line(s_b);
-            let (t_lo, t_hi) = (end_a.0.min(end_b.0), end_a.1.max(end_b.1));
-            let mut zlo = end_a.2.min(end_b.2);
-            let mut zhi = end_a.3.max(end_b.3);
-            if t_foot > t_lo && t_foot < t_hi {
-                let (px, pz) = (a.0 + t_foot * dx, a.1 + t_foot * dz);
-                let zf = (px * px + pz * pz - x * x).max(0.0).sqrt();
-                if zlo >= 0.0 {
-                    zlo = zlo.min(zf);
-                } else if zhi <= 0.0 {
-                    zhi = zhi.max(-zf);
-                }
-            }
-            let (ta, tb) = (tau(s_a), tau(s_b));
-            let (zlo, zhi) = (zlo - EPS * r, zhi + EPS * r);
-            let hp = &mut halves[half];
-            hp.upper.push((ta, zhi));
-            hp.upper.push((tb, zhi));
-            hp.lower.push((ta, zlo));
-            hp.lower.push((tb, zlo));
-            if s_b >= eb {
-                break;
-            }
-            s_a = s_b;
-            end_a = end_b;
-            m += 1;
-        }
+        push_piece_boxes(&mut halves[half], a, b, x, r, (ea, eb), step, tau);
     }
     for hp in halves.iter() {
         debug_assert!(hp.upper.windows(2).all(|w| w[0].0 <= w[1].0));
+    }
+}
+
+/// Conservative corner points `(τ, z_e)` of the crossing of the screen ray at abscissa `x` with
+/// the surface piece `a → b` (view frame, `(x_t, z_t)` pairs), for view angles in the open
+/// interval `(ea, eb)` where that piece is the visible one. The interval is cut at the points of
+/// the uniform grid of `step` inside it; over each sub-interval the crossing's depth is bounded by
+/// its values at both ends and, where the foot of the perpendicular from the axis falls inside
+/// the sub-interval's range of piece parameters, by the depth of that foot (the extremum of
+/// `|z_e|` along the piece). Each box is widened by `EPS·r` and pushed as two upper and two lower
+/// corners at `τ(s_a)` and `τ(s_b)`.
+#[allow(clippy::too_many_arguments)]
+fn push_piece_boxes(
+    hp: &mut HalfPoints,
+    a: (f64, f64),
+    b: (f64, f64),
+    x: f64,
+    r: f64,
+    (ea, eb): (f64, f64),
+    step: f64,
+    tau: impl Fn(f64) -> f64,
+) {
+    let (dx, dz) = (b.0 - a.0, b.1 - a.1);
+    let len2 = dx * dx + dz * dz;
+    let t_foot = if len2 > 0.0 {
+        -(a.0 * dx + a.1 * dz) / len2
+    } else {
+        0.0
+    };
+    // Crossing on the piece's line at angle th: (t, t, z_e, z_e); a piece seen edge-on (only
+    // possible at an interval end) gives both its ends.
+    let on_line = |th: f64| -> (f64, f64, f64, f64) {
+        let (co, si) = (th.cos(), th.sin());
+        let xe_a = a.0 * co + a.1 * si;
+        let xe_b = b.0 * co + b.1 * si;
+        let ze = |t: f64| {
+            let (px, pz) = (a.0 + t * dx, a.1 + t * dz);
+            pz * co - px * si
+        };
+        if xe_b - xe_a > 1e-14 * r {
+            let t = ((x - xe_a) / (xe_b - xe_a)).clamp(0.0, 1.0);
+            let z = ze(t);
+            (t, t, z, z)
+        } else {
+            let (z0, z1) = (ze(0.0), ze(1.0));
+            (0.0, 1.0, z0.min(z1), z0.max(z1))
+        }
+    };
+    // Boxes over the sub-intervals cut by the uniform grid strictly inside (ea, eb).
+    let mut m = (ea / step).floor() as i64 + 1;
+    let mut s_a = ea;
+    let mut end_a = on_line(ea);
+    loop {
+        let gm = m as f64 * step;
+        let s_b = if gm < eb { gm } else { eb };
+        let end_b = on_line(s_b);
+        let (t_lo, t_hi) = (end_a.0.min(end_b.0), end_a.1.max(end_b.1));
+        let mut zlo = end_a.2.min(end_b.2);
+        let mut zhi = end_a.3.max(end_b.3);
+        if t_foot > t_lo && t_foot < t_hi {
+            let (px, pz) = (a.0 + t_foot * dx, a.1 + t_foot * dz);
+            let zf = (px * px + pz * pz - x * x).max(0.0).sqrt();
+            if zlo >= 0.0 {
+                zlo = zlo.min(zf);
+            } else if zhi <= 0.0 {
+                zhi = zhi.max(-zf);
+            }
+        }
+        let (ta, tb) = (tau(s_a), tau(s_b));
+        let (zlo, zhi) = (zlo - EPS * r, zhi + EPS * r);
+        hp.upper.push((ta, zhi));
+        hp.upper.push((tb, zhi));
+        hp.lower.push((ta, zlo));
+        hp.lower.push((tb, zlo));
+        if s_b >= eb {
+            break;
+        }
+        s_a = s_b;
+        end_a = end_b;
+        m += 1;
     }
 }
 
@@ -1100,67 +1121,8 @@ mod reference {
             };
             let g = &row[h.texel];
             let (a, b) = piece(grid, g, h.texel, h.right);
-            let (dx, dz) = (b.0 - a.0, b.1 - a.1);
-            let len2 = dx * dx + dz * dz;
-            let t_foot = if len2 > 0.0 {
-                -(a.0 * dx + a.1 * dz) / len2
-            } else {
-                0.0
-            };
-            // Crossing on the piece's line at angle th: (t, z_e); degenerate ends give both ends.
-            let on_line = |th: f64| -> (f64, f64, f64, f64) {
-                let (co, si) = (th.cos(), th.sin());
-                let xe_a = a.0 * co + a.1 * si;
-                let xe_b = b.0 * co + b.1 * si;
-                let ze = |t: f64| {
-                    let (px, pz) = (a.0 + t * dx, a.1 + t * dz);
-                    pz * co - px * si
-                };
-                if xe_b - xe_a > 1e-14 * r {
-                    let t = ((x - xe_a) / (xe_b - xe_a)).clamp(0.0, 1.0);
-                    let z = ze(t);
-                    (t, t, z, z)
-                } else {
-                    let (z0, z1) = (ze(0.0), ze(1.0));
-                    (0.0, 1.0, z0.min(z1), z0.max(z1))
-                }
-            };
             let half = half_of(0.5 * (ea + eb));
-            // Grid points strictly inside (ea, eb).
-            let m0 = (ea / step).floor() as i64 + 1;
-            let mut s_a = ea;
-            let mut end_a = on_line(ea);
-            let mut m = m0;
-            loop {
-                let gm = m as f64 * step;
-                let s_b = if gm < eb { gm } else { eb };
-                let end_b = on_line(s_b);
-                let (t_lo, t_hi) = (end_a.0.min(end_b.0), end_a.1.max(end_b.1));
-                let mut lo = end_a.2.min(end_b.2);
-                let mut hi = end_a.3.max(end_b.3);
-                if t_foot > t_lo && t_foot < t_hi {
-                    let (px, pz) = (a.0 + t_foot * dx, a.1 + t_foot * dz);
-                    let zf = (px * px + pz * pz - x * x).max(0.0).sqrt();
-                    if lo >= 0.0 {
-                        lo = lo.min(zf);
-                    } else if hi <= 0.0 {
-                        hi = hi.max(-zf);
-                    }
-                }
-                let (ta, tb) = (tau(s_a), tau(s_b));
-                let (lo, hi) = (lo - EPS * r, hi + EPS * r);
-                let hp = &mut halves[half];
-                hp.upper.push((ta, hi));
-                hp.upper.push((tb, hi));
-                hp.lower.push((ta, lo));
-                hp.lower.push((tb, lo));
-                if s_b >= eb {
-                    break;
-                }
-                s_a = s_b;
-                end_a = end_b;
-                m += 1;
-            }
+            push_piece_boxes(&mut halves[half], a, b, x, r, (ea, eb), step, tau);
         }
         for hp in halves.iter_mut() {
             hp.upper.sort_by(|p, q| p.0.total_cmp(&q.0));

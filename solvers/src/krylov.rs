@@ -213,6 +213,47 @@ fn begin<'a, Op: LinearOperator + ?Sized>(
     ))
 }
 
+/// How a Krylov run stands before its first iteration.
+enum Begun<'a, Op: ?Sized> {
+    /// Solved already: `b = 0` (so `x = 0`) or the initial guess meets the tolerance.
+    Done(Solution),
+    /// Iterate from `x` with residual `r = b − A·x` (its norm is in the history).
+    Iterate {
+        run: Run<'a, Op>,
+        x: Vec<f64>,
+        r: Vec<f64>,
+    },
+}
+
+/// [`begin`], then the checks every Krylov method makes before its first iteration: a zero
+/// right-hand side, and an initial guess that already meets the tolerance. Cost: one product.
+fn begin_iteration<'a, Op: LinearOperator + ?Sized>(
+    method: Method,
+    a: &'a Op,
+    m: &dyn Preconditioner,
+    b: &'a [f64],
+    params: &SolveParams,
+    t0: Instant,
+) -> Result<Begun<'a, Op>, SolverError> {
+    let (mut run, x) = begin(method, a, m, b, params, t0)?;
+    let n = b.len();
+    if run.bnorm == 0.0 {
+        return Ok(Begun::Done(run.finish(
+            vec![0.0; n],
+            0,
+            StopReason::Tolerance,
+        )));
+    }
+    let mut r = vec![0.0; n];
+    let rn = residual(a, b, &x, &mut r);
+    run.applications += 1;
+    run.history.push(run.rel(rn));
+    if run.rel(rn) <= run.tol {
+        return Ok(Begun::Done(run.finish(x, 0, StopReason::Tolerance)));
+    }
+    Ok(Begun::Iterate { run, x, r })
+}
+
 /// Preconditioned conjugate gradient for symmetric positive (semi-)definite `A`, with the
 /// preconditioner given by `params.preconditioner`. Cost per iteration: one product with `A`,
 /// one preconditioner application, `10n` flops.
@@ -243,18 +284,11 @@ fn pcg_impl<Op: LinearOperator + ?Sized>(
     params: &SolveParams,
     t0: Instant,
 ) -> Result<Solution, SolverError> {
-    let (mut run, mut x) = begin(Method::Pcg, a, m, b, params, t0)?;
+    let (mut run, mut x, mut r) = match begin_iteration(Method::Pcg, a, m, b, params, t0)? {
+        Begun::Done(solution) => return Ok(solution),
+        Begun::Iterate { run, x, r } => (run, x, r),
+    };
     let n = b.len();
-    if run.bnorm == 0.0 {
-        return Ok(run.finish(vec![0.0; n], 0, StopReason::Tolerance));
-    }
-    let mut r = vec![0.0; n];
-    let rn = residual(a, b, &x, &mut r);
-    run.applications += 1;
-    run.history.push(run.rel(rn));
-    if run.rel(rn) <= run.tol {
-        return Ok(run.finish(x, 0, StopReason::Tolerance));
-    }
     let (mut z, mut q) = (vec![0.0; n], vec![0.0; n]);
     m.apply(&r, &mut z);
     let mut p = z.clone();
@@ -365,18 +399,11 @@ fn pbicg_impl<Op: LinearOperator + ?Sized>(
     params: &SolveParams,
     t0: Instant,
 ) -> Result<Solution, SolverError> {
-    let (mut run, mut x) = begin(Method::Pbicg, a, m, b, params, t0)?;
+    let (mut run, mut x, mut r) = match begin_iteration(Method::Pbicg, a, m, b, params, t0)? {
+        Begun::Done(solution) => return Ok(solution),
+        Begun::Iterate { run, x, r } => (run, x, r),
+    };
     let n = b.len();
-    if run.bnorm == 0.0 {
-        return Ok(run.finish(vec![0.0; n], 0, StopReason::Tolerance));
-    }
-    let mut r = vec![0.0; n];
-    let rn = residual(a, b, &x, &mut r);
-    run.applications += 1;
-    run.history.push(run.rel(rn));
-    if run.rel(rn) <= run.tol {
-        return Ok(run.finish(x, 0, StopReason::Tolerance));
-    }
     // Shadow residual r̃ = r (the usual choice).
     let mut rt = r.clone();
     let (mut z, mut zt) = (vec![0.0; n], vec![0.0; n]);
@@ -471,18 +498,11 @@ fn bicgstab_impl<Op: LinearOperator + ?Sized>(
     params: &SolveParams,
     t0: Instant,
 ) -> Result<Solution, SolverError> {
-    let (mut run, mut x) = begin(Method::Bicgstab, a, m, b, params, t0)?;
+    let (mut run, mut x, mut r) = match begin_iteration(Method::Bicgstab, a, m, b, params, t0)? {
+        Begun::Done(solution) => return Ok(solution),
+        Begun::Iterate { run, x, r } => (run, x, r),
+    };
     let n = b.len();
-    if run.bnorm == 0.0 {
-        return Ok(run.finish(vec![0.0; n], 0, StopReason::Tolerance));
-    }
-    let mut r = vec![0.0; n];
-    let rn = residual(a, b, &x, &mut r);
-    run.applications += 1;
-    run.history.push(run.rel(rn));
-    if run.rel(rn) <= run.tol {
-        return Ok(run.finish(x, 0, StopReason::Tolerance));
-    }
     let mut rhat = r.clone();
     let (mut p, mut v) = (vec![0.0; n], vec![0.0; n]);
     let (mut phat, mut shat, mut t) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);

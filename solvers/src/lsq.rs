@@ -254,29 +254,65 @@ fn stop_test(
     }
 }
 
+/// The Golub–Kahan start shared by LSQR and LSMR: `‖b‖`, `β₀u = b − A·x`, `α₀v = Aᵀu`.
+struct Bidiag {
+    bnorm: f64,
+    u: Vec<f64>,
+    v: Vec<f64>,
+    alpha: f64,
+    beta0: f64,
+}
+
+/// Starts the bidiagonalisation, or returns the finished result (as `Err`) when `b = 0`
+/// (`x = 0`) or the start already solves the problem. Cost: two products.
+fn begin_bidiag<Op: LinearOperator + ?Sized>(
+    a: &Op,
+    b: &[f64],
+    x: &[f64],
+    params: &SolveParams,
+) -> Result<Bidiag, Inner> {
+    let bnorm = norm2(b);
+    if bnorm == 0.0 {
+        return Err(Inner {
+            x: vec![0.0; a.ncols()],
+            iterations: 0,
+            history: vec![0.0],
+            applications: 0,
+            stop: StopReason::Tolerance,
+        });
+    }
+    let (u, v, alpha, beta0) = bidiag_start(a, b, x);
+    if let Some(done) = trivial(x.to_vec(), alpha, beta0, beta0 <= params.tolerance * bnorm) {
+        return Err(Inner {
+            history: vec![beta0 / bnorm],
+            ..done
+        });
+    }
+    Ok(Bidiag {
+        bnorm,
+        u,
+        v,
+        alpha,
+        beta0,
+    })
+}
+
 fn lsqr_inner<Op: LinearOperator + ?Sized>(
     a: &Op,
     b: &[f64],
     mut x: Vec<f64>,
     params: &SolveParams,
 ) -> Inner {
-    let bnorm = norm2(b);
-    if bnorm == 0.0 {
-        return Inner {
-            x: vec![0.0; a.ncols()],
-            iterations: 0,
-            history: vec![0.0],
-            applications: 0,
-            stop: StopReason::Tolerance,
-        };
-    }
-    let (mut u, mut v, mut alpha, beta0) = bidiag_start(a, b, &x);
-    if let Some(done) = trivial(x.clone(), alpha, beta0, beta0 <= params.tolerance * bnorm) {
-        return Inner {
-            history: vec![beta0 / bnorm],
-            ..done
-        };
-    }
+    let Bidiag {
+        bnorm,
+        mut u,
+        mut v,
+        mut alpha,
+        beta0,
+    } = match begin_bidiag(a, b, &x, params) {
+        Ok(start) => start,
+        Err(done) => return done,
+    };
     let mut applications = 2;
     let mut history = vec![beta0 / bnorm];
     let mut w = v.clone();
@@ -351,23 +387,16 @@ fn lsmr_inner<Op: LinearOperator + ?Sized>(
     mut x: Vec<f64>,
     params: &SolveParams,
 ) -> Inner {
-    let bnorm = norm2(b);
-    if bnorm == 0.0 {
-        return Inner {
-            x: vec![0.0; a.ncols()],
-            iterations: 0,
-            history: vec![0.0],
-            applications: 0,
-            stop: StopReason::Tolerance,
-        };
-    }
-    let (mut u, mut v, mut alpha, beta0) = bidiag_start(a, b, &x);
-    if let Some(done) = trivial(x.clone(), alpha, beta0, beta0 <= params.tolerance * bnorm) {
-        return Inner {
-            history: vec![beta0 / bnorm],
-            ..done
-        };
-    }
+    let Bidiag {
+        bnorm,
+        mut u,
+        mut v,
+        mut alpha,
+        beta0,
+    } = match begin_bidiag(a, b, &x, params) {
+        Ok(start) => start,
+        Err(done) => return done,
+    };
     let mut applications = 2;
     let mut history = vec![beta0 / bnorm];
     let (mut av, mut atu) = (vec![0.0; a.nrows()], vec![0.0; a.ncols()]);

@@ -521,18 +521,7 @@ fn pixel_points(
                 }
             }
             if let Some(z) = best {
-                let p = (tau(th), z);
-                let which: &[usize] = if th == 0.0 {
-                    &[0, 1]
-                } else if th > 0.0 {
-                    &[1]
-                } else {
-                    &[0]
-                };
-                for &half in which {
-                    halves[half].upper.push(p);
-                    halves[half].lower.push(p);
-                }
+                push_exact(halves, th, (tau(th), z));
             }
         }
         if gend == n {
@@ -588,6 +577,22 @@ fn pixel_points(
     }
     for hp in halves.iter() {
         debug_assert!(hp.upper.windows(2).all(|w| w[0].0 <= w[1].0));
+    }
+}
+
+/// Pushes an exact crossing `p = (τ, z_e)` seen at angle `th` as both an upper and a lower
+/// point of the half range it belongs to (`θ < 0`: half 0, `θ > 0`: half 1, `θ = 0`: both).
+fn push_exact(halves: &mut [HalfPoints; 2], th: f64, p: (f64, f64)) {
+    let which: &[usize] = if th == 0.0 {
+        &[0, 1]
+    } else if th > 0.0 {
+        &[1]
+    } else {
+        &[0]
+    };
+    for &half in which {
+        halves[half].upper.push(p);
+        halves[half].lower.push(p);
     }
 }
 
@@ -1096,18 +1101,7 @@ mod reference {
         // Exact values at every event angle.
         for &e in events.iter() {
             if let Some(h) = hit_at(e) {
-                let p = (tau(e), h.z_e);
-                let which: &[usize] = if e == 0.0 {
-                    &[0, 1]
-                } else if e > 0.0 {
-                    &[1]
-                } else {
-                    &[0]
-                };
-                for &half in which {
-                    halves[half].upper.push(p);
-                    halves[half].lower.push(p);
-                }
+                push_exact(halves, e, (tau(e), h.z_e));
             }
         }
         // Boxes over the open event intervals.

@@ -12,6 +12,7 @@
 //! `y` vertical, horizontal direction `d(α) = (cos α, 0, sin α)`, every object normalised into a
 //! bounding cylinder of radius `R` about the `y` axis and height `H`.
 
+pub mod asset;
 pub mod cli;
 pub mod cylinder;
 pub mod ellipsoid;

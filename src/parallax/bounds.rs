@@ -176,8 +176,21 @@ pub struct Bounds {
     /// Per view, per pixel (row-major): two slots (see [`Bounds::pixel`]); `None` = empty (no
     /// crossing for any θ: the fragment is discarded without marching).
     views: Vec<Vec<[Option<PixelBound>; 2]>>,
+    /// Per view, the storage grids the values were quantised on (empty for the cylinder).
+    storage: Vec<ViewStorage>,
     march_radius: f64,
     width: usize,
+}
+
+/// The storage grids of one view's bounds, as a file stores them: `c = c0 + q·step` (or
+/// exactly `±1`), and per slot and channel (`[slot][0]` for `v_min`, `[slot][1]` for `v_max`)
+/// `v = lo + q·step`. `None` where the values are 32-bit floats or the channel is empty.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct ViewStorage {
+    /// `(c0, step)` of the view's `c` grid (bits 8 and 16 only).
+    pub c_grid: Option<(f64, f64)>,
+    /// `(lo, step)` of each `v` channel.
+    pub v_grid: [[Option<(f64, f64)>; 2]; 2],
 }
 
 /// Up to two candidate ranges of one fragment.
@@ -308,6 +321,54 @@ impl Bounds {
             }
         }
         out
+    }
+
+    /// The slots of every pixel of view `k` (row-major), as [`Self::pixel`] returns them; empty
+    /// for [`BoundKind::Cylinder`] or `k` out of range.
+    pub fn view_slots(&self, k: usize) -> &[[Option<PixelBound>; 2]] {
+        self.views.get(k).map_or(&[], |v| v.as_slice())
+    }
+
+    /// The storage grids of view `k` (`None` for the cylinder or `k` out of range).
+    pub fn view_storage(&self, k: usize) -> Option<&ViewStorage> {
+        self.storage.get(k)
+    }
+
+    /// Bounds of `kind` for `images` from stored slots (as a loader decodes them): one slot
+    /// array per view, row-major. Errors: sizes that do not fit `images`, a non-finite value or
+    /// `v_min > v_max`.
+    pub fn from_slots(
+        images: &ParallaxImages,
+        kind: BoundKind,
+        params: BoundParams,
+        views: Vec<Vec<[Option<PixelBound>; 2]>>,
+        storage: Vec<ViewStorage>,
+    ) -> Result<Bounds, ParallaxError> {
+        params.validate()?;
+        let b = Bounds {
+            kind,
+            params,
+            precompute: Duration::ZERO,
+            views,
+            storage,
+            march_radius: images.march_radius(),
+            width: images.params.width,
+        };
+        b.check(images)?;
+        for slot in b.views.iter().flatten().flatten().flatten() {
+            if !(slot.c.is_finite()
+                && slot.v_min.is_finite()
+                && slot.v_max.is_finite()
+                && slot.v_min <= slot.v_max)
+            {
+                return Err(invalid(
+                    "stored bound",
+                    format!("{slot:?}"),
+                    "must be finite with v_min <= v_max",
+                ));
+            }
+        }
+        Ok(b)
     }
 
     /// Checks that these bounds were built for `images` (same number and size of views).
@@ -803,9 +864,9 @@ fn f32_step(f: f32, up: bool) -> f32 {
 }
 
 /// Quantises `values` (one channel of one view) outward: up (`v_max`) or down (`v_min`).
-fn quantize_channel(values: &mut [&mut f64], up: bool, bits: u32) {
+fn quantize_channel(values: &mut [&mut f64], up: bool, bits: u32) -> Option<(f64, f64)> {
     if values.is_empty() {
-        return;
+        return None;
     }
     if bits == 32 {
         for v in values.iter_mut() {
@@ -817,7 +878,7 @@ fn quantize_channel(values: &mut [&mut f64], up: bool, bits: u32) {
             }
             **v = f64::from(f);
         }
-        return;
+        return None;
     }
     let lo = values.iter().map(|v| **v).fold(f64::INFINITY, f64::min);
     let hi = values.iter().map(|v| **v).fold(f64::NEG_INFINITY, f64::max);
@@ -838,6 +899,7 @@ fn quantize_channel(values: &mut [&mut f64], up: bool, bits: u32) {
         }
         **v = lo + q * step;
     }
+    Some((lo, step))
 }
 
 /// Precomputes bounds of `kind` for every pixel of every view (rows in parallel). Cost per pixel:
@@ -862,8 +924,9 @@ pub fn build_bounds(
         params.subdivisions
     };
     let mut views = Vec::new();
+    let mut storage = Vec::new();
     if kind != BoundKind::Cylinder {
-        views = images
+        (views, storage) = images
             .views
             .iter()
             .map(|view| {
@@ -952,6 +1015,10 @@ pub fn build_bounds(
                     }
                 }
                 // Pass 3: outward quantisation of every v channel.
+                let mut store = ViewStorage {
+                    c_grid: (params.bits < 32).then_some((cgrid.c0, cgrid.step)),
+                    ..ViewStorage::default()
+                };
                 for slot in 0..2 {
                     for up in [false, true] {
                         let mut vals: Vec<&mut f64> = px
@@ -959,18 +1026,20 @@ pub fn build_bounds(
                             .filter_map(|s| s[slot].as_mut())
                             .map(|b| if up { &mut b.v_max } else { &mut b.v_min })
                             .collect();
-                        quantize_channel(&mut vals, up, params.bits);
+                        store.v_grid[slot][usize::from(up)] =
+                            quantize_channel(&mut vals, up, params.bits);
                     }
                 }
-                px
+                (px, store)
             })
-            .collect();
+            .unzip();
     }
     Ok(Bounds {
         kind,
         params: *params,
         precompute: t0.elapsed(),
         views,
+        storage,
         march_radius: r_march,
         width: w,
     })

@@ -222,10 +222,49 @@ fn link_rows(geom: &mut [TexelGeom], width: usize, threshold: f64) {
     }
 }
 
-/// Quantises `x ∈ [0, 1]` to `bits` and back.
-pub(crate) fn unorm(x: f64, bits: u32) -> f64 {
+/// The `bits`-bit unorm code of `x ∈ [0, 1]` (clamped), rounded to nearest.
+pub(crate) fn unorm_code(x: f64, bits: u32) -> u32 {
     let levels = ((1u64 << bits) - 1) as f64;
-    (x.clamp(0.0, 1.0) * levels).round() / levels
+    (x.clamp(0.0, 1.0) * levels).round() as u32
+}
+
+/// The value `code / (2^bits − 1)` of a unorm code.
+pub(crate) fn code_value(code: u32, bits: u32) -> f64 {
+    f64::from(code) / ((1u64 << bits) - 1) as f64
+}
+
+/// The integer codes of one stored view, as files hold them (row-major, row 0 at the top):
+/// albedo in sRGB8, normal `(n + 1)/2` in 8 bits per component, depth `(z/R + 1)/2` in
+/// `depth_bits` bits, and whether the texel is defined (codes of undefined texels are 0).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct ViewCodes {
+    /// Columns.
+    pub width: usize,
+    /// Rows.
+    pub height: usize,
+    /// Whether each texel is defined.
+    pub defined: Vec<bool>,
+    /// sRGB8 albedo.
+    pub albedo: Vec<[u8; 3]>,
+    /// Normal codes.
+    pub normal: Vec<[u8; 3]>,
+    /// Depth codes.
+    pub depth: Vec<u16>,
+}
+
+impl ViewCodes {
+    /// A view with no defined texel.
+    pub fn empty(width: usize, height: usize) -> Self {
+        let n = width * height;
+        Self {
+            width,
+            height,
+            defined: vec![false; n],
+            albedo: vec![[0; 3]; n],
+            normal: vec![[0; 3]; n],
+            depth: vec![0; n],
+        }
+    }
 }
 
 impl ParallaxImages {
@@ -273,13 +312,6 @@ impl ParallaxImages {
                 "must equal params.views",
             ));
         }
-        let grid = PixelGrid {
-            width: params.width,
-            height: params.height,
-            cylinder: params.cylinder,
-        };
-        let r = params.cylinder.radius;
-        let threshold = params.continuity_texels * grid.pitch_x();
         let mut views = Vec::with_capacity(params.views);
         for (k, g) in grids.iter().enumerate() {
             let bad = |reason: String| ParallaxError::InconsistentView { view: k, reason };
@@ -306,9 +338,7 @@ impl ParallaxImages {
             if g.samples.len() != n {
                 return Err(bad(format!("{} samples for {n} texels", g.samples.len())));
             }
-            let mut geom = vec![TexelGeom::default(); n];
-            let mut albedo = vec![Vec3::ZERO; n];
-            let mut normal = vec![Vec3::ZERO; n];
+            let mut codes = ViewCodes::empty(g.width, g.height);
             for (idx, s) in g.samples.iter().enumerate() {
                 let Some(s) = s else { continue };
                 let d = f64::from(s.depth);
@@ -320,20 +350,78 @@ impl ParallaxImages {
                         "texel {idx} has a non-finite albedo or normal"
                     )));
                 }
-                let q = |c: f32| {
-                    srgb_to_linear(unorm(f64::from(linear_to_srgb(c.clamp(0.0, 1.0))), 8) as f32)
-                };
-                let qn = |c: f32| (unorm((f64::from(c) + 1.0) * 0.5, 8) * 2.0 - 1.0) as f32;
-                geom[idx].defined = true;
-                geom[idx].z = (unorm((d + 1.0) * 0.5, params.depth_bits) * 2.0 - 1.0) * r;
-                albedo[idx] = Vec3::new(q(s.albedo.x), q(s.albedo.y), q(s.albedo.z));
-                normal[idx] = Vec3::new(qn(s.normal.x), qn(s.normal.y), qn(s.normal.z));
+                let q = |c: f32| unorm_code(f64::from(linear_to_srgb(c.clamp(0.0, 1.0))), 8) as u8;
+                let qn = |c: f32| unorm_code((f64::from(c) + 1.0) * 0.5, 8) as u8;
+                codes.defined[idx] = true;
+                codes.depth[idx] = unorm_code((d + 1.0) * 0.5, params.depth_bits) as u16;
+                codes.albedo[idx] = [q(s.albedo.x), q(s.albedo.y), q(s.albedo.z)];
+                codes.normal[idx] = [qn(s.normal.x), qn(s.normal.y), qn(s.normal.z)];
             }
-            link_rows(&mut geom, g.width, threshold);
+            views.push(codes);
+        }
+        Self::from_codes(params, &views)
+    }
+
+    /// Builds the representation from the integer codes of its views, as files store them (see
+    /// [`ViewCodes`]); [`Self::from_grids`] quantises and then calls this, so a representation
+    /// written as codes and read back is identical. Cost: linear in the texels, plus the mip
+    /// pyramids. Errors: invalid parameters, a wrong number or size of views, a depth code above
+    /// `2^depth_bits − 1`.
+    pub fn from_codes(params: &ParallaxParams, codes: &[ViewCodes]) -> Result<Self, ParallaxError> {
+        params.validate()?;
+        if codes.len() != params.views {
+            return Err(invalid(
+                "number of views",
+                codes.len(),
+                "must equal params.views",
+            ));
+        }
+        let grid = PixelGrid {
+            width: params.width,
+            height: params.height,
+            cylinder: params.cylinder,
+        };
+        let r = params.cylinder.radius;
+        let threshold = params.continuity_texels * grid.pitch_x();
+        let levels = (1u32 << params.depth_bits) - 1;
+        let mut views = Vec::with_capacity(params.views);
+        for (k, c) in codes.iter().enumerate() {
+            let n = params.width * params.height;
+            if (c.width, c.height) != (params.width, params.height)
+                || [c.defined.len(), c.albedo.len(), c.normal.len(), c.depth.len()]
+                    .iter()
+                    .any(|&l| l != n)
+            {
+                return Err(ParallaxError::InconsistentView {
+                    view: k,
+                    reason: format!(
+                        "codes of size {}×{}, expected {}×{}",
+                        c.width, c.height, params.width, params.height
+                    ),
+                });
+            }
+            if let Some(idx) = c.depth.iter().position(|&d| u32::from(d) > levels) {
+                return Err(ParallaxError::InconsistentView {
+                    view: k,
+                    reason: format!("texel {idx}: depth code above {levels}"),
+                });
+            }
+            let mut geom = vec![TexelGeom::default(); n];
+            let mut albedo = vec![Vec3::ZERO; n];
+            let mut normal = vec![Vec3::ZERO; n];
+            for idx in (0..n).filter(|&i| c.defined[i]) {
+                let a = c.albedo[idx].map(|q| srgb_to_linear(code_value(q.into(), 8) as f32));
+                let nm = c.normal[idx].map(|q| (code_value(q.into(), 8) * 2.0 - 1.0) as f32);
+                geom[idx].defined = true;
+                geom[idx].z = (code_value(c.depth[idx].into(), params.depth_bits) * 2.0 - 1.0) * r;
+                albedo[idx] = Vec3::from_array(a);
+                normal[idx] = Vec3::from_array(nm);
+            }
+            link_rows(&mut geom, params.width, threshold);
             views.push(View {
                 angle: params.view_angle(k),
-                width: g.width,
-                height: g.height,
+                width: params.width,
+                height: params.height,
                 geom,
                 albedo,
                 normal,
@@ -341,6 +429,32 @@ impl ParallaxImages {
         }
         Self::assemble(*params, views)
     }
+
+    /// The integer codes of every view, as a file stores them (the inverse of
+    /// [`Self::from_codes`] for a representation built by [`Self::from_grids`] or
+    /// [`Self::from_codes`]). Cost: linear in the texels.
+    pub fn codes(&self) -> Vec<ViewCodes> {
+        let r = self.params.cylinder.radius;
+        let bits = self.params.depth_bits;
+        self.views
+            .iter()
+            .map(|v| {
+                let mut c = ViewCodes::empty(v.width, v.height);
+                for (idx, g) in v.geom.iter().enumerate().filter(|(_, g)| g.defined) {
+                    c.defined[idx] = true;
+                    c.depth[idx] = unorm_code((g.z / r + 1.0) * 0.5, bits) as u16;
+                    c.albedo[idx] = v.albedo[idx]
+                        .to_array()
+                        .map(|x| unorm_code(f64::from(linear_to_srgb(x.clamp(0.0, 1.0))), 8) as u8);
+                    c.normal[idx] = v.normal[idx]
+                        .to_array()
+                        .map(|x| unorm_code((f64::from(x) + 1.0) * 0.5, 8) as u8);
+                }
+                c
+            })
+            .collect()
+    }
+
 
     /// Finishes a representation from its views: march radius and one mip pyramid per view.
     fn assemble(params: ParallaxParams, views: Vec<View>) -> Result<Self, ParallaxError> {

@@ -80,8 +80,10 @@ mod measure;
 mod warp;
 
 pub use baselines::{render_blend_baseline, render_offset_baseline};
-pub use bounds::{BoundKind, BoundParams, Bounds, PixelBound, build_bounds, dense_sweep};
-pub use images::{ParallaxImages, ParallaxParams, View};
+pub use bounds::{
+    BoundKind, BoundParams, Bounds, PixelBound, ViewStorage, build_bounds, dense_sweep,
+};
+pub use images::{ParallaxImages, ParallaxParams, View, ViewCodes};
 pub use measure::{
     QualityParams, QualityRow, StepStats, StepsReport, measure_quality, measure_steps,
 };

@@ -1,0 +1,387 @@
+//! Writing an asset folder under a temporary name, then renaming it into place.
+
+use std::io::Cursor;
+use std::path::{Path, PathBuf};
+
+use image::{ImageBuffer, ImageFormat, Rgba};
+
+use super::{
+    AssetDescription, AssetError, Channel, CodeImage, Conventions, DESCRIPTION_FILE, FORMAT_MAJOR,
+    FORMAT_MINOR, FileEntry, FileFormat, FloatImage, hash_hex,
+};
+
+/// Name of the folder, inside an output directory, where assets are built before the rename.
+pub const STAGING_DIR: &str = ".staging";
+
+/// Builds one asset folder. Files go into `OUT/.staging/NAME.PID.N/`; [`Self::commit`] writes
+/// `asset.json` last and renames the folder to `OUT/NAME`, replacing an earlier one whole. A
+/// writer dropped without commit removes its staging folder; a killed process leaves it in
+/// `.staging`, which the next run of the pipeline clears.
+#[derive(Debug)]
+pub struct AssetWriter {
+    staging: PathBuf,
+    target: PathBuf,
+    files: Vec<FileEntry>,
+    committed: bool,
+}
+
+fn io(path: &Path) -> impl FnOnce(std::io::Error) -> AssetError + '_ {
+    move |source| AssetError::Io {
+        path: path.to_path_buf(),
+        source,
+    }
+}
+
+/// Writes `bytes` to `path` through a temporary sibling and a rename, so a reader never sees a
+/// partial file. Cost: one write, one rename.
+pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), AssetError> {
+    let name = path
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_else(|| "out".into());
+    let tmp = path.with_file_name(format!(".{name}.tmp{}", std::process::id()));
+    std::fs::write(&tmp, bytes).map_err(io(&tmp))?;
+    std::fs::rename(&tmp, path).map_err(|e| {
+        let _ = std::fs::remove_file(&tmp);
+        AssetError::Io {
+            path: path.to_path_buf(),
+            source: e,
+        }
+    })
+}
+
+impl AssetWriter {
+    /// Starts an asset named `name` (a folder name: letters, digits, `-`, `_`, `.`) in `out`.
+    /// Errors: a bad name, a staging folder that cannot be created.
+    pub fn new(out: &Path, name: &str) -> Result<Self, AssetError> {
+        if !valid_name(name) {
+            return Err(AssetError::BadData {
+                role: "asset name".into(),
+                reason: format!(
+                    "'{name}' is not a folder name (letters, digits, '-', '_', '.'; not starting with '.')"
+                ),
+            });
+        }
+        static COUNTER: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
+        let n = COUNTER.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+        let staging = out
+            .join(STAGING_DIR)
+            .join(format!("{name}.{}.{n}", std::process::id()));
+        if staging.exists() {
+            std::fs::remove_dir_all(&staging).map_err(io(&staging))?;
+        }
+        std::fs::create_dir_all(&staging).map_err(io(&staging))?;
+        Ok(Self {
+            staging,
+            target: out.join(name),
+            files: Vec::new(),
+            committed: false,
+        })
+    }
+
+    /// The folder the asset will have once committed.
+    pub fn target(&self) -> &Path {
+        &self.target
+    }
+
+    fn add(
+        &mut self,
+        role: &str,
+        file: &str,
+        format: FileFormat,
+        (width, height): (usize, usize),
+        channels: Vec<Channel>,
+        record_bytes: usize,
+        bytes: Vec<u8>,
+    ) -> Result<(), AssetError> {
+        if self.files.iter().any(|f| f.role == role || f.path == file) {
+            return Err(AssetError::BadData {
+                role: role.into(),
+                reason: format!("role or file name '{file}' used twice"),
+            });
+        }
+        if !valid_name(file) {
+            return Err(AssetError::BadData {
+                role: role.into(),
+                reason: format!("'{file}' is not a plain file name"),
+            });
+        }
+        let path = self.staging.join(file);
+        std::fs::write(&path, &bytes).map_err(io(&path))?;
+        self.files.push(FileEntry {
+            path: file.into(),
+            role: role.into(),
+            format,
+            width,
+            height,
+            channels,
+            record_bytes,
+            bytes: bytes.len() as u64,
+            blake3: hash_hex(&bytes),
+        });
+        Ok(())
+    }
+
+    /// Adds an 8-bit PNG of `image.channels` (1–4) channels. Cost: PNG encoding.
+    pub fn png8(
+        &mut self,
+        role: &str,
+        file: &str,
+        image: &CodeImage<u8>,
+        channels: Vec<Channel>,
+    ) -> Result<(), AssetError> {
+        check_image(role, image, &channels)?;
+        let bytes = encode_png(image).map_err(|reason| AssetError::BadData {
+            role: role.into(),
+            reason,
+        })?;
+        self.add(
+            role,
+            file,
+            FileFormat::Png8,
+            (image.width, image.height),
+            channels,
+            0,
+            bytes,
+        )
+    }
+
+    /// Adds a 16-bit PNG of `image.channels` (1–4) channels. Cost: PNG encoding.
+    pub fn png16(
+        &mut self,
+        role: &str,
+        file: &str,
+        image: &CodeImage<u16>,
+        channels: Vec<Channel>,
+    ) -> Result<(), AssetError> {
+        check_image(role, image, &channels)?;
+        let bytes = encode_png(image).map_err(|reason| AssetError::BadData {
+            role: role.into(),
+            reason,
+        })?;
+        self.add(
+            role,
+            file,
+            FileFormat::Png16,
+            (image.width, image.height),
+            channels,
+            0,
+            bytes,
+        )
+    }
+
+    /// Adds a 32-bit float RGBA EXR (lossless). Errors: a non-finite value, sizes.
+    pub fn exr(
+        &mut self,
+        role: &str,
+        file: &str,
+        image: &FloatImage,
+        channels: Vec<Channel>,
+    ) -> Result<(), AssetError> {
+        let bad = |reason: String| AssetError::BadData {
+            role: role.into(),
+            reason,
+        };
+        if image.width == 0 || image.height == 0 || image.data.len() != image.width * image.height
+        {
+            return Err(bad(format!(
+                "{}×{} image with {} pixels",
+                image.width,
+                image.height,
+                image.data.len()
+            )));
+        }
+        if channels.is_empty() || channels.len() > 4 {
+            return Err(bad(format!("{} channels listed", channels.len())));
+        }
+        if image.data.iter().flatten().any(|v| !v.is_finite()) {
+            return Err(bad("a value is not finite".into()));
+        }
+        let buf: ImageBuffer<Rgba<f32>, Vec<f32>> = ImageBuffer::from_raw(
+            image.width as u32,
+            image.height as u32,
+            image.data.iter().flatten().copied().collect(),
+        )
+        .ok_or_else(|| bad("size".into()))?;
+        let mut out = Cursor::new(Vec::new());
+        buf.write_to(&mut out, ImageFormat::OpenExr)
+            .map_err(|e| bad(e.to_string()))?;
+        self.add(
+            role,
+            file,
+            FileFormat::Exr32,
+            (image.width, image.height),
+            channels,
+            0,
+            out.into_inner(),
+        )
+    }
+
+    /// Adds `count` little-endian records of `record_bytes` bytes each (`bytes.len()` must be
+    /// `count · record_bytes`); `fields` name the record's fields for the description.
+    pub fn bin(
+        &mut self,
+        role: &str,
+        file: &str,
+        record_bytes: usize,
+        bytes: Vec<u8>,
+        fields: Vec<Channel>,
+    ) -> Result<(), AssetError> {
+        if record_bytes == 0 || bytes.len() % record_bytes != 0 {
+            return Err(AssetError::BadData {
+                role: role.into(),
+                reason: format!(
+                    "{} bytes is not a whole number of {record_bytes}-byte records",
+                    bytes.len()
+                ),
+            });
+        }
+        let count = bytes.len() / record_bytes;
+        self.add(
+            role,
+            file,
+            FileFormat::Bin,
+            (count, 1),
+            fields,
+            record_bytes,
+            bytes,
+        )
+    }
+
+    /// Writes `asset.json` and renames the folder into place (an earlier folder of the same
+    /// name is moved aside first and removed after). Returns the description written.
+    pub fn commit(
+        mut self,
+        representation: &str,
+        asset: &str,
+        cache_key: &str,
+        conventions: Conventions,
+        metadata: serde_json::Value,
+        report: serde_json::Value,
+    ) -> Result<AssetDescription, AssetError> {
+        let desc = AssetDescription {
+            format_version: [FORMAT_MAJOR, FORMAT_MINOR],
+            representation: representation.into(),
+            asset: asset.into(),
+            tool_version: env!("CARGO_PKG_VERSION").into(),
+            cache_key: cache_key.into(),
+            conventions,
+            metadata,
+            report,
+            files: std::mem::take(&mut self.files),
+        };
+        let json = serde_json::to_vec_pretty(&desc).map_err(|e| AssetError::BadData {
+            role: DESCRIPTION_FILE.into(),
+            reason: e.to_string(),
+        })?;
+        let path = self.staging.join(DESCRIPTION_FILE);
+        std::fs::write(&path, json).map_err(io(&path))?;
+        replace_dir(&self.staging, &self.target)?;
+        self.committed = true;
+        Ok(desc)
+    }
+}
+
+impl Drop for AssetWriter {
+    fn drop(&mut self) {
+        if !self.committed {
+            let _ = std::fs::remove_dir_all(&self.staging);
+        }
+    }
+}
+
+/// Renames folder `from` to `to`, moving an existing `to` aside first (into `from`'s parent)
+/// and removing it after. A crash between the two renames leaves no folder at `to` (the next
+/// run rebuilds it) and never a mixture of old and new files.
+pub fn replace_dir(from: &Path, to: &Path) -> Result<(), AssetError> {
+    if to.exists() {
+        let parent = from.parent().unwrap_or(from);
+        let aside = parent.join(format!(
+            "{}.old",
+            from.file_name().map(|n| n.to_string_lossy()).unwrap_or_default()
+        ));
+        std::fs::rename(to, &aside).map_err(io(to))?;
+        std::fs::rename(from, to).map_err(io(to))?;
+        std::fs::remove_dir_all(&aside).map_err(io(&aside))?;
+    } else {
+        std::fs::rename(from, to).map_err(io(to))?;
+    }
+    Ok(())
+}
+
+/// Whether `name` is a plain file or folder name.
+pub(crate) fn valid_name(name: &str) -> bool {
+    !name.is_empty()
+        && !name.starts_with('.')
+        && name.len() <= 128
+        && name
+            .chars()
+            .all(|c| c.is_ascii_alphanumeric() || matches!(c, '-' | '_' | '.'))
+}
+
+fn check_image<T>(role: &str, image: &CodeImage<T>, channels: &[Channel]) -> Result<(), AssetError> {
+    let bad = |reason: String| AssetError::BadData {
+        role: role.into(),
+        reason,
+    };
+    if image.width == 0 || image.height == 0 {
+        return Err(bad(format!("{}×{} image", image.width, image.height)));
+    }
+    if !(1..=4).contains(&image.channels) || channels.len() != image.channels {
+        return Err(bad(format!(
+            "{} image channels, {} described",
+            image.channels,
+            channels.len()
+        )));
+    }
+    if image.data.len() != image.width * image.height * image.channels {
+        return Err(bad(format!("{} codes for the size", image.data.len())));
+    }
+    Ok(())
+}
+
+/// A code type a PNG can store: `u8` or `u16`.
+pub trait PngCode: Copy {
+    /// The PNG colour type of `channels` channels of this depth.
+    fn color(channels: usize) -> Option<image::ExtendedColorType>;
+    /// The codes as native-endian bytes (what `image`'s encoders take).
+    fn to_ne_bytes(data: &[Self]) -> Vec<u8>;
+}
+
+impl PngCode for u8 {
+    fn color(channels: usize) -> Option<image::ExtendedColorType> {
+        use image::ExtendedColorType as C;
+        [C::L8, C::La8, C::Rgb8, C::Rgba8].get(channels.checked_sub(1)?).copied()
+    }
+    fn to_ne_bytes(data: &[Self]) -> Vec<u8> {
+        data.to_vec()
+    }
+}
+
+impl PngCode for u16 {
+    fn color(channels: usize) -> Option<image::ExtendedColorType> {
+        use image::ExtendedColorType as C;
+        [C::L16, C::La16, C::Rgb16, C::Rgba16]
+            .get(channels.checked_sub(1)?)
+            .copied()
+    }
+    fn to_ne_bytes(data: &[Self]) -> Vec<u8> {
+        data.iter().flat_map(|v| v.to_ne_bytes()).collect()
+    }
+}
+
+/// Encodes codes of `u8` or `u16` as a PNG of 1–4 channels.
+fn encode_png<T: PngCode>(image: &CodeImage<T>) -> Result<Vec<u8>, String> {
+    use image::ImageEncoder;
+    let color = T::color(image.channels).ok_or_else(|| format!("{} channels", image.channels))?;
+    let mut out = Vec::new();
+    image::codecs::png::PngEncoder::new(&mut out)
+        .write_image(
+            &T::to_ne_bytes(&image.data),
+            image.width as u32,
+            image.height as u32,
+            color,
+        )
+        .map_err(|e| e.to_string())?;
+    Ok(out)
+}

@@ -20,6 +20,7 @@ pub mod fit;
 pub mod metrics;
 pub mod mip;
 pub mod parallax;
+pub mod pipeline;
 
 pub use altrep_data_gen as data_gen;
 pub use altrep_solvers as solvers;

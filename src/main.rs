@@ -16,7 +16,7 @@ struct Cli {
 
 #[derive(Subcommand)]
 enum Command {
-    /// The main job: capture the bundled procedural scene, fit every representation, write a report.
+    /// The main job: precompute the bundled scene (scenes/demo.toml), then the measured sections; writes a report.
     Demo(cli::demo::DemoArgs),
     /// Capture N orthographic views (colour, depth, normals) of an OBJ mesh.
     Capture(cli::capture::CaptureArgs),
@@ -28,6 +28,8 @@ enum Command {
     FitBench(cli::fit_bench::FitBenchArgs),
     /// Images with parallax: march steps per bound type, violations, bytes, and quality vs ground truth.
     Parallax(cli::parallax::ParallaxArgs),
+    /// The offline step: plan, build, write and measure the representations a scene manifest asks for.
+    Precompute(cli::precompute::PrecomputeArgs),
 }
 
 fn main() {
@@ -39,6 +41,7 @@ fn main() {
         Command::EllipsoidBench(args) => cli::ellipsoid_bench::run(args),
         Command::FitBench(args) => cli::fit_bench::run(args),
         Command::Parallax(args) => cli::parallax::run(args),
+        Command::Precompute(args) => cli::precompute::run(args),
     };
     if let Err(e) = result {
         eprintln!("altrep: error: {e}");

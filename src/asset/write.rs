@@ -13,8 +13,9 @@ use super::{
 /// Name of the folder, inside an output directory, where assets are built before the rename.
 pub const STAGING_DIR: &str = ".staging";
 
-/// Builds one asset folder. Files go into `OUT/.staging/NAME.PID.N/`; [`Self::commit`] writes
-/// `asset.json` last and renames the folder to `OUT/NAME`, replacing an earlier one whole. A
+/// Builds one asset folder. Files go into `OUT/.staging/ASSET.REPR.PID.N/`; [`Self::commit`]
+/// writes `asset.json` last and renames the folder to `OUT/ASSET/REPR`, replacing an earlier one
+/// whole. A
 /// writer dropped without commit removes its staging folder; a killed process leaves it in
 /// `.staging`, which the next run of the pipeline clears.
 #[derive(Debug)]
@@ -51,29 +52,31 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), AssetError> {
 }
 
 impl AssetWriter {
-    /// Starts an asset named `name` (a folder name: letters, digits, `-`, `_`, `.`) in `out`.
-    /// Errors: a bad name, a staging folder that cannot be created.
-    pub fn new(out: &Path, name: &str) -> Result<Self, AssetError> {
-        if !valid_name(name) {
-            return Err(AssetError::BadData {
-                role: "asset name".into(),
-                reason: format!(
-                    "'{name}' is not a folder name (letters, digits, '-', '_', '.'; not starting with '.')"
-                ),
-            });
+    /// Starts representation `repr` of asset `asset` (folder names: letters, digits, `-`, `_`,
+    /// `.`) in `out`. Errors: a bad name, a staging folder that cannot be created.
+    pub fn new(out: &Path, asset: &str, repr: &str) -> Result<Self, AssetError> {
+        for name in [asset, repr] {
+            if !valid_name(name) {
+                return Err(AssetError::BadData {
+                    role: "asset name".into(),
+                    reason: format!(
+                        "'{name}' is not a folder name (letters, digits, '-', '_', '.'; not starting with '.')"
+                    ),
+                });
+            }
         }
         static COUNTER: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
         let n = COUNTER.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
         let staging = out
             .join(STAGING_DIR)
-            .join(format!("{name}.{}.{n}", std::process::id()));
+            .join(format!("{asset}.{repr}.{}.{n}", std::process::id()));
         if staging.exists() {
             std::fs::remove_dir_all(&staging).map_err(io(&staging))?;
         }
         std::fs::create_dir_all(&staging).map_err(io(&staging))?;
         Ok(Self {
             staging,
-            target: out.join(name),
+            target: out.join(asset).join(repr),
             files: Vec::new(),
             committed: false,
         })
@@ -276,6 +279,9 @@ impl AssetWriter {
         })?;
         let path = self.staging.join(DESCRIPTION_FILE);
         std::fs::write(&path, json).map_err(io(&path))?;
+        if let Some(parent) = self.target.parent() {
+            std::fs::create_dir_all(parent).map_err(io(parent))?;
+        }
         replace_dir(&self.staging, &self.target)?;
         self.committed = true;
         Ok(desc)
@@ -309,8 +315,9 @@ pub fn replace_dir(from: &Path, to: &Path) -> Result<(), AssetError> {
     Ok(())
 }
 
-/// Whether `name` is a plain file or folder name.
-pub(crate) fn valid_name(name: &str) -> bool {
+/// Whether `name` is a plain file or folder name: 1–128 ASCII letters, digits, `-`, `_`, `.`,
+/// not starting with `.`.
+pub fn valid_name(name: &str) -> bool {
     !name.is_empty()
         && !name.starts_with('.')
         && name.len() <= 128

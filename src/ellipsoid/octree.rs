@@ -661,6 +661,60 @@ impl Octree {
         ))
     }
 
+    /// An octree from stored nodes (as a loader decodes them). Errors
+    /// ([`EllipsoidError::BadParameter`]): no node, a depth above 24, dimensions beyond
+    /// `2^depth`, a child block out of range or not after its parent (which would loop), a
+    /// non-finite or out-of-range density or colour. Cost: one pass over the nodes.
+    pub fn from_nodes(
+        nodes: Vec<OctreeNode>,
+        depth: u32,
+        dims: [usize; 3],
+        rule: FilterRule,
+    ) -> Result<Self, EllipsoidError> {
+        let bad = |name: &'static str, value: String, reason: &'static str| {
+            EllipsoidError::BadParameter {
+                name,
+                reason: format!("{value}: {reason}"),
+            }
+        };
+        if nodes.is_empty() {
+            return Err(bad("nodes", "0".into(), "an octree needs a root"));
+        }
+        if depth > 24 {
+            return Err(bad("depth", depth.to_string(), "must be at most 24"));
+        }
+        if dims.iter().any(|&d| d == 0 || d as u64 > 1u64 << depth) {
+            return Err(bad("dims", format!("{dims:?}"), "must be in 1..=2^depth"));
+        }
+        for (i, n) in nodes.iter().enumerate() {
+            if let Some(first) = n.first_child {
+                let f = first.get() as usize;
+                if f <= i || f.checked_add(8).is_none_or(|end| end > nodes.len()) {
+                    return Err(bad(
+                        "first_child",
+                        format!("{f} at node {i}"),
+                        "must name 8 nodes after the parent",
+                    ));
+                }
+            }
+            if !(n.density.is_finite() && (0.0..=1.0).contains(&n.density))
+                || n.color.iter().any(|c| !c.is_finite())
+            {
+                return Err(bad(
+                    "node",
+                    i.to_string(),
+                    "density must be in [0, 1] and colour finite",
+                ));
+            }
+        }
+        Ok(Self {
+            nodes,
+            depth,
+            dims,
+            rule,
+        })
+    }
+
     /// The stored nodes, breadth-first; index 0 is the root.
     pub fn nodes(&self) -> &[OctreeNode] {
         &self.nodes

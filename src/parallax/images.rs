@@ -228,6 +228,12 @@ pub(crate) fn unorm_code(x: f64, bits: u32) -> u32 {
     (x.clamp(0.0, 1.0) * levels).round() as u32
 }
 
+/// The 8-bit code of one normal component `c ∈ [−1, 1]`: `round((c + 1)/2 · 255)`, as the
+/// views store it.
+pub fn normal_code(c: f32) -> u8 {
+    unorm_code((f64::from(c) + 1.0) * 0.5, 8) as u8
+}
+
 /// The value `code / (2^bits − 1)` of a unorm code.
 pub(crate) fn code_value(code: u32, bits: u32) -> f64 {
     f64::from(code) / ((1u64 << bits) - 1) as f64
@@ -351,7 +357,7 @@ impl ParallaxImages {
                     )));
                 }
                 let q = |c: f32| unorm_code(f64::from(linear_to_srgb(c.clamp(0.0, 1.0))), 8) as u8;
-                let qn = |c: f32| unorm_code((f64::from(c) + 1.0) * 0.5, 8) as u8;
+                let qn = normal_code;
                 codes.defined[idx] = true;
                 codes.depth[idx] = unorm_code((d + 1.0) * 0.5, params.depth_bits) as u16;
                 codes.albedo[idx] = [q(s.albedo.x), q(s.albedo.y), q(s.albedo.z)];
@@ -448,7 +454,7 @@ impl ParallaxImages {
                         .map(|x| unorm_code(f64::from(linear_to_srgb(x.clamp(0.0, 1.0))), 8) as u8);
                     c.normal[idx] = v.normal[idx]
                         .to_array()
-                        .map(|x| unorm_code((f64::from(x) + 1.0) * 0.5, 8) as u8);
+                        .map(normal_code);
                 }
                 c
             })

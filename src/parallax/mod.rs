@@ -83,7 +83,7 @@ pub use baselines::{render_blend_baseline, render_offset_baseline};
 pub use bounds::{
     BoundKind, BoundParams, Bounds, PixelBound, ViewStorage, build_bounds, dense_sweep,
 };
-pub use images::{ParallaxImages, ParallaxParams, View, ViewCodes};
+pub use images::{ParallaxImages, ParallaxParams, View, ViewCodes, normal_code};
 pub use measure::{
     QualityParams, QualityRow, StepStats, StepsReport, measure_quality, measure_steps,
 };

@@ -1,0 +1,119 @@
+//! `altrep precompute SCENE.toml --out DIR` — the offline step: plan, build, write, measure.
+
+use std::path::{Path, PathBuf};
+
+use crate::pipeline::{Manifest, RunOptions, Shard, plan_scene, run_scene};
+
+use super::CliResult;
+
+/// Arguments of `altrep precompute`.
+#[derive(clap::Args, Debug)]
+pub struct PrecomputeArgs {
+    /// The scene manifest (TOML).
+    pub manifest: PathBuf,
+    /// Output folder: one folder per asset and representation, `report.md`, `report.json`.
+    #[arg(long, default_value = "altrep-out/scene")]
+    pub out: PathBuf,
+    /// Print what would be built and skipped, and why; compute nothing.
+    #[arg(long)]
+    pub dry_run: bool,
+    /// Rebuild even what the cache holds.
+    #[arg(long)]
+    pub force: bool,
+    /// Only the assets of shard `i` of `n` (`i/n`, e.g. `0/4`); assets are split by a hash of
+    /// their name, the same on every machine.
+    #[arg(long, value_parser = Shard::parse)]
+    pub shard: Option<Shard>,
+    /// Ignore the scene's needs and compute everything (to measure what skipping saves).
+    #[arg(long)]
+    pub everything: bool,
+    /// Also write the run summary as JSON to this file.
+    #[arg(long)]
+    pub json: Option<PathBuf>,
+}
+
+/// Fails unless a file can be created at `path` (checked before any work, then removed).
+pub fn check_writable(path: &Path) -> Result<(), String> {
+    let parent = match path.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
+        _ => PathBuf::from("."),
+    };
+    if !parent.is_dir() {
+        return Err(format!(
+            "cannot write {}: folder {} does not exist",
+            path.display(),
+            parent.display()
+        ));
+    }
+    let probe = parent.join(format!(".altrep-probe-{}", std::process::id()));
+    std::fs::write(&probe, b"")
+        .map_err(|e| format!("cannot write {}: {e}", path.display()))?;
+    let _ = std::fs::remove_file(&probe);
+    Ok(())
+}
+
+/// Runs `altrep precompute`.
+pub fn run(args: PrecomputeArgs) -> CliResult {
+    let manifest = Manifest::load(&args.manifest)?;
+    run_manifest(&manifest, &args)
+}
+
+/// Runs a parsed manifest with the command's options (shared with `altrep demo`).
+pub fn run_manifest(manifest: &Manifest, args: &PrecomputeArgs) -> CliResult {
+    if let Some(j) = &args.json {
+        check_writable(j)?;
+    }
+    let options = RunOptions {
+        out: args.out.clone(),
+        force: args.force,
+        shard: args.shard,
+        everything: args.everything,
+        progress: true,
+    };
+    if args.dry_run {
+        for (asset, repr, plan) in plan_scene(manifest, &options)? {
+            println!("{asset} / {repr}:");
+            for item in &plan.items {
+                match &item.skipped {
+                    None => println!("  build  {}", item.what),
+                    Some(r) => println!("  skip   {} — {r}", item.what),
+                }
+            }
+        }
+        return Ok(());
+    }
+    let summary = run_scene(manifest, &options)?;
+    print!("{}", summary.table());
+    let built = summary
+        .outcomes
+        .iter()
+        .filter(|o| o.outcome == crate::pipeline::Outcome::Built)
+        .count();
+    let cached = summary
+        .outcomes
+        .iter()
+        .filter(|o| o.outcome == crate::pipeline::Outcome::Cached)
+        .count();
+    let bytes: u64 = summary.outcomes.iter().map(|o| o.bytes).sum();
+    let skipped: usize = summary
+        .outcomes
+        .iter()
+        .map(|o| o.plan.skipped().count())
+        .sum();
+    if built == 0 && cached > 0 && summary.ok() {
+        println!("nothing to do: all {cached} representations are cached");
+    }
+    println!(
+        "{built} built, {cached} cached, {skipped} parts skipped by the planner, {bytes} bytes, {:.2} s; report: {}",
+        summary.wall_seconds,
+        args.out.join("report.md").display()
+    );
+    if let Some(j) = &args.json {
+        std::fs::write(j, serde_json::to_string_pretty(&summary)?)
+            .map_err(|e| format!("cannot write {}: {e}", j.display()))?;
+    }
+    if !summary.ok() {
+        return Err("some representations failed (see the table above)".into());
+    }
+    Ok(())
+}

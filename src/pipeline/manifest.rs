@@ -1,0 +1,334 @@
+//! The scene manifest (TOML): assets, the representations wanted, and what the scene needs.
+//!
+//! ```toml
+//! [scene]
+//! light = [0.5, 0.8, 0.35]   # direction toward the light (object frame), for baked lighting
+//! ambient = 0.3
+//!
+//! [[asset]]
+//! name = "truck"               # folder name of the asset
+//! shape = "truck"              # a procedural shape, or: mesh = "meshes/truck.obj" (relative to the manifest)
+//! [asset.needs]
+//! azimuth_deg = [0, 360]       # range of view azimuths α (degrees)
+//! elevation_deg = [0, 0]       # range of view elevations (degrees; horizontal captures hold 0)
+//! screen_px = [16, 128]        # range of on-screen sizes of the object (pixels)
+//! lighting = "dynamic"         # or "baked"
+//! [asset.parallax]             # presence = wanted; every key optional (documented defaults)
+//! views = 8
+//! [asset.octree]
+//! resolution = 64
+//! ```
+//!
+//! Unknown keys, wrong types, duplicate asset names and impossible ranges are errors that name the
+//! key and its line, before any work starts.
+
+use std::ops::Range;
+use std::path::{Path, PathBuf};
+
+use serde::{Deserialize, Serialize};
+use toml::Spanned;
+
+use super::PipelineError;
+use super::octree::OctreeSpec as OctreeParams;
+use super::parallax::ParallaxSpec as ParallaxParams;
+
+/// Scene-wide settings.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct SceneSettings {
+    /// Direction toward the light in the object frame (any length), used to bake lighting and
+    /// for every image of the report.
+    pub light: [f32; 3],
+    /// Ambient share of the shading in `[0, 1]`.
+    pub ambient: f32,
+}
+
+impl Default for SceneSettings {
+    /// data-gen's default light: `(0.5, 0.8, 0.35)`, ambient 0.3.
+    fn default() -> Self {
+        Self {
+            light: [0.5, 0.8, 0.35],
+            ambient: 0.3,
+        }
+    }
+}
+
+/// How the scene lights an asset.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Lighting {
+    /// Lights move: store albedo and normals and relight in the shader.
+    Dynamic,
+    /// Lighting is fixed: store the shaded colour, no normals.
+    Baked,
+}
+
+/// What the scene needs of an asset. Angles in degrees, sizes in pixels.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct Needs {
+    /// Range of view azimuths `α` (degrees, `d(α) = (cos α, 0, sin α)`); a span of 360 or more is
+    /// every direction. Default `[0, 360]`.
+    pub azimuth_deg: [f64; 2],
+    /// Range of view elevations above the horizontal (degrees, in `[−90, 90]`). Default `[0, 0]`.
+    pub elevation_deg: [f64; 2],
+    /// Smallest and largest on-screen size of the object (pixels, ≥ 1). Default `[1, 256]`.
+    pub screen_px: [f64; 2],
+    /// Lighting. Default dynamic.
+    pub lighting: Lighting,
+    /// Most grazing view angle from the surface normal of textured polygons (degrees, `[0, 90)`),
+    /// for pyramids and slices. Default 80.
+    pub grazing_deg: f64,
+    /// Quality target: the PSNR (dB) against the ray-cast ground truth below which the report
+    /// flags the asset. Default 20.
+    pub quality_db: f64,
+}
+
+impl Default for Needs {
+    fn default() -> Self {
+        Self {
+            azimuth_deg: [0.0, 360.0],
+            elevation_deg: [0.0, 0.0],
+            screen_px: [1.0, 256.0],
+            lighting: Lighting::Dynamic,
+            grazing_deg: 80.0,
+            quality_db: 20.0,
+        }
+    }
+}
+
+impl Needs {
+    /// Whether the azimuth range covers every direction.
+    pub fn all_azimuths(&self) -> bool {
+        self.azimuth_deg[1] - self.azimuth_deg[0] >= 360.0
+    }
+}
+
+/// One asset of the manifest, as written.
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawAsset {
+    name: Spanned<String>,
+    #[serde(default)]
+    shape: Option<String>,
+    #[serde(default)]
+    mesh: Option<PathBuf>,
+    #[serde(default)]
+    needs: Option<Spanned<Needs>>,
+    #[serde(default)]
+    parallax: Option<ParallaxParams>,
+    #[serde(default)]
+    octree: Option<OctreeParams>,
+}
+
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawManifest {
+    #[serde(default)]
+    scene: SceneSettings,
+    #[serde(default)]
+    asset: Vec<RawAsset>,
+}
+
+/// Where an asset's geometry comes from.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub enum SourceSpec {
+    /// A procedural shape of data-gen by name.
+    Shape(String),
+    /// An OBJ mesh (path resolved against the manifest's folder).
+    Mesh(PathBuf),
+}
+
+/// One asset: its source, needs and the representations wanted.
+#[derive(Clone, Debug, PartialEq)]
+pub struct AssetSpec {
+    /// Name (also the folder name).
+    pub name: String,
+    /// Geometry.
+    pub source: SourceSpec,
+    /// What the scene needs.
+    pub needs: Needs,
+    /// Images with parallax, if wanted.
+    pub parallax: Option<ParallaxParams>,
+    /// Ellipsoid octree, if wanted.
+    pub octree: Option<OctreeParams>,
+}
+
+/// A parsed, checked manifest.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Manifest {
+    /// Scene-wide settings.
+    pub scene: SceneSettings,
+    /// The assets, in file order.
+    pub assets: Vec<AssetSpec>,
+}
+
+/// 1-based line of byte offset `at` in `text`.
+fn line_of(text: &str, at: usize) -> usize {
+    text[..at.min(text.len())]
+        .bytes()
+        .filter(|&b| b == b'\n')
+        .count()
+        + 1
+}
+
+fn err(file: &Path, text: &str, span: Range<usize>, message: String) -> PipelineError {
+    PipelineError::Manifest {
+        path: file.to_path_buf(),
+        line: line_of(text, span.start),
+        message,
+    }
+}
+
+impl Manifest {
+    /// Reads and checks the manifest at `path`.
+    pub fn load(path: &Path) -> Result<Self, PipelineError> {
+        let bytes = std::fs::read(path).map_err(|source| PipelineError::Io {
+            path: path.to_path_buf(),
+            source,
+        })?;
+        let text = String::from_utf8(bytes).map_err(|e| PipelineError::Manifest {
+            path: path.to_path_buf(),
+            line: 0,
+            message: format!("not UTF-8 text ({e})"),
+        })?;
+        Self::parse(&text, path)
+    }
+
+    /// Parses and checks manifest `text`; `path` names it in errors and resolves relative mesh
+    /// paths. Errors name the key and the line.
+    pub fn parse(text: &str, path: &Path) -> Result<Self, PipelineError> {
+        let raw: RawManifest = toml::from_str(text).map_err(|e| {
+            let line = e.span().map_or(0, |s| line_of(text, s.start));
+            PipelineError::Manifest {
+                path: path.to_path_buf(),
+                line,
+                message: e.message().to_string(),
+            }
+        })?;
+        let scene = raw.scene;
+        let l = scene.light;
+        if l.iter().any(|c| !c.is_finite()) || l.iter().all(|&c| c == 0.0) {
+            return Err(PipelineError::Manifest {
+                path: path.to_path_buf(),
+                line: 0,
+                message: "scene.light must be a finite, non-zero direction".into(),
+            });
+        }
+        if !(0.0..=1.0).contains(&scene.ambient) {
+            return Err(PipelineError::Manifest {
+                path: path.to_path_buf(),
+                line: 0,
+                message: format!("scene.ambient = {} must be in [0, 1]", scene.ambient),
+            });
+        }
+        let base = path.parent().unwrap_or(Path::new("."));
+        let mut assets: Vec<AssetSpec> = Vec::new();
+        for a in raw.asset {
+            let name_span = a.name.span();
+            let name = a.name.into_inner();
+            if !crate::asset::valid_name(&name) {
+                return Err(err(
+                    path,
+                    text,
+                    name_span,
+                    format!(
+                        "asset.name '{name}' must be a folder name (letters, digits, '-', '_', '.')"
+                    ),
+                ));
+            }
+            if assets.iter().any(|b| b.name == name) {
+                return Err(err(
+                    path,
+                    text,
+                    name_span,
+                    format!("duplicate asset name '{name}'"),
+                ));
+            }
+            let source = match (a.shape, a.mesh) {
+                (Some(s), None) => {
+                    altrep_data_gen::scene_shape(&s).map_err(|e| {
+                        err(path, text, name_span.clone(), format!("asset.shape: {e}"))
+                    })?;
+                    SourceSpec::Shape(s)
+                }
+                (None, Some(m)) => SourceSpec::Mesh(base.join(m)),
+                _ => {
+                    return Err(err(
+                        path,
+                        text,
+                        name_span,
+                        format!("asset '{name}': give exactly one of `shape` or `mesh`"),
+                    ));
+                }
+            };
+            let (needs_span, needs) = match a.needs {
+                Some(n) => (n.span(), n.into_inner()),
+                None => (name_span.clone(), Needs::default()),
+            };
+            check_needs(&needs).map_err(|m| err(path, text, needs_span, m))?;
+            if a.parallax.is_none() && a.octree.is_none() {
+                return Err(err(
+                    path,
+                    text,
+                    name_span,
+                    format!("asset '{name}' asks for no representation"),
+                ));
+            }
+            for check in [
+                a.parallax.as_ref().map(|p| p.validate()),
+                a.octree.as_ref().map(|p| p.validate()),
+            ]
+            .into_iter()
+            .flatten()
+            {
+                check.map_err(|m| err(path, text, name_span.clone(), format!("{name}: {m}")))?;
+            }
+            assets.push(AssetSpec {
+                name,
+                source,
+                needs,
+                parallax: a.parallax,
+                octree: a.octree,
+            });
+        }
+        if assets.is_empty() {
+            return Err(PipelineError::Manifest {
+                path: path.to_path_buf(),
+                line: 0,
+                message: "no [[asset]] in the manifest".into(),
+            });
+        }
+        Ok(Self { scene, assets })
+    }
+}
+
+/// Checks the ranges of `needs`; the message names the key.
+fn check_needs(n: &Needs) -> Result<(), String> {
+    let range = |key: &str, r: [f64; 2], lo: f64, hi: f64| {
+        if !(r[0].is_finite() && r[1].is_finite()) || r[0] > r[1] || r[0] < lo || r[1] > hi {
+            Err(format!(
+                "needs.{key} = [{}, {}] is impossible: need finite min ≤ max within [{lo}, {hi}]",
+                r[0], r[1]
+            ))
+        } else {
+            Ok(())
+        }
+    };
+    range("azimuth_deg", n.azimuth_deg, -720.0, 720.0)?;
+    range("elevation_deg", n.elevation_deg, -90.0, 90.0)?;
+    range("screen_px", n.screen_px, 1.0, 16384.0)?;
+    if !(n.grazing_deg.is_finite() && (0.0..90.0).contains(&n.grazing_deg)) {
+        return Err(format!(
+            "needs.grazing_deg = {} must be in [0, 90)",
+            n.grazing_deg
+        ));
+    }
+    if !(n.quality_db.is_finite() && n.quality_db > 0.0) {
+        return Err(format!(
+            "needs.quality_db = {} must be positive",
+            n.quality_db
+        ));
+    }
+    Ok(())
+}

@@ -1,0 +1,778 @@
+//! Images with parallax in the pipeline: planning from the needs, files, loading, measuring.
+//!
+//! Files per present view `k` (absent views were skipped by the planner and load as empty):
+//! `view{k}-albedo.png` (RGBA8: sRGB albedo, or the baked shaded colour; alpha 255 = defined),
+//! `view{k}-normal.png` (RGB8, `(n + 1)/2`; absent when lighting is baked),
+//! `view{k}-depth.png` (L8 or L16 unorm of `(z/R + 1)/2`), `view{k}-mip{l}.png` (RGBA8 colour mip
+//! levels the screen sizes need, straight alpha = coverage), and per bound kind
+//! `view{k}-bounds-{kind}-c.png` (L16 or LA16 per slot: 0 = empty, 1 = `c = −1`, 2 = `c = +1`,
+//! `q + 3` = `c0 + q·step`) with `view{k}-bounds-{kind}-v.png` (`v_min`, `v_max` per slot, 8 or
+//! 16 bits, `v = lo + q·step` per channel as listed in `asset.json`).
+
+use std::time::Instant;
+
+use altrep_data_gen::{
+    BoundingCylinder, Projection, SampleGrid, ViewParams, capture_view, linear_to_srgb,
+};
+use glam::Vec3;
+use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
+use serde_json::json;
+
+use super::manifest::{Lighting, Needs};
+use super::repr::{Measurement, Picture, Representation, Source, fold, score, secs, truth};
+use super::{Plan, PipelineError};
+use crate::asset::{AssetReader, AssetWriter, Channel, CodeImage, Encoding};
+use crate::parallax::{
+    BoundKind, BoundParams, Bounds, ParallaxImages, ParallaxParams, PixelBound, RenderParams,
+    ViewCodes, ViewStorage, WarpMethod, build_bounds, render, render_bounded,
+};
+
+/// Manifest parameters of images with parallax (`[asset.parallax]`).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct ParallaxSpec {
+    /// Number of views `N` around the vertical axis (default 8).
+    pub views: usize,
+    /// Width and height of each view in texels (default 64); the planner lowers it to the largest
+    /// screen size.
+    pub size: usize,
+    /// Depth bits, 8 or 16 (default 8).
+    pub depth_bits: u32,
+    /// Bound kinds to precompute: `cylinder`, `zminmax`, `pair`, `best_c`, `best_c_split`
+    /// (default `["best_c"]`).
+    pub bounds: Vec<String>,
+    /// Bits per bound channel, 8 or 16 (default 8).
+    pub bound_bits: u32,
+}
+
+impl Default for ParallaxSpec {
+    fn default() -> Self {
+        Self {
+            views: 8,
+            size: 64,
+            depth_bits: 8,
+            bounds: vec!["best_c".into()],
+            bound_bits: 8,
+        }
+    }
+}
+
+fn kind_of(slug: &str) -> Option<BoundKind> {
+    BoundKind::ALL.into_iter().find(|k| k.slug() == slug)
+}
+
+impl ParallaxSpec {
+    /// Checks ranges; the message names the key.
+    pub fn validate(&self) -> Result<(), String> {
+        if !(2..=1024).contains(&self.views) {
+            return Err(format!("parallax.views = {} must be in 2..=1024", self.views));
+        }
+        if !(2..=4096).contains(&self.size) {
+            return Err(format!("parallax.size = {} must be in 2..=4096", self.size));
+        }
+        if ![8, 16].contains(&self.depth_bits) {
+            return Err(format!("parallax.depth_bits = {} must be 8 or 16", self.depth_bits));
+        }
+        if ![8, 16].contains(&self.bound_bits) {
+            return Err(format!(
+                "parallax.bound_bits = {} must be 8 or 16 (files store unorm codes)",
+                self.bound_bits
+            ));
+        }
+        for b in &self.bounds {
+            if kind_of(b).is_none() {
+                return Err(format!(
+                    "parallax.bounds: unknown kind '{b}' (cylinder, zminmax, pair, best_c, best_c_split)"
+                ));
+            }
+        }
+        Ok(())
+    }
+
+    fn params(&self, size: usize) -> ParallaxParams {
+        ParallaxParams {
+            views: self.views,
+            width: size,
+            height: size,
+            depth_bits: self.depth_bits,
+            ..ParallaxParams::default()
+        }
+    }
+}
+
+/// What the planner decided for images with parallax.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct ParallaxDecisions {
+    /// View size actually captured.
+    pub size: usize,
+    /// Indices of the views captured and stored.
+    pub views: Vec<usize>,
+    /// Whether normals are stored (dynamic lighting).
+    pub normals: bool,
+    /// Mip levels stored beside level 0.
+    pub mip_levels: Vec<usize>,
+    /// Bound kinds built.
+    pub bounds: Vec<String>,
+    /// Light direction (baked colour and relighting of loaded baked data).
+    pub light: [f32; 3],
+    /// Ambient share.
+    pub ambient: f32,
+}
+
+/// Images with parallax, as loaded: the views and the bounds of every kind built.
+pub struct ParallaxData {
+    /// The views.
+    pub images: ParallaxImages,
+    /// Bounds per kind.
+    pub bounds: Vec<Bounds>,
+    /// The decisions they were built with.
+    pub decisions: ParallaxDecisions,
+}
+
+/// Whether view `k` of `n` is used by some azimuth in the needed range: a display angle uses
+/// the two views that bracket it, so view `k` serves `(α_k − Δ, α_k + Δ)`, `Δ = 2π/n`.
+fn view_needed(k: usize, n: usize, needs: &Needs) -> bool {
+    if needs.all_azimuths() {
+        return true;
+    }
+    let delta = 360.0 / n as f64;
+    let ak = delta * k as f64;
+    let [a0, a1] = needs.azimuth_deg;
+    // Distance from α_k to the range, on the circle.
+    let mid = 0.5 * (a0 + a1);
+    let half = 0.5 * (a1 - a0);
+    let d = ((ak - mid).rem_euclid(360.0)).min((mid - ak).rem_euclid(360.0));
+    d < half + delta
+}
+
+/// The screen-size interval (pixels) in which mip level `l` of a `size`-texel view is drawn:
+/// level `round(log2(size/px))`.
+fn level_needed(l: usize, size: usize, needs: &Needs) -> bool {
+    let lo = size as f64 / 2f64.powf(l as f64 + 0.5);
+    let hi = size as f64 / 2f64.powf(l as f64 - 0.5);
+    let [p0, p1] = needs.screen_px;
+    p1 >= lo && p0 < hi
+}
+
+/// The parallax representation for the pipeline.
+pub struct Parallax;
+
+impl Representation for Parallax {
+    const NAME: &'static str = "parallax";
+    type Spec = ParallaxSpec;
+    type Data = ParallaxData;
+    type Decisions = ParallaxDecisions;
+
+    fn relevant_needs(needs: &Needs) -> serde_json::Value {
+        json!({ "azimuth_deg": needs.azimuth_deg, "screen_px": needs.screen_px, "lighting": needs.lighting })
+    }
+
+    fn plan(
+        spec: &ParallaxSpec,
+        needs: &Needs,
+        source: &Source,
+    ) -> Result<(Plan, ParallaxDecisions), PipelineError> {
+        let mut plan = Plan::default();
+        let max_px = needs.screen_px[1].ceil() as usize;
+        let size = if max_px < spec.size {
+            let s = max_px.next_power_of_two().clamp(2, spec.size);
+            plan.skip(
+                format!("texels above {s}² per view"),
+                format!(
+                    "the largest screen size is {} px: views captured at {s}² instead of {}²",
+                    needs.screen_px[1], spec.size
+                ),
+            );
+            s
+        } else {
+            plan.build(format!("{}² per view", spec.size));
+            spec.size
+        };
+        let mut views = Vec::new();
+        for k in 0..spec.views {
+            let deg = 360.0 * k as f64 / spec.views as f64;
+            if view_needed(k, spec.views, needs) {
+                views.push(k);
+            } else {
+                plan.skip(
+                    format!("view {k} ({deg:.0}°)"),
+                    format!(
+                        "outside the azimuth range [{}°, {}°] and its bracketing margin",
+                        needs.azimuth_deg[0], needs.azimuth_deg[1]
+                    ),
+                );
+            }
+        }
+        plan.build(format!("{} of {} views", views.len(), spec.views));
+        let normals = needs.lighting == Lighting::Dynamic;
+        if !normals {
+            plan.skip("normals".into(), "lighting is baked".into());
+        }
+        let levels = (usize::BITS - size.leading_zeros()) as usize; // 1 + log2(size)
+        let mut mip_levels = Vec::new();
+        for l in 1..levels {
+            if level_needed(l, size, needs) {
+                mip_levels.push(l);
+            } else {
+                let s = size >> l;
+                plan.skip(
+                    format!("mip level {l} ({s}²)"),
+                    if (s as f64) < needs.screen_px[0] / 2f64.sqrt() {
+                        format!(
+                            "coarser than any screen size: the smallest is {} px",
+                            needs.screen_px[0]
+                        )
+                    } else {
+                        format!(
+                            "finer than any screen size: the largest is {} px",
+                            needs.screen_px[1]
+                        )
+                    },
+                );
+            }
+        }
+        for b in &spec.bounds {
+            if b == "cylinder" {
+                plan.build("bounds cylinder (computed in the shader, no file)".into());
+            } else {
+                plan.build(format!("bounds {b}"));
+            }
+        }
+        let d = source.light.direction;
+        Ok((
+            plan,
+            ParallaxDecisions {
+                size,
+                views,
+                normals,
+                mip_levels,
+                bounds: spec.bounds.clone(),
+                light: [d.x, d.y, d.z],
+                ambient: source.light.ambient,
+            },
+        ))
+    }
+
+    fn build(
+        spec: &ParallaxSpec,
+        _needs: &Needs,
+        decisions: &ParallaxDecisions,
+        source: &Source,
+    ) -> Result<(ParallaxData, serde_json::Value), PipelineError> {
+        let params = spec.params(decisions.size);
+        let t0 = Instant::now();
+        let grids = (0..params.views)
+            .into_par_iter()
+            .map(|k| -> Result<SampleGrid, PipelineError> {
+                let angle = params.view_angle(k);
+                if !decisions.views.contains(&k) {
+                    return Ok(SampleGrid {
+                        width: params.width,
+                        height: params.height,
+                        cylinder: params.cylinder,
+                        projection: Projection::Orthographic { angle },
+                        samples: vec![None; params.width * params.height],
+                    });
+                }
+                let mut g = capture_view(
+                    source.shape,
+                    &ViewParams {
+                        angle,
+                        width: params.width,
+                        height: params.height,
+                        cylinder: params.cylinder,
+                    },
+                )?;
+                if !decisions.normals {
+                    // Baked: the shaded colour in the albedo slot and the normal toward the
+                    // light, so relighting with the same light is the identity.
+                    let light = source.light;
+                    for s in g.samples.iter_mut().flatten() {
+                        s.albedo = light.shade(s.albedo, s.normal);
+                        s.normal = light.direction;
+                    }
+                }
+                Ok(g)
+            })
+            .collect::<Result<Vec<_>, _>>()?;
+        let capture_s = secs(t0);
+        if grids.iter().all(|g| g.samples.iter().all(Option::is_none)) {
+            return Err(PipelineError::Invisible {
+                asset: source.name.into(),
+                what: "every captured view of images with parallax".into(),
+            });
+        }
+        let images = ParallaxImages::from_grids(&grids, &params)?;
+        let bound_params = BoundParams {
+            bits: spec.bound_bits,
+            ..BoundParams::default()
+        };
+        let mut bounds = Vec::new();
+        let mut bound_report = Vec::new();
+        for b in &decisions.bounds {
+            let kind = kind_of(b).ok_or_else(|| PipelineError::Spec(format!("bound kind {b}")))?;
+            let t = Instant::now();
+            let bd = build_bounds(&images, kind, &bound_params)?;
+            bound_report.push(json!({ "kind": b, "seconds": secs(t), "bytes": bd.bytes(&images) }));
+            bounds.push(bd);
+        }
+        let report = json!({
+            "capture_s": capture_s,
+            "views_captured": decisions.views.len(),
+            "bounds": bound_report,
+        });
+        Ok((
+            ParallaxData {
+                images,
+                bounds,
+                decisions: decisions.clone(),
+            },
+            report,
+        ))
+    }
+
+    fn write(data: &ParallaxData, w: &mut AssetWriter) -> Result<serde_json::Value, PipelineError> {
+        let p = &data.images.params;
+        let d = &data.decisions;
+        let codes = data.images.codes();
+        let (wd, ht) = (p.width, p.height);
+        let ch = |name: &str, encoding: Encoding| Channel {
+            name: name.into(),
+            encoding,
+        };
+        let unorm = |bits: u32, lo: f64, hi: f64| Encoding::Linear {
+            scale: (hi - lo) / ((1u64 << bits) - 1) as f64,
+            offset: lo,
+        };
+        for &k in &d.views {
+            let c = &codes[k];
+            let mut albedo = CodeImage::<u8>::new(wd, ht, 4);
+            let mut normal = CodeImage::<u8>::new(wd, ht, 3);
+            for idx in 0..wd * ht {
+                if c.defined[idx] {
+                    albedo.pixel_mut(idx)[..3].copy_from_slice(&c.albedo[idx]);
+                    albedo.pixel_mut(idx)[3] = 255;
+                    normal.pixel_mut(idx).copy_from_slice(&c.normal[idx]);
+                }
+            }
+            w.png8(
+                &format!("view{k}/albedo"),
+                &format!("view{k}-albedo.png"),
+                &albedo,
+                vec![
+                    ch("albedo.r", Encoding::Srgb),
+                    ch("albedo.g", Encoding::Srgb),
+                    ch("albedo.b", Encoding::Srgb),
+                    ch("defined", Encoding::Mask),
+                ],
+            )?;
+            if d.normals {
+                let e = || unorm(8, -1.0, 1.0);
+                w.png8(
+                    &format!("view{k}/normal"),
+                    &format!("view{k}-normal.png"),
+                    &normal,
+                    vec![ch("normal.x", e()), ch("normal.y", e()), ch("normal.z", e())],
+                )?;
+            }
+            let depth_enc = vec![ch("depth", unorm(p.depth_bits, -1.0, 1.0))];
+            let role = format!("view{k}/depth");
+            let file = format!("view{k}-depth.png");
+            if p.depth_bits == 16 {
+                let img = CodeImage {
+                    width: wd,
+                    height: ht,
+                    channels: 1,
+                    data: c.depth.clone(),
+                };
+                w.png16(&role, &file, &img, depth_enc)?;
+            } else {
+                let img = CodeImage {
+                    width: wd,
+                    height: ht,
+                    channels: 1,
+                    data: c.depth.iter().map(|&v| v as u8).collect(),
+                };
+                w.png8(&role, &file, &img, depth_enc)?;
+            }
+            for &l in &d.mip_levels {
+                let t = &data.images.pyramids()[k].levels()[l];
+                let mut img = CodeImage::<u8>::new(t.width, t.height, 4);
+                for idx in 0..t.width * t.height {
+                    let px = &t.data[idx * 8..idx * 8 + 4];
+                    let a = px[3].clamp(0.0, 1.0);
+                    let out = img.pixel_mut(idx);
+                    for c in 0..3 {
+                        let straight = if a > 0.0 { px[c] / a } else { 0.0 };
+                        out[c] = (linear_to_srgb(straight.clamp(0.0, 1.0)) * 255.0).round() as u8;
+                    }
+                    out[3] = (a * 255.0).round() as u8;
+                }
+                w.png8(
+                    &format!("view{k}/mip{l}"),
+                    &format!("view{k}-mip{l}.png"),
+                    &img,
+                    vec![
+                        ch("colour.r", Encoding::Srgb),
+                        ch("colour.g", Encoding::Srgb),
+                        ch("colour.b", Encoding::Srgb),
+                        ch("coverage", unorm(8, 0.0, 1.0)),
+                    ],
+                )?;
+            }
+            for b in &data.bounds {
+                if b.kind == BoundKind::Cylinder {
+                    continue;
+                }
+                write_bounds(w, b, k, wd, ht)?;
+            }
+        }
+        Ok(json!({
+            "views": p.views,
+            "width": p.width,
+            "height": p.height,
+            "depth_bits": p.depth_bits,
+            "continuity_texels": p.continuity_texels,
+            "view_angle": "view k at α_k = 2πk/views",
+            "present_views": d.views,
+            "normals": d.normals,
+            "mip_levels": d.mip_levels,
+            "bounds": data.bounds.iter().map(|b| json!({
+                "kind": b.kind.slug(),
+                "bits": b.params.bits,
+                "subdivisions": b.params.subdivisions,
+                "c_limit": b.params.c_limit,
+            })).collect::<Vec<_>>(),
+            "light": d.light,
+            "ambient": d.ambient,
+            "decisions": d,
+        }))
+    }
+
+    fn read(r: &AssetReader) -> Result<ParallaxData, PipelineError> {
+        r.expect_representation(Self::NAME)?;
+        let m = &r.description().metadata;
+        let decisions: ParallaxDecisions = serde_json::from_value(m["decisions"].clone())
+            .map_err(|e| r.content(format!("metadata.decisions: {e}")))?;
+        let get = |key: &str| -> Result<u64, PipelineError> {
+            m[key]
+                .as_u64()
+                .ok_or_else(|| r.content(format!("metadata.{key} missing")).into())
+        };
+        let params = ParallaxParams {
+            views: get("views")? as usize,
+            width: get("width")? as usize,
+            height: get("height")? as usize,
+            depth_bits: get("depth_bits")? as u32,
+            continuity_texels: m["continuity_texels"]
+                .as_f64()
+                .ok_or_else(|| r.content("metadata.continuity_texels missing".into()))?,
+            cylinder: BoundingCylinder::default(),
+        };
+        params.validate()?;
+        let (wd, ht) = (params.width, params.height);
+        let baked_normal = {
+            let l = Vec3::from_array(decisions.light);
+            let q = |c: f32| crate::parallax::normal_code(c);
+            [q(l.x), q(l.y), q(l.z)]
+        };
+        let mut codes = vec![ViewCodes::empty(wd, ht); params.views];
+        for &k in &decisions.views {
+            if k >= params.views {
+                return Err(r.content(format!("present view {k} beyond {} views", params.views)).into());
+            }
+            let albedo = r.png8(&format!("view{k}/albedo"))?;
+            check_size(r, &albedo, wd, ht, 4, "albedo")?;
+            let c = &mut codes[k];
+            for idx in 0..wd * ht {
+                let px = albedo.pixel(idx);
+                c.defined[idx] = px[3] != 0;
+                if c.defined[idx] {
+                    c.albedo[idx] = [px[0], px[1], px[2]];
+                    c.normal[idx] = baked_normal;
+                }
+            }
+            if decisions.normals {
+                let normal = r.png8(&format!("view{k}/normal"))?;
+                check_size(r, &normal, wd, ht, 3, "normal")?;
+                for idx in (0..wd * ht).filter(|&i| c.defined[i]) {
+                    let px = normal.pixel(idx);
+                    c.normal[idx] = [px[0], px[1], px[2]];
+                }
+            }
+            let role = format!("view{k}/depth");
+            let depth: Vec<u16> = if params.depth_bits == 16 {
+                let d = r.png16(&role)?;
+                check_size(r, &d, wd, ht, 1, "depth")?;
+                d.data
+            } else {
+                let d = r.png8(&role)?;
+                check_size(r, &d, wd, ht, 1, "depth")?;
+                d.data.into_iter().map(u16::from).collect()
+            };
+            for idx in (0..wd * ht).filter(|&i| c.defined[i]) {
+                c.depth[idx] = depth[idx];
+            }
+        }
+        let images = ParallaxImages::from_codes(&params, &codes)?;
+        let mut bounds = Vec::new();
+        let list = m["bounds"]
+            .as_array()
+            .ok_or_else(|| r.content("metadata.bounds missing".into()))?;
+        for b in list {
+            let slug = b["kind"].as_str().unwrap_or_default();
+            let kind = kind_of(slug).ok_or_else(|| r.content(format!("bound kind '{slug}'")))?;
+            let bp = BoundParams {
+                bits: b["bits"].as_u64().unwrap_or(0) as u32,
+                subdivisions: b["subdivisions"].as_u64().unwrap_or(0) as usize,
+                c_limit: b["c_limit"].as_f64().unwrap_or(f64::NAN),
+            };
+            if kind == BoundKind::Cylinder {
+                bounds.push(Bounds::from_slots(&images, kind, bp, Vec::new(), Vec::new())?);
+                continue;
+            }
+            let mut views = vec![vec![[None, None]; wd * ht]; params.views];
+            let mut storage = vec![ViewStorage::default(); params.views];
+            for &k in &decisions.views {
+                (views[k], storage[k]) = read_bounds(r, kind, bp.bits, k, wd, ht)?;
+            }
+            bounds.push(Bounds::from_slots(&images, kind, bp, views, storage)?);
+        }
+        Ok(ParallaxData {
+            images,
+            bounds,
+            decisions,
+        })
+    }
+
+    fn measure(
+        data: &ParallaxData,
+        needs: &Needs,
+        source: &Source,
+    ) -> Result<(Measurement, Vec<Picture>), PipelineError> {
+        let images = &data.images;
+        let size = images.params.width;
+        let mut scores = Vec::new();
+        let mut pictures = Vec::new();
+        let mut steps = 0u64;
+        let mut fragments = 0u64;
+        let bounded = data.bounds.iter().find(|b| b.kind != BoundKind::Cylinder);
+        for (i, &angle) in super::repr::measure_angles(needs, 4).iter().enumerate() {
+            let reference = truth(source, angle, size, 3)?;
+            let screen = RenderParams {
+                supersample: 1,
+                light: source.light,
+                mip: false,
+                ..RenderParams::native(images)
+            };
+            let img = render(images, angle, WarpMethod::Inverse, &screen)?;
+            scores.push(score(&img, &reference)?);
+            if let Some(b) = bounded {
+                let (_, s) = render_bounded(images, b, angle, &source.light)?;
+                steps += s;
+                fragments += 2 * (size * images.params.height) as u64;
+            }
+            if i == 0 {
+                pictures.push(Picture {
+                    file: format!("{}-parallax.png", source.name),
+                    caption: format!(
+                        "{}: ground truth | images with parallax, azimuth {:.0}°",
+                        source.name,
+                        angle.to_degrees()
+                    ),
+                    image: altrep_data_gen::RgbaImage::side_by_side(&[&reference, &img]),
+                });
+            }
+        }
+        let method = format!(
+            "inverse warp of {} views of {size}², 1 ray per pixel, vs truth 3×3 supersampled; steps per warped view with {}",
+            images.params.views,
+            bounded.map_or("no stored bound", |b| b.kind.name())
+        );
+        let mean_steps = (fragments > 0).then(|| steps as f64 / fragments as f64);
+        Ok((fold(method, &scores, mean_steps), pictures))
+    }
+}
+
+fn check_size<T>(
+    r: &AssetReader,
+    img: &CodeImage<T>,
+    w: usize,
+    h: usize,
+    channels: usize,
+    what: &str,
+) -> Result<(), PipelineError> {
+    if (img.width, img.height, img.channels) != (w, h, channels) {
+        return Err(r
+            .content(format!(
+                "{what} image is {}×{}×{}, expected {w}×{h}×{channels}",
+                img.width, img.height, img.channels
+            ))
+            .into());
+    }
+    Ok(())
+}
+
+/// Code of a `c` value on the view's grid: 1 = −1, 2 = +1, `q + 3` otherwise.
+fn c_code(c: f64, grid: Option<(f64, f64)>) -> Result<u16, String> {
+    if c == -1.0 {
+        return Ok(1);
+    }
+    if c == 1.0 {
+        return Ok(2);
+    }
+    let (c0, step) = grid.ok_or("a c value off ±1 without a grid")?;
+    let q = ((c - c0) / step).round();
+    if c0 + q * step != c || !(0.0..=65532.0).contains(&q) {
+        return Err(format!("c = {c} is not on the storage grid"));
+    }
+    Ok(q as u16 + 3)
+}
+
+fn write_bounds(
+    w: &mut AssetWriter,
+    b: &Bounds,
+    k: usize,
+    wd: usize,
+    ht: usize,
+) -> Result<(), PipelineError> {
+    let slots_used = if matches!(b.kind, BoundKind::FPair | BoundKind::BestCSplit) {
+        2
+    } else {
+        1
+    };
+    let store = b.view_storage(k).copied().unwrap_or_default();
+    let px = b.view_slots(k);
+    let bits = b.params.bits;
+    let mut c_img = CodeImage::<u16>::new(wd, ht, slots_used);
+    let mut v16 = CodeImage::<u16>::new(wd, ht, 2 * slots_used);
+    let bad = |reason: String| PipelineError::Spec(format!("bounds {}: {reason}", b.kind.slug()));
+    for (idx, slots) in px.iter().enumerate() {
+        for s in 0..slots_used {
+            let Some(pb) = slots[s] else { continue };
+            c_img.pixel_mut(idx)[s] = c_code(pb.c, store.c_grid).map_err(bad)?;
+            for (ch, v) in [pb.v_min, pb.v_max].into_iter().enumerate() {
+                let (lo, step) = store.v_grid[s][ch].ok_or_else(|| bad("no v grid".into()))?;
+                let q = ((v - lo) / step).round();
+                if lo + q * step != v || q < 0.0 || q >= (1u64 << bits) as f64 {
+                    return Err(bad(format!("v = {v} is not on the storage grid")));
+                }
+                v16.pixel_mut(idx)[2 * s + ch] = q as u16;
+            }
+        }
+    }
+    let mut v_channels = Vec::new();
+    for s in 0..slots_used {
+        for (ch, name) in ["v_min", "v_max"].iter().enumerate() {
+            let (offset, scale) = store.v_grid[s][ch].unwrap_or((0.0, 0.0));
+            v_channels.push(Channel {
+                name: format!("slot{s}.{name}"),
+                encoding: Encoding::Linear { scale, offset },
+            });
+        }
+    }
+    let (c0, cstep) = store.c_grid.unwrap_or((0.0, 0.0));
+    let c_channels = (0..slots_used)
+        .map(|s| Channel {
+            name: format!("slot{s}.c (code 0 = empty slot, 1 = -1, 2 = +1, q + 3 = offset + q·scale)"),
+            encoding: Encoding::Linear {
+                scale: cstep,
+                offset: c0,
+            },
+        })
+        .collect();
+    let slug = b.kind.slug();
+    w.png16(
+        &format!("view{k}/bounds/{slug}/c"),
+        &format!("view{k}-bounds-{slug}-c.png"),
+        &c_img,
+        c_channels,
+    )?;
+    let role = format!("view{k}/bounds/{slug}/v");
+    let file = format!("view{k}-bounds-{slug}-v.png");
+    if bits == 16 {
+        w.png16(&role, &file, &v16, v_channels)?;
+    } else {
+        let v8 = CodeImage {
+            width: wd,
+            height: ht,
+            channels: v16.channels,
+            data: v16.data.iter().map(|&q| q as u8).collect(),
+        };
+        w.png8(&role, &file, &v8, v_channels)?;
+    }
+    Ok(())
+}
+
+type SlotRow = Vec<[Option<PixelBound>; 2]>;
+
+fn read_bounds(
+    r: &AssetReader,
+    kind: BoundKind,
+    bits: u32,
+    k: usize,
+    wd: usize,
+    ht: usize,
+) -> Result<(SlotRow, ViewStorage), PipelineError> {
+    let slug = kind.slug();
+    let slots_used = if matches!(kind, BoundKind::FPair | BoundKind::BestCSplit) {
+        2
+    } else {
+        1
+    };
+    let c_role = format!("view{k}/bounds/{slug}/c");
+    let v_role = format!("view{k}/bounds/{slug}/v");
+    let c_img = r.png16(&c_role)?;
+    check_size(r, &c_img, wd, ht, slots_used, "bound c")?;
+    let v_img: CodeImage<u16> = if bits == 16 {
+        r.png16(&v_role)?
+    } else {
+        let v = r.png8(&v_role)?;
+        CodeImage {
+            width: v.width,
+            height: v.height,
+            channels: v.channels,
+            data: v.data.into_iter().map(u16::from).collect(),
+        }
+    };
+    check_size(r, &v_img, wd, ht, 2 * slots_used, "bound v")?;
+    let linear = |role: &str, i: usize| -> Result<(f64, f64), PipelineError> {
+        match r.channels(role)?.get(i).map(|c| &c.encoding) {
+            Some(Encoding::Linear { scale, offset }) => Ok((*offset, *scale)),
+            _ => Err(r.content(format!("{role}: channel {i} is not linear")).into()),
+        }
+    };
+    let mut store = ViewStorage::default();
+    for s in 0..slots_used {
+        for ch in 0..2 {
+            store.v_grid[s][ch] = Some(linear(&v_role, 2 * s + ch)?);
+        }
+    }
+    let (c0, c_step) = linear(&c_role, 0)?;
+    store.c_grid = Some((c0, c_step));
+    let mut px = vec![[None, None]; wd * ht];
+    for (idx, out) in px.iter_mut().enumerate() {
+        for s in 0..slots_used {
+            let code = c_img.pixel(idx)[s];
+            if code == 0 {
+                continue;
+            }
+            let c = match code {
+                1 => -1.0,
+                2 => 1.0,
+                q => c0 + f64::from(q - 3) * c_step,
+            };
+            let v = |ch: usize| {
+                let (lo, step) = store.v_grid[s][ch].unwrap_or_default();
+                lo + f64::from(v_img.pixel(idx)[2 * s + ch]) * step
+            };
+            out[s] = Some(PixelBound {
+                c,
+                v_min: v(0),
+                v_max: v(1),
+            });
+        }
+    }
+    Ok((px, store))
+}

@@ -1,0 +1,510 @@
+//! Running a scene: lock, plan, cache, build, write, read back, measure, report.
+
+use std::fs::File;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use altrep_data_gen::{Light, Mesh, MeshLoadOptions, Shape, scene_shape};
+use glam::Vec3;
+use rayon::prelude::*;
+use serde::Serialize;
+use serde_json::json;
+
+use super::manifest::{AssetSpec, Lighting, Manifest, Needs, SourceSpec};
+use super::octree::OctreeRepr;
+use super::parallax::Parallax;
+use super::repr::{Measurement, Representation, Source};
+use super::{PipelineError, Plan};
+use crate::asset::{
+    AssetReader, AssetWriter, Conventions, DESCRIPTION_FILE, FORMAT_MAJOR, STAGING_DIR,
+    write_atomic,
+};
+
+/// Name of the lock file in an output folder.
+pub const LOCK_FILE: &str = ".altrep.lock";
+
+/// `--shard i/n`: this run handles the assets whose name hashes to `i` modulo `n`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Shard {
+    /// This shard, `0 ≤ index < count`.
+    pub index: usize,
+    /// Number of shards.
+    pub count: usize,
+}
+
+impl Shard {
+    /// Parses `i/n`.
+    pub fn parse(s: &str) -> Result<Self, String> {
+        let (i, n) = s
+            .split_once('/')
+            .ok_or_else(|| format!("shard '{s}' must be i/n"))?;
+        let index: usize = i.trim().parse().map_err(|_| format!("shard index '{i}'"))?;
+        let count: usize = n.trim().parse().map_err(|_| format!("shard count '{n}'"))?;
+        if count == 0 || index >= count {
+            return Err(format!("shard {index}/{count}: need 0 ≤ i < n"));
+        }
+        Ok(Self { index, count })
+    }
+
+    /// Whether this shard handles asset `name` (BLAKE3 of the name, modulo the count: the same
+    /// on every machine).
+    pub fn owns(&self, name: &str) -> bool {
+        let h = blake3::hash(name.as_bytes());
+        let v = u64::from_le_bytes(h.as_bytes()[..8].try_into().unwrap_or([0; 8]));
+        (v % self.count as u64) as usize == self.index
+    }
+}
+
+/// Options of a run.
+#[derive(Clone, Debug)]
+pub struct RunOptions {
+    /// Output folder.
+    pub out: PathBuf,
+    /// Rebuild even when the cache is valid.
+    pub force: bool,
+    /// Only the assets of this shard.
+    pub shard: Option<Shard>,
+    /// Ignore the needs (every view, level and channel), to measure what skipping saves.
+    pub everything: bool,
+    /// Show progress bars.
+    pub progress: bool,
+}
+
+/// How one representation of one asset ended.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Outcome {
+    /// Built and written this run.
+    Built,
+    /// The asset folder's cache key matched and every file verified.
+    Cached,
+    /// Failed; the message says why.
+    Failed(String),
+}
+
+/// The result for one representation of one asset.
+#[derive(Clone, Debug, Serialize)]
+pub struct AssetOutcome {
+    /// Asset name.
+    pub asset: String,
+    /// Representation name.
+    pub representation: String,
+    /// How it ended.
+    pub outcome: Outcome,
+    /// What was built and skipped.
+    pub plan: Plan,
+    /// Wall seconds of this run for it (cache checks included).
+    pub seconds: f64,
+    /// Seconds the build took when it was built (from `asset.json` when cached).
+    pub build_seconds: f64,
+    /// Bytes of its data files.
+    pub bytes: u64,
+    /// Why a cached folder was not reused, if it existed.
+    pub cache_note: Option<String>,
+    /// Error figures against the ground truth.
+    pub measurement: Option<Measurement>,
+    /// Report pictures written (relative to the output folder).
+    pub pictures: Vec<(String, String)>,
+}
+
+/// The result of a run.
+#[derive(Clone, Debug, Serialize)]
+pub struct RunSummary {
+    /// Per asset and representation.
+    pub outcomes: Vec<AssetOutcome>,
+    /// Wall seconds of the whole run.
+    pub wall_seconds: f64,
+    /// Assets left to other shards.
+    pub other_shards: Vec<String>,
+}
+
+impl RunSummary {
+    /// Whether every representation was built or cached.
+    pub fn ok(&self) -> bool {
+        self.outcomes
+            .iter()
+            .all(|o| !matches!(o.outcome, Outcome::Failed(_)))
+    }
+
+    /// The summary table (Markdown).
+    pub fn table(&self) -> String {
+        let mut s = String::from(
+            "| asset | representation | outcome | skipped | seconds (build) | bytes | PSNR dB (worst) | IoU | steps |\n|---|---|---|---|---|---|---|---|---|\n",
+        );
+        for o in &self.outcomes {
+            let outcome = match &o.outcome {
+                Outcome::Built => "built".to_string(),
+                Outcome::Cached => "cached".to_string(),
+                Outcome::Failed(m) => format!("FAILED: {m}"),
+            };
+            let (psnr, iou, steps) = o.measurement.as_ref().map_or(
+                ("–".to_string(), "–".to_string(), "–".to_string()),
+                |m| {
+                    (
+                        format!("{:.2} ({:.2})", m.psnr_db, m.worst_psnr_db),
+                        format!("{:.3}", m.iou),
+                        m.mean_steps.map_or("–".into(), |s| format!("{s:.2}")),
+                    )
+                },
+            );
+            s += &format!(
+                "| {} | {} | {} | {} | {:.2} ({:.2}) | {} | {psnr} | {iou} | {steps} |\n",
+                o.asset,
+                o.representation,
+                outcome,
+                o.plan.skipped().count(),
+                o.seconds,
+                o.build_seconds,
+                o.bytes
+            );
+        }
+        s
+    }
+}
+
+/// Holds the output folder's lock for the run.
+struct OutputLock {
+    _file: File,
+}
+
+fn io(path: &Path) -> impl FnOnce(std::io::Error) -> PipelineError + '_ {
+    move |source| PipelineError::Io {
+        path: path.to_path_buf(),
+        source,
+    }
+}
+
+/// Creates `out`, takes its lock and clears leftovers of interrupted runs. Errors: the folder
+/// cannot be created or written, another run holds the lock.
+fn prepare_output(out: &Path) -> Result<OutputLock, PipelineError> {
+    std::fs::create_dir_all(out).map_err(io(out))?;
+    let lock_path = out.join(LOCK_FILE);
+    let file = File::options()
+        .create(true)
+        .truncate(false)
+        .write(true)
+        .open(&lock_path)
+        .map_err(io(&lock_path))?;
+    match file.try_lock() {
+        Ok(()) => {}
+        Err(std::fs::TryLockError::WouldBlock) => {
+            return Err(PipelineError::Locked { path: lock_path });
+        }
+        Err(std::fs::TryLockError::Error(e)) => return Err(io(&lock_path)(e)),
+    }
+    let staging = out.join(STAGING_DIR);
+    if staging.exists() {
+        std::fs::remove_dir_all(&staging).map_err(io(&staging))?;
+    }
+    Ok(OutputLock { _file: file })
+}
+
+/// The geometry of an asset and the hash of its input bytes.
+fn load_source(
+    spec: &AssetSpec,
+) -> Result<(Box<dyn Shape + Send + Sync>, String), PipelineError> {
+    match &spec.source {
+        SourceSpec::Shape(name) => Ok((
+            Box::new(scene_shape(name)?),
+            crate::asset::hash_hex(format!("shape:{name}").as_bytes()),
+        )),
+        SourceSpec::Mesh(path) => {
+            let bytes = std::fs::read(path).map_err(io(path))?;
+            let mesh = Mesh::load_obj(path, &MeshLoadOptions::default())?;
+            Ok((Box::new(mesh), crate::asset::hash_hex(&bytes)))
+        }
+    }
+}
+
+fn scene_light(manifest: &Manifest) -> Light {
+    let l = manifest.scene.light;
+    Light {
+        direction: Vec3::from_array(l).normalize(),
+        ambient: manifest.scene.ambient,
+    }
+}
+
+/// The needs a run uses: the asset's, or everything for `--everything`.
+fn effective_needs(spec: &AssetSpec, everything: bool) -> Needs {
+    if everything {
+        Needs {
+            azimuth_deg: [0.0, 360.0],
+            screen_px: [1.0, 16384.0],
+            lighting: Lighting::Dynamic,
+            ..spec.needs.clone()
+        }
+    } else {
+        spec.needs.clone()
+    }
+}
+
+/// Plans every representation of every asset (`--dry-run`): `(asset, representation, plan)`.
+/// Loads each source once (a mesh is parsed; nothing is captured).
+pub fn plan_scene(
+    manifest: &Manifest,
+    options: &RunOptions,
+) -> Result<Vec<(String, String, Plan)>, PipelineError> {
+    let light = scene_light(manifest);
+    let mut out = Vec::new();
+    for spec in &manifest.assets {
+        if options.shard.is_some_and(|s| !s.owns(&spec.name)) {
+            continue;
+        }
+        let (shape, _) = load_source(spec)?;
+        let source = Source {
+            name: &spec.name,
+            shape: shape.as_ref(),
+            light,
+        };
+        let needs = effective_needs(spec, options.everything);
+        if let Some(p) = &spec.parallax {
+            out.push((spec.name.clone(), Parallax::NAME.into(), Parallax::plan(p, &needs, &source)?.0));
+        }
+        if let Some(p) = &spec.octree {
+            out.push((spec.name.clone(), OctreeRepr::NAME.into(), OctreeRepr::plan(p, &needs, &source)?.0));
+        }
+    }
+    Ok(out)
+}
+
+/// Runs the scene: every asset of this shard, representations of an asset in turn, assets in
+/// parallel. Writes `report.json`, `report.md` and the pictures into `options.out`. Errors that
+/// stop the whole run: the output folder (unwritable, locked); a failing asset is reported in
+/// its outcome and the others go on.
+pub fn run_scene(manifest: &Manifest, options: &RunOptions) -> Result<RunSummary, PipelineError> {
+    let t0 = Instant::now();
+    let _lock = prepare_output(&options.out)?;
+    let light = scene_light(manifest);
+    let (mine, other_shards): (Vec<&AssetSpec>, Vec<&AssetSpec>) = manifest
+        .assets
+        .iter()
+        .partition(|a| options.shard.is_none_or(|s| s.owns(&a.name)));
+    let jobs: u64 = mine
+        .iter()
+        .map(|a| u64::from(a.parallax.is_some()) + u64::from(a.octree.is_some()))
+        .sum();
+    let bar = if options.progress {
+        indicatif::ProgressBar::new(jobs)
+    } else {
+        indicatif::ProgressBar::hidden()
+    };
+    bar.set_style(
+        indicatif::ProgressStyle::with_template("{bar:30} {pos}/{len} {msg} [{elapsed}]")
+            .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
+    );
+    let pictures_dir = options.out.join("pictures");
+    std::fs::create_dir_all(&pictures_dir).map_err(io(&pictures_dir))?;
+    let outcomes: Vec<AssetOutcome> = mine
+        .par_iter()
+        .flat_map_iter(|spec| {
+            let mut v = Vec::new();
+            let loaded = load_source(spec);
+            let needs = effective_needs(spec, options.everything);
+            let fail = |repr: &str, e: &PipelineError| AssetOutcome {
+                asset: spec.name.clone(),
+                representation: repr.into(),
+                outcome: Outcome::Failed(e.to_string()),
+                plan: Plan::default(),
+                seconds: 0.0,
+                build_seconds: 0.0,
+                bytes: 0,
+                cache_note: None,
+                measurement: None,
+                pictures: Vec::new(),
+            };
+            match loaded {
+                Err(e) => {
+                    if spec.parallax.is_some() {
+                        v.push(fail(Parallax::NAME, &e));
+                    }
+                    if spec.octree.is_some() {
+                        v.push(fail(OctreeRepr::NAME, &e));
+                    }
+                }
+                Ok((shape, input_hash)) => {
+                    let source = Source {
+                        name: &spec.name,
+                        shape: shape.as_ref(),
+                        light,
+                    };
+                    if let Some(p) = &spec.parallax {
+                        bar.set_message(format!("{} parallax", spec.name));
+                        v.push(
+                            run_one::<Parallax>(p, &needs, &source, &input_hash, options)
+                                .unwrap_or_else(|e| fail(Parallax::NAME, &e)),
+                        );
+                        bar.inc(1);
+                    }
+                    if let Some(p) = &spec.octree {
+                        bar.set_message(format!("{} octree", spec.name));
+                        v.push(
+                            run_one::<OctreeRepr>(p, &needs, &source, &input_hash, options)
+                                .unwrap_or_else(|e| fail(OctreeRepr::NAME, &e)),
+                        );
+                        bar.inc(1);
+                    }
+                }
+            }
+            v
+        })
+        .collect();
+    bar.finish_and_clear();
+    let summary = RunSummary {
+        outcomes,
+        wall_seconds: t0.elapsed().as_secs_f64(),
+        other_shards: other_shards.iter().map(|a| a.name.clone()).collect(),
+    };
+    write_report(&summary, options)?;
+    Ok(summary)
+}
+
+/// The cache key of one representation of one asset.
+fn cache_key<R: Representation>(
+    spec: &R::Spec,
+    decisions: &R::Decisions,
+    needs: &Needs,
+    input_hash: &str,
+    light: &Light,
+) -> String {
+    let key = json!({
+        "input": input_hash,
+        "representation": R::NAME,
+        "spec": spec,
+        "decisions": decisions,
+        "needs": R::relevant_needs(needs),
+        "light": [light.direction.x, light.direction.y, light.direction.z, light.ambient],
+        "tool": env!("CARGO_PKG_VERSION"),
+        "format": FORMAT_MAJOR,
+    });
+    crate::asset::hash_hex(key.to_string().as_bytes())
+}
+
+fn run_one<R: Representation>(
+    spec: &R::Spec,
+    needs: &Needs,
+    source: &Source,
+    input_hash: &str,
+    options: &RunOptions,
+) -> Result<AssetOutcome, PipelineError> {
+    let t0 = Instant::now();
+    let (plan, decisions) = R::plan(spec, needs, source)?;
+    let key = cache_key::<R>(spec, &decisions, needs, input_hash, &source.light);
+    let dir = options.out.join(source.name).join(R::NAME);
+    let mut cache_note = None;
+    if !options.force && dir.join(DESCRIPTION_FILE).exists() {
+        match AssetReader::open(&dir) {
+            Ok(r) if r.description().cache_key == key => {
+                let rep = &r.description().report;
+                if let Ok(m) = serde_json::from_value::<Measurement>(rep["measurement"].clone()) {
+                    return Ok(AssetOutcome {
+                        asset: source.name.into(),
+                        representation: R::NAME.into(),
+                        outcome: Outcome::Cached,
+                        plan,
+                        seconds: t0.elapsed().as_secs_f64(),
+                        build_seconds: rep["build_seconds"].as_f64().unwrap_or(0.0),
+                        bytes: r.description().data_bytes(),
+                        cache_note: None,
+                        measurement: Some(m),
+                        pictures: serde_json::from_value(rep["pictures"].clone())
+                            .unwrap_or_default(),
+                    });
+                }
+                cache_note = Some("cached folder has no measurement (interrupted run)".into());
+            }
+            Ok(_) => cache_note = Some("inputs, parameters or needs changed".into()),
+            Err(e) => cache_note = Some(format!("cached folder invalid: {e}")),
+        }
+    }
+    let tb = Instant::now();
+    let (data, build_report) = R::build(spec, needs, &decisions, source)?;
+    let build_seconds = tb.elapsed().as_secs_f64();
+    let mut w = AssetWriter::new(&options.out, source.name, R::NAME)?;
+    let metadata = R::write(&data, &mut w)?;
+    drop(data);
+    let mut report = json!({
+        "build_seconds": build_seconds,
+        "build": build_report,
+        "plan": plan,
+    });
+    let desc = w.commit(
+        R::NAME,
+        source.name,
+        &key,
+        Conventions::new(1.0, 2.0),
+        metadata,
+        report.clone(),
+    )?;
+    // Measure what a renderer would load: the files just written.
+    let loaded = R::read(&AssetReader::open(&dir)?)?;
+    let (measurement, pictures) = R::measure(&loaded, needs, source)?;
+    let mut written = Vec::new();
+    for p in pictures {
+        let rel = format!("pictures/{}", p.file);
+        p.image
+            .over([1.0, 1.0, 1.0])
+            .write_png(&options.out.join(&rel))?;
+        written.push((rel, p.caption));
+    }
+    report["measurement"] = serde_json::to_value(&measurement).unwrap_or_default();
+    report["pictures"] = serde_json::to_value(&written).unwrap_or_default();
+    let mut desc = desc;
+    desc.report = report;
+    let text = serde_json::to_vec_pretty(&desc).map_err(|e| PipelineError::Spec(e.to_string()))?;
+    write_atomic(&dir.join(DESCRIPTION_FILE), &text)?;
+    Ok(AssetOutcome {
+        asset: source.name.into(),
+        representation: R::NAME.into(),
+        outcome: Outcome::Built,
+        plan,
+        seconds: t0.elapsed().as_secs_f64(),
+        build_seconds,
+        bytes: desc.data_bytes(),
+        cache_note,
+        measurement: Some(measurement),
+        pictures: written,
+    })
+}
+
+/// Writes `report.json` and `report.md` (atomically).
+fn write_report(summary: &RunSummary, options: &RunOptions) -> Result<(), PipelineError> {
+    let json = serde_json::to_vec_pretty(summary).map_err(|e| PipelineError::Spec(e.to_string()))?;
+    write_atomic(&options.out.join("report.json"), &json)?;
+    let mut md = format!(
+        "# altrep precompute report\n\naltrep {}; wall time {:.2} s{}.\n\n{}\n",
+        env!("CARGO_PKG_VERSION"),
+        summary.wall_seconds,
+        if options.everything {
+            " (needs ignored: everything computed)"
+        } else {
+            ""
+        },
+        summary.table()
+    );
+    for o in &summary.outcomes {
+        md += &format!("\n## {} — {}\n\n", o.asset, o.representation);
+        if let Some(m) = &o.measurement {
+            md += &format!("Measured: {}.\n\n", m.method);
+        }
+        if let Some(n) = &o.cache_note {
+            md += &format!("Rebuilt: {n}.\n\n");
+        }
+        for item in &o.plan.items {
+            match &item.skipped {
+                None => md += &format!("- built: {}\n", item.what),
+                Some(r) => md += &format!("- **skipped**: {} — {r}\n", item.what),
+            }
+        }
+        for (file, caption) in &o.pictures {
+            md += &format!("\n![{caption}]({file})\n\n_{caption}_\n");
+        }
+    }
+    if !summary.other_shards.is_empty() {
+        md += &format!(
+            "\nLeft to other shards: {}.\n",
+            summary.other_shards.join(", ")
+        );
+    }
+    write_atomic(&options.out.join("report.md"), md.as_bytes())?;
+    Ok(())
+}

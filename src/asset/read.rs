@@ -6,8 +6,8 @@ use std::path::{Path, PathBuf};
 use image::{DynamicImage, ImageFormat};
 
 use super::{
-    AssetDescription, AssetError, CodeImage, DESCRIPTION_FILE, FORMAT_MAJOR, FileEntry,
-    FileFormat, FloatImage, hash_hex,
+    AssetDescription, AssetError, CodeImage, DESCRIPTION_FILE, FORMAT_MAJOR, FileEntry, FileFormat,
+    FloatImage, hash_hex,
 };
 
 /// An opened, verified asset folder: [`Self::open`] has read `asset.json` and every file it
@@ -165,11 +165,12 @@ impl AssetReader {
             FileFormat::Exr32 => ImageFormat::OpenExr,
             _ => ImageFormat::Png,
         };
-        let img =
-            image::load_from_memory_with_format(bytes, format).map_err(|err| AssetError::Decode {
+        let img = image::load_from_memory_with_format(bytes, format).map_err(|err| {
+            AssetError::Decode {
                 path: self.dir.join(&e.path),
                 reason: err.to_string(),
-            })?;
+            }
+        })?;
         if (img.width() as usize, img.height() as usize) != (e.width, e.height) {
             return Err(AssetError::Decode {
                 path: self.dir.join(&e.path),

@@ -185,8 +185,7 @@ impl AssetWriter {
             role: role.into(),
             reason,
         };
-        if image.width == 0 || image.height == 0 || image.data.len() != image.width * image.height
-        {
+        if image.width == 0 || image.height == 0 || image.data.len() != image.width * image.height {
             return Err(bad(format!(
                 "{}×{} image with {} pixels",
                 image.width,
@@ -304,7 +303,9 @@ pub fn replace_dir(from: &Path, to: &Path) -> Result<(), AssetError> {
         let parent = from.parent().unwrap_or(from);
         let aside = parent.join(format!(
             "{}.old",
-            from.file_name().map(|n| n.to_string_lossy()).unwrap_or_default()
+            from.file_name()
+                .map(|n| n.to_string_lossy())
+                .unwrap_or_default()
         ));
         std::fs::rename(to, &aside).map_err(io(to))?;
         std::fs::rename(from, to).map_err(io(to))?;
@@ -326,7 +327,11 @@ pub fn valid_name(name: &str) -> bool {
             .all(|c| c.is_ascii_alphanumeric() || matches!(c, '-' | '_' | '.'))
 }
 
-fn check_image<T>(role: &str, image: &CodeImage<T>, channels: &[Channel]) -> Result<(), AssetError> {
+fn check_image<T>(
+    role: &str,
+    image: &CodeImage<T>,
+    channels: &[Channel],
+) -> Result<(), AssetError> {
     let bad = |reason: String| AssetError::BadData {
         role: role.into(),
         reason,
@@ -358,7 +363,9 @@ pub trait PngCode: Copy {
 impl PngCode for u8 {
     fn color(channels: usize) -> Option<image::ExtendedColorType> {
         use image::ExtendedColorType as C;
-        [C::L8, C::La8, C::Rgb8, C::Rgba8].get(channels.checked_sub(1)?).copied()
+        [C::L8, C::La8, C::Rgb8, C::Rgba8]
+            .get(channels.checked_sub(1)?)
+            .copied()
     }
     fn to_ne_bytes(data: &[Self]) -> Vec<u8> {
         data.to_vec()

@@ -46,8 +46,7 @@ pub fn check_writable(path: &Path) -> Result<(), String> {
         ));
     }
     let probe = parent.join(format!(".altrep-probe-{}", std::process::id()));
-    std::fs::write(&probe, b"")
-        .map_err(|e| format!("cannot write {}: {e}", path.display()))?;
+    std::fs::write(&probe, b"").map_err(|e| format!("cannot write {}: {e}", path.display()))?;
     let _ = std::fs::remove_file(&probe);
     Ok(())
 }

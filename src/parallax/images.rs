@@ -394,9 +394,14 @@ impl ParallaxImages {
         for (k, c) in codes.iter().enumerate() {
             let n = params.width * params.height;
             if (c.width, c.height) != (params.width, params.height)
-                || [c.defined.len(), c.albedo.len(), c.normal.len(), c.depth.len()]
-                    .iter()
-                    .any(|&l| l != n)
+                || [
+                    c.defined.len(),
+                    c.albedo.len(),
+                    c.normal.len(),
+                    c.depth.len(),
+                ]
+                .iter()
+                .any(|&l| l != n)
             {
                 return Err(ParallaxError::InconsistentView {
                     view: k,
@@ -452,15 +457,12 @@ impl ParallaxImages {
                     c.albedo[idx] = v.albedo[idx]
                         .to_array()
                         .map(|x| unorm_code(f64::from(linear_to_srgb(x.clamp(0.0, 1.0))), 8) as u8);
-                    c.normal[idx] = v.normal[idx]
-                        .to_array()
-                        .map(normal_code);
+                    c.normal[idx] = v.normal[idx].to_array().map(normal_code);
                 }
                 c
             })
             .collect()
     }
-
 
     /// Finishes a representation from its views: march radius and one mip pyramid per view.
     fn assemble(params: ParallaxParams, views: Vec<View>) -> Result<Self, ParallaxError> {

@@ -17,7 +17,7 @@ use serde_json::json;
 
 use super::manifest::Needs;
 use super::repr::{Measurement, Picture, Representation, Source, fold, score, secs, truth};
-use super::{Plan, PipelineError};
+use super::{PipelineError, Plan};
 use crate::asset::{AssetReader, AssetWriter, Channel, Encoding};
 use crate::ellipsoid::octree::{OctreeNode, PackedEllipsoid, RenderParams};
 use crate::ellipsoid::{FilterRule, Octree, OctreeParams as BuildParams};
@@ -62,10 +62,16 @@ impl OctreeSpec {
             ));
         }
         if rule_of(&self.rule).is_none() {
-            return Err(format!("octree.rule = '{}' must be sggx or seed1995", self.rule));
+            return Err(format!(
+                "octree.rule = '{}' must be sggx or seed1995",
+                self.rule
+            ));
         }
         if !(1..=4).contains(&self.supersample) {
-            return Err(format!("octree.supersample = {} must be in 1..=4", self.supersample));
+            return Err(format!(
+                "octree.supersample = {} must be in 1..=4",
+                self.supersample
+            ));
         }
         Ok(())
     }
@@ -97,7 +103,9 @@ impl Representation for OctreeRepr {
         _source: &Source,
     ) -> Result<(Plan, OctreeDecisions), PipelineError> {
         let mut plan = Plan::default();
-        let closest = (needs.screen_px[1].ceil() as usize).next_power_of_two().max(4);
+        let closest = (needs.screen_px[1].ceil() as usize)
+            .next_power_of_two()
+            .max(4);
         let resolution = if closest < spec.resolution {
             let mut l = spec.resolution;
             let mut level = 0;
@@ -116,7 +124,10 @@ impl Representation for OctreeRepr {
         } else {
             spec.resolution
         };
-        plan.build(format!("octree of {resolution}³ leaves, rule {}", spec.rule));
+        plan.build(format!(
+            "octree of {resolution}³ leaves, rule {}",
+            spec.rule
+        ));
         Ok((plan, OctreeDecisions { resolution }))
     }
 
@@ -190,8 +201,10 @@ impl Representation for OctreeRepr {
             f("first_child: u32 (0 = leaf)", Encoding::Integer),
         ];
         w.bin("nodes", "octree.bin", NODE_BYTES, bytes, fields)?;
-        Ok(json!({ "depth": tree.depth(), "dims": tree.dims(), "rule": tree.rule().name(),
-                   "box_min": [-1.0, 0.0, -1.0], "box_max": [1.0, 2.0, 1.0] }))
+        Ok(
+            json!({ "depth": tree.depth(), "dims": tree.dims(), "rule": tree.rule().name(),
+                   "box_min": [-1.0, 0.0, -1.0], "box_max": [1.0, 2.0, 1.0] }),
+        )
     }
 
     fn read(r: &AssetReader) -> Result<Octree, PipelineError> {
@@ -208,13 +221,21 @@ impl Representation for OctreeRepr {
             .ok_or_else(|| r.content("metadata.rule".into()))?;
         let (bytes, rec) = r.bin("nodes")?;
         if rec != NODE_BYTES {
-            return Err(r.content(format!("node records of {rec} bytes, expected {NODE_BYTES}")).into());
+            return Err(r
+                .content(format!(
+                    "node records of {rec} bytes, expected {NODE_BYTES}"
+                ))
+                .into());
         }
         let nodes = bytes
             .chunks_exact(NODE_BYTES)
             .map(|c| {
-                let f = |i: usize| f32::from_le_bytes([c[4 * i], c[4 * i + 1], c[4 * i + 2], c[4 * i + 3]]);
-                let u = |i: usize| u32::from_le_bytes([c[4 * i], c[4 * i + 1], c[4 * i + 2], c[4 * i + 3]]);
+                let f = |i: usize| {
+                    f32::from_le_bytes([c[4 * i], c[4 * i + 1], c[4 * i + 2], c[4 * i + 3]])
+                };
+                let u = |i: usize| {
+                    u32::from_le_bytes([c[4 * i], c[4 * i + 1], c[4 * i + 2], c[4 * i + 3]])
+                };
                 OctreeNode {
                     density: f(0),
                     color: [f(1), f(2), f(3)],

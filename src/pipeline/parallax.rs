@@ -21,7 +21,7 @@ use serde_json::json;
 
 use super::manifest::{Lighting, Needs};
 use super::repr::{Measurement, Picture, Representation, Source, fold, score, secs, truth};
-use super::{Plan, PipelineError};
+use super::{PipelineError, Plan};
 use crate::asset::{AssetReader, AssetWriter, Channel, CodeImage, Encoding};
 use crate::parallax::{
     BoundKind, BoundParams, Bounds, ParallaxImages, ParallaxParams, PixelBound, RenderParams,
@@ -66,13 +66,19 @@ impl ParallaxSpec {
     /// Checks ranges; the message names the key.
     pub fn validate(&self) -> Result<(), String> {
         if !(2..=1024).contains(&self.views) {
-            return Err(format!("parallax.views = {} must be in 2..=1024", self.views));
+            return Err(format!(
+                "parallax.views = {} must be in 2..=1024",
+                self.views
+            ));
         }
         if !(2..=4096).contains(&self.size) {
             return Err(format!("parallax.size = {} must be in 2..=4096", self.size));
         }
         if ![8, 16].contains(&self.depth_bits) {
-            return Err(format!("parallax.depth_bits = {} must be 8 or 16", self.depth_bits));
+            return Err(format!(
+                "parallax.depth_bits = {} must be 8 or 16",
+                self.depth_bits
+            ));
         }
         if ![8, 16].contains(&self.bound_bits) {
             return Err(format!(
@@ -373,7 +379,11 @@ impl Representation for Parallax {
                     &format!("view{k}/normal"),
                     &format!("view{k}-normal.png"),
                     &normal,
-                    vec![ch("normal.x", e()), ch("normal.y", e()), ch("normal.z", e())],
+                    vec![
+                        ch("normal.x", e()),
+                        ch("normal.y", e()),
+                        ch("normal.z", e()),
+                    ],
                 )?;
             }
             let depth_enc = vec![ch("depth", unorm(p.depth_bits, -1.0, 1.0))];
@@ -480,7 +490,9 @@ impl Representation for Parallax {
         let mut codes = vec![ViewCodes::empty(wd, ht); params.views];
         for &k in &decisions.views {
             if k >= params.views {
-                return Err(r.content(format!("present view {k} beyond {} views", params.views)).into());
+                return Err(r
+                    .content(format!("present view {k} beyond {} views", params.views))
+                    .into());
             }
             let albedo = r.png8(&format!("view{k}/albedo"))?;
             check_size(r, &albedo, wd, ht, 4, "albedo")?;
@@ -529,7 +541,13 @@ impl Representation for Parallax {
                 c_limit: b["c_limit"].as_f64().unwrap_or(f64::NAN),
             };
             if kind == BoundKind::Cylinder {
-                bounds.push(Bounds::from_slots(&images, kind, bp, Vec::new(), Vec::new())?);
+                bounds.push(Bounds::from_slots(
+                    &images,
+                    kind,
+                    bp,
+                    Vec::new(),
+                    Vec::new(),
+                )?);
                 continue;
             }
             let mut views = vec![vec![[None, None]; wd * ht]; params.views];
@@ -675,7 +693,9 @@ fn write_bounds(
     let (c0, cstep) = store.c_grid.unwrap_or((0.0, 0.0));
     let c_channels = (0..slots_used)
         .map(|s| Channel {
-            name: format!("slot{s}.c (code 0 = empty slot, 1 = -1, 2 = +1, q + 3 = offset + q·scale)"),
+            name: format!(
+                "slot{s}.c (code 0 = empty slot, 1 = -1, 2 = +1, q + 3 = offset + q·scale)"
+            ),
             encoding: Encoding::Linear {
                 scale: cstep,
                 offset: c0,
@@ -740,7 +760,9 @@ fn read_bounds(
     let linear = |role: &str, i: usize| -> Result<(f64, f64), PipelineError> {
         match r.channels(role)?.get(i).map(|c| &c.encoding) {
             Some(Encoding::Linear { scale, offset }) => Ok((*offset, *scale)),
-            _ => Err(r.content(format!("{role}: channel {i} is not linear")).into()),
+            _ => Err(r
+                .content(format!("{role}: channel {i} is not linear"))
+                .into()),
         }
     };
     let mut store = ViewStorage::default();

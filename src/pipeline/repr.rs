@@ -10,9 +10,8 @@ use altrep_data_gen::{Light, RgbaImage, Shape, TruthParams, render_truth};
 use serde::{Deserialize, Serialize};
 
 use super::manifest::{Lighting, Needs};
-use super::{Plan, PipelineError};
+use super::{PipelineError, Plan};
 use crate::asset::{AssetReader, AssetWriter};
-
 
 /// What a representation is built from: the asset's geometry and the scene's light.
 pub struct Source<'a> {
@@ -107,7 +106,12 @@ pub fn measure_angles(needs: &Needs, count: usize) -> Vec<f64> {
 
 /// Ground-truth render of the source at `angle`, `size` pixels square, `k×k` supersampled.
 /// Errors: nothing of the object is visible (the typed error every command gives).
-pub fn truth(source: &Source, angle: f64, size: usize, k: usize) -> Result<RgbaImage, PipelineError> {
+pub fn truth(
+    source: &Source,
+    angle: f64,
+    size: usize,
+    k: usize,
+) -> Result<RgbaImage, PipelineError> {
     let img = render_truth(
         source.shape,
         &TruthParams {

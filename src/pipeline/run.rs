@@ -200,9 +200,7 @@ fn prepare_output(out: &Path) -> Result<OutputLock, PipelineError> {
 }
 
 /// The geometry of an asset and the hash of its input bytes.
-fn load_source(
-    spec: &AssetSpec,
-) -> Result<(Box<dyn Shape + Send + Sync>, String), PipelineError> {
+fn load_source(spec: &AssetSpec) -> Result<(Box<dyn Shape + Send + Sync>, String), PipelineError> {
     match &spec.source {
         SourceSpec::Shape(name) => Ok((
             Box::new(scene_shape(name)?),
@@ -258,10 +256,18 @@ pub fn plan_scene(
         };
         let needs = effective_needs(spec, options.everything);
         if let Some(p) = &spec.parallax {
-            out.push((spec.name.clone(), Parallax::NAME.into(), Parallax::plan(p, &needs, &source)?.0));
+            out.push((
+                spec.name.clone(),
+                Parallax::NAME.into(),
+                Parallax::plan(p, &needs, &source)?.0,
+            ));
         }
         if let Some(p) = &spec.octree {
-            out.push((spec.name.clone(), OctreeRepr::NAME.into(), OctreeRepr::plan(p, &needs, &source)?.0));
+            out.push((
+                spec.name.clone(),
+                OctreeRepr::NAME.into(),
+                OctreeRepr::plan(p, &needs, &source)?.0,
+            ));
         }
     }
     Ok(out)
@@ -468,7 +474,8 @@ fn run_one<R: Representation>(
 
 /// Writes `report.json` and `report.md` (atomically).
 fn write_report(summary: &RunSummary, options: &RunOptions) -> Result<(), PipelineError> {
-    let json = serde_json::to_vec_pretty(summary).map_err(|e| PipelineError::Spec(e.to_string()))?;
+    let json =
+        serde_json::to_vec_pretty(summary).map_err(|e| PipelineError::Spec(e.to_string()))?;
     write_atomic(&options.out.join("report.json"), &json)?;
     let mut md = format!(
         "# altrep precompute report\n\naltrep {}; wall time {:.2} s{}.\n\n{}\n",

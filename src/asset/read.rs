@@ -269,7 +269,7 @@ impl AssetReader {
     /// The raw records of the `bin` file with `role` and its record size.
     pub fn bin(&self, role: &str) -> Result<(&[u8], usize), AssetError> {
         let (e, bytes) = self.entry(role, FileFormat::Bin)?;
-        if e.record_bytes == 0 || bytes.len() % e.record_bytes != 0 {
+        if e.record_bytes == 0 || !bytes.len().is_multiple_of(e.record_bytes) {
             return Err(AssetError::Decode {
                 path: self.dir.join(&e.path),
                 reason: format!(

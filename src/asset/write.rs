@@ -87,6 +87,7 @@ impl AssetWriter {
         &self.target
     }
 
+    #[allow(clippy::too_many_arguments)] // one private sink for the typed adders above
     fn add(
         &mut self,
         role: &str,
@@ -229,7 +230,7 @@ impl AssetWriter {
         bytes: Vec<u8>,
         fields: Vec<Channel>,
     ) -> Result<(), AssetError> {
-        if record_bytes == 0 || bytes.len() % record_bytes != 0 {
+        if record_bytes == 0 || !bytes.len().is_multiple_of(record_bytes) {
             return Err(AssetError::BadData {
                 role: role.into(),
                 reason: format!(

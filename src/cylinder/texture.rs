@@ -434,7 +434,7 @@ impl RowPyramid {
 }
 
 fn check_prefilter(prefilter: usize) -> Result<(), CylinderError> {
-    if prefilter % 2 == 0 {
+    if prefilter.is_multiple_of(2) {
         return Err(CylinderError::InvalidParameter {
             name: "prefilter",
             value: prefilter.to_string(),
@@ -445,7 +445,7 @@ fn check_prefilter(prefilter: usize) -> Result<(), CylinderError> {
 }
 
 fn check_columns(columns: usize) -> Result<(), CylinderError> {
-    if columns < 4 || columns % 2 != 0 {
+    if columns < 4 || !columns.is_multiple_of(2) {
         return Err(CylinderError::Columns { columns });
     }
     Ok(())

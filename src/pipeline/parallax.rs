@@ -667,8 +667,8 @@ fn write_bounds(
     let mut v16 = CodeImage::<u16>::new(wd, ht, 2 * slots_used);
     let bad = |reason: String| PipelineError::Spec(format!("bounds {}: {reason}", b.kind.slug()));
     for (idx, slots) in px.iter().enumerate() {
-        for s in 0..slots_used {
-            let Some(pb) = slots[s] else { continue };
+        for (s, slot) in slots.iter().enumerate().take(slots_used) {
+            let Some(pb) = *slot else { continue };
             c_img.pixel_mut(idx)[s] = c_code(pb.c, store.c_grid).map_err(bad)?;
             for (ch, v) in [pb.v_min, pb.v_max].into_iter().enumerate() {
                 let (lo, step) = store.v_grid[s][ch].ok_or_else(|| bad("no v grid".into()))?;
@@ -775,7 +775,7 @@ fn read_bounds(
     store.c_grid = Some((c0, c_step));
     let mut px = vec![[None, None]; wd * ht];
     for (idx, out) in px.iter_mut().enumerate() {
-        for s in 0..slots_used {
+        for (s, slot) in out.iter_mut().enumerate().take(slots_used) {
             let code = c_img.pixel(idx)[s];
             if code == 0 {
                 continue;
@@ -789,7 +789,7 @@ fn read_bounds(
                 let (lo, step) = store.v_grid[s][ch].unwrap_or_default();
                 lo + f64::from(v_img.pixel(idx)[2 * s + ch]) * step
             };
-            out[s] = Some(PixelBound {
+            *slot = Some(PixelBound {
                 c,
                 v_min: v(0),
                 v_max: v(1),

@@ -28,6 +28,8 @@ enum Command {
     FitBench(cli::fit_bench::FitBenchArgs),
     /// Images with parallax: march steps per bound type, violations, bytes, and quality vs ground truth.
     Parallax(cli::parallax::ParallaxArgs),
+    /// Pyramids: mip/rip/fip/EWA error and time against supersampled truth, filters, fusion PSNR.
+    Pyramid(cli::pyramid::PyramidArgs),
 }
 
 fn main() {
@@ -39,6 +41,7 @@ fn main() {
         Command::EllipsoidBench(args) => cli::ellipsoid_bench::run(args),
         Command::FitBench(args) => cli::fit_bench::run(args),
         Command::Parallax(args) => cli::parallax::run(args),
+        Command::Pyramid(args) => cli::pyramid::run(args),
     };
     if let Err(e) = result {
         eprintln!("altrep: error: {e}");

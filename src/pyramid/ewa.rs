@@ -2,7 +2,8 @@
 //! quality reference among the lookups, as in pbrt-v4's `MIPMap::EWA`.
 //!
 //! The pixel's footprint is the ellipse spanned by the two derivative vectors
-//! `e_x = (u_x W, v_x H)`, `e_y = (u_y W, v_y H)` (level-0 texels). The minor axis is lengthened
+//! `e_x = k (u_x W, v_x H)`, `e_y = k (u_y W, v_y H)` (level-0 texels; `k` =
+//! [`EWA_PIXEL_SCALE`] matches the Gaussian to the box pixel). The minor axis is lengthened
 //! so that major/minor ≤ `ewa_max_anisotropy`; the level is `λ = log2(minor)` (clamped at 0),
 //! and the two levels around `λ` are filtered and blended linearly. In a level with sizes
 //! `w × h`, with `(s, t)` the lookup point in texel units (centres at integers) and
@@ -10,7 +11,8 @@
 //! `A s² + B s t + C t² = F` has
 //! `A = d₀ᵥ² + d₁ᵥ² + 1`, `B = −2(d₀ᵤ d₀ᵥ + d₁ᵤ d₁ᵥ)`, `C = d₀ᵤ² + d₁ᵤ² + 1`, `F = AC − B²/4`
 //! (the `+1` adds a one-texel reconstruction radius); every texel inside (`r² = Q/F < 1`) gets
-//! the Gaussian weight `e^{−α r²} − e^{−α}`, `α = 2`, and the sum is normalised.
+//! the Gaussian weight `e^{−α r²} − e^{−α}`, `α = 2`, and the sum is normalised. Each row of
+//! texels is scanned only over the span where `r² < 1` (pbrt scans the bounding box).
 //!
 //! Cost: about `π (major + 1)(minor + 1) / 4^λ` texel reads per level, two levels: bounded by
 //! `≈ 2π (max anisotropy + 2)` reads for a footprint of any size.
@@ -20,6 +22,12 @@ use super::mip::Pyramid;
 
 /// Gaussian fall-off `α` of the EWA weights (pbrt's value).
 pub const EWA_ALPHA: f64 = 2.0;
+
+/// Scale of the derivative vectors before the ellipse is formed: with it the truncated Gaussian
+/// `e^{−2r²} − e^{−2}` (per-axis variance 0.13608 at scale 1) has the variance `1/12` of the
+/// box pixel the supersampled truth integrates, `√(0.08333/0.13608) = 0.78255`. pbrt uses 1
+/// (a filter 1.28× wider than the pixel).
+pub const EWA_PIXEL_SCALE: f64 = 0.782_549_4;
 
 /// EWA-filtered value at `(u, v)` with screen derivatives, into `out` (`channels` floats);
 /// `max_anisotropy ≥ 1` bounds the ellipse eccentricity (see the module docs).
@@ -38,7 +46,11 @@ pub fn ewa_into(
     let base = &pyr.levels()[0];
     let (w, h) = (base.width as f64, base.height as f64);
     // Derivative vectors in level-0 texels; e0 the longer.
-    let (mut e0, mut e1) = ([dudx * w, dvdx * h], [dudy * w, dvdy * h]);
+    let k = EWA_PIXEL_SCALE;
+    let (mut e0, mut e1) = (
+        [k * dudx * w, k * dvdx * h],
+        [k * dudy * w, k * dvdy * h],
+    );
     let len = |e: [f64; 2]| (e[0] * e[0] + e[1] * e[1]).sqrt();
     if len(e0) < len(e1) {
         std::mem::swap(&mut e0, &mut e1);
@@ -97,14 +109,10 @@ fn level_ewa(pyr: &Pyramid, level: usize, u: f64, v: f64, e0: [f64; 2], e1: [f64
     a *= inv_f;
     b *= inv_f;
     c *= inv_f;
-    // The ellipse's bounding box.
+    // The ellipse's bounding rows; per row, only the span inside the ellipse is read.
     let det = 4.0 * a * c - b * b;
     let inv_det = 1.0 / det;
-    let (us, vs) = ((det * c).max(0.0).sqrt(), (det * a).max(0.0).sqrt());
-    let (s0, s1) = (
-        (s - 2.0 * inv_det * us).ceil() as i64,
-        (s + 2.0 * inv_det * us).floor() as i64,
-    );
+    let vs = (det * a).max(0.0).sqrt();
     let (t0, t1) = (
         (tt0 - 2.0 * inv_det * vs).ceil() as i64,
         (tt0 + 2.0 * inv_det * vs).floor() as i64,
@@ -116,6 +124,16 @@ fn level_ewa(pyr: &Pyramid, level: usize, u: f64, v: f64, e0: [f64; 2], e1: [f64
     for it in t0..=t1 {
         let dt = it as f64 - tt0;
         let j = wrap_index(wrap[1], it, t.height);
+        // A ds² + (B dt) ds + (C dt² − 1) < 0.
+        let disc = (b * dt).powi(2) - 4.0 * a * (c * dt * dt - 1.0);
+        if disc <= 0.0 {
+            continue;
+        }
+        let root = disc.sqrt();
+        let (s0, s1) = (
+            (s + (-b * dt - root) / (2.0 * a)).ceil() as i64,
+            (s + (-b * dt + root) / (2.0 * a)).floor() as i64,
+        );
         for is in s0..=s1 {
             let ds = is as f64 - s;
             let r2 = a * ds * ds + b * ds * dt + c * dt * dt;

@@ -29,8 +29,9 @@
 //! normal, `B` the image of `v` — let `(r, g, b)` be the unit direction from the surface point to
 //! the camera. If its angle to `G` is at most `mip_max_tilt_deg`: mipmap ("greenish"). Otherwise
 //! `φ = atan2(b, r)` is the direction in which the footprint is stretched; if `φ` lies within
-//! `rip_max_skew_deg` of a texture axis: ripmap ("too red or too blue"); otherwise the fipmap whose
-//! shear leaves the smallest angle between the sheared `φ` and a texture axis.
+//! `rip_max_skew_deg` of a texture axis ("too red or too blue"), or the tilt is below
+//! `fip_min_tilt_deg` (not yet "the lower part of the triangle"): ripmap; otherwise the fipmap
+//! whose shear leaves the smallest angle between the sheared `φ` and a texture axis.
 //!
 //! Cost: build `≈ (1 + Σ q)·2` ripmaps' worth of resampling for `2n` shears; storage
 //! `≈ 4·W·H·(1 + 2Σ_k q_k)` texels; a lookup reads 16 texels (rip, fip) or 8 (mip).
@@ -189,7 +190,7 @@ pub fn decide(dir: [f64; 3], shears: &[Shear], p: &PyramidParams) -> Scheme {
         let a = phi.rem_euclid(std::f64::consts::FRAC_PI_2);
         a.min(std::f64::consts::FRAC_PI_2 - a).to_degrees()
     };
-    if skew <= p.rip_max_skew_deg || shears.is_empty() {
+    if skew <= p.rip_max_skew_deg || tilt < p.fip_min_tilt_deg || shears.is_empty() {
         return Scheme::Rip;
     }
     let best = shears

@@ -164,6 +164,10 @@ pub struct PyramidParams {
     /// Mip/rip/fip decision: views within this angle of the polygon normal use the mipmap
     /// (degrees, 0 to 90).
     pub mip_max_tilt_deg: f64,
+    /// Mip/rip/fip decision: views not handled by the mipmap but within this angle of the normal
+    /// use the ripmap whatever their azimuth (degrees, 0 to 90): the fipmap pays one resampling
+    /// of level 0 and only wins on strongly anisotropic footprints.
+    pub fip_min_tilt_deg: f64,
     /// Mip/rip/fip decision: oblique views whose direction, projected into the polygon, lies
     /// within this angle of a texture axis use the ripmap; others the fipmap (degrees, 0 to 45).
     pub rip_max_skew_deg: f64,
@@ -172,7 +176,7 @@ pub struct PyramidParams {
 impl Default for PyramidParams {
     /// Clamp on both axes, box filter, mipmap, linear colour, no alpha, no coverage
     /// preservation, not a normal map, fip shears `±½, ±1`, EWA anisotropy up to 64, mipmap
-    /// within 30° of the normal, ripmap within 10° of a texture axis.
+    /// within 30° of the normal, ripmap up to 70° or within 10° of a texture axis, fipmap beyond.
     fn default() -> Self {
         Self {
             wrap: [WrapMode::Clamp; 2],
@@ -185,6 +189,7 @@ impl Default for PyramidParams {
             fip_shear_steps: 2,
             ewa_max_anisotropy: 64.0,
             mip_max_tilt_deg: 30.0,
+            fip_min_tilt_deg: 70.0,
             rip_max_skew_deg: 10.0,
         }
     }
@@ -206,6 +211,9 @@ impl PyramidParams {
         }
         if !(self.mip_max_tilt_deg.is_finite() && (0.0..=90.0).contains(&self.mip_max_tilt_deg)) {
             return bad("mip_max_tilt_deg", "must be 0 to 90");
+        }
+        if !(self.fip_min_tilt_deg.is_finite() && (0.0..=90.0).contains(&self.fip_min_tilt_deg)) {
+            return bad("fip_min_tilt_deg", "must be 0 to 90");
         }
         if !(self.rip_max_skew_deg.is_finite() && (0.0..=45.0).contains(&self.rip_max_skew_deg)) {
             return bad("rip_max_skew_deg", "must be 0 to 45");

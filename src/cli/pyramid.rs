@@ -76,8 +76,19 @@ pub fn run(args: PyramidArgs) -> CliResult {
     );
     println!(
         "{:>6} {:>6} {:>5} {:>9} | {:>8} {:>8} {:>8} {:>8} | {:>6} {:>6} {:>6} {:>6} | {}",
-        "D0", "tilt", "az", "truth±",
-        "mip", "rip", "fip", "ewa", "ns mip", "rip", "fip", "ewa", "decision"
+        "D0",
+        "tilt",
+        "az",
+        "truth±",
+        "mip",
+        "rip",
+        "fip",
+        "ewa",
+        "ns mip",
+        "rip",
+        "fip",
+        "ewa",
+        "decision"
     );
     for r in &report.rows {
         println!(
@@ -101,9 +112,7 @@ pub fn run(args: PyramidArgs) -> CliResult {
         report
             .rows
             .iter()
-            .filter(|r| {
-                (0..4).all(|j| r.rms[k] <= r.rms[j])
-            })
+            .filter(|r| (0..4).all(|j| r.rms[k] <= r.rms[j]))
             .count()
     };
     println!(
@@ -130,7 +139,12 @@ pub fn run(args: PyramidArgs) -> CliResult {
         println!(
             "mip chain build, {n}×{n} RGBA, sRGB in linear light, straight alpha (dev profile, all cores):"
         );
-        for f in [Filter::Box, Filter::Triangle, Filter::Kaiser, Filter::Lanczos] {
+        for f in [
+            Filter::Box,
+            Filter::Triangle,
+            Filter::Kaiser,
+            Filter::Lanczos,
+        ] {
             let p = PyramidParams {
                 filter: f,
                 colour: ColourSpace::Srgb,

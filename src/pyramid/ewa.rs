@@ -47,10 +47,7 @@ pub fn ewa_into(
     let (w, h) = (base.width as f64, base.height as f64);
     // Derivative vectors in level-0 texels; e0 the longer.
     let k = EWA_PIXEL_SCALE;
-    let (mut e0, mut e1) = (
-        [k * dudx * w, k * dvdx * h],
-        [k * dudy * w, k * dvdy * h],
-    );
+    let (mut e0, mut e1) = ([k * dudx * w, k * dvdx * h], [k * dudy * w, k * dvdy * h]);
     let len = |e: [f64; 2]| (e[0] * e[0] + e[1] * e[1]).sqrt();
     if len(e0) < len(e1) {
         std::mem::swap(&mut e0, &mut e1);
@@ -92,7 +89,15 @@ pub fn ewa_into(
 }
 
 /// EWA within one level; `e0, e1` in level-0 texels.
-fn level_ewa(pyr: &Pyramid, level: usize, u: f64, v: f64, e0: [f64; 2], e1: [f64; 2], out: &mut [f32]) {
+fn level_ewa(
+    pyr: &Pyramid,
+    level: usize,
+    u: f64,
+    v: f64,
+    e0: [f64; 2],
+    e1: [f64; 2],
+    out: &mut [f32],
+) {
     let t = &pyr.levels()[level];
     let base = &pyr.levels()[0];
     let (sx, sy) = (
@@ -117,6 +122,16 @@ fn level_ewa(pyr: &Pyramid, level: usize, u: f64, v: f64, e0: [f64; 2], e1: [f64
         (tt0 - 2.0 * inv_det * vs).ceil() as i64,
         (tt0 + 2.0 * inv_det * vs).floor() as i64,
     );
+    // An ellipse far larger than the level (its level clamped at the coarsest, or an axis that
+    // stopped halving at one texel) averages the whole texture: read the coarsest level.
+    let s_extent = 2.0 * inv_det * (det * c).max(0.0).sqrt();
+    if !(s_extent.is_finite() && (t1 - t0) as f64 <= 4.0 * (t.height as f64 + 1.0))
+        || s_extent > 4.0 * (t.width as f64 + 1.0)
+    {
+        let last = pyr.levels().len() - 1;
+        pyr.bilinear_into(last, u, v, out);
+        return;
+    }
     let wrap = pyr.params().wrap;
     let floor_w = (-EWA_ALPHA).exp();
     let mut sum = vec![0.0f64; out.len()];

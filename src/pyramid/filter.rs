@@ -201,7 +201,10 @@ pub fn resample(t: &Texture, w2: usize, h2: usize, filter: Filter, wrap: [WrapMo
                     *a += wk * x;
                 }
             }
-            row.iter_mut().zip(acc).for_each(|(o, a)| *o = a as f32);
+            // Negative lobes can overshoot: keep huge inputs finite.
+            row.iter_mut()
+                .zip(acc)
+                .for_each(|(o, a)| *o = a.clamp(-f64::from(f32::MAX), f64::from(f32::MAX)) as f32);
         });
     Texture {
         width: w2,
@@ -217,7 +220,12 @@ mod tests {
 
     #[test]
     fn kernels_integrate_to_one_over_their_support() {
-        for f in [Filter::Box, Filter::Triangle, Filter::Kaiser, Filter::Lanczos] {
+        for f in [
+            Filter::Box,
+            Filter::Triangle,
+            Filter::Kaiser,
+            Filter::Lanczos,
+        ] {
             let r = radius(f);
             // Brute force: midpoint rule with 200 000 cells.
             let n = 200_000;

@@ -76,21 +76,23 @@ fn reduce(img: &[f64], s: usize, ch: usize, k: u32) -> Vec<f64> {
     let f = 1usize << k;
     let s2 = s / f;
     let mut out = vec![0.0; s2 * s2 * ch];
-    out.par_chunks_mut(s2 * ch).enumerate().for_each(|(y, row)| {
-        for x in 0..s2 {
-            for dy in 0..f {
-                for dx in 0..f {
-                    let k = ((y * f + dy) * s + x * f + dx) * ch;
-                    for c in 0..ch {
-                        row[x * ch + c] += img[k + c];
+    out.par_chunks_mut(s2 * ch)
+        .enumerate()
+        .for_each(|(y, row)| {
+            for x in 0..s2 {
+                for dy in 0..f {
+                    for dx in 0..f {
+                        let k = ((y * f + dy) * s + x * f + dx) * ch;
+                        for c in 0..ch {
+                            row[x * ch + c] += img[k + c];
+                        }
                     }
                 }
+                row[x * ch..(x + 1) * ch]
+                    .iter_mut()
+                    .for_each(|v| *v /= (f * f) as f64);
             }
-            row[x * ch..(x + 1) * ch]
-                .iter_mut()
-                .for_each(|v| *v /= (f * f) as f64);
-        }
-    });
+        });
     out
 }
 
@@ -133,7 +135,10 @@ pub fn fuse(
     let big_l = n.trailing_zeros();
     for v in views {
         let s = n >> v.scale_log2.min(big_l);
-        if v.scale_log2 > big_l || v.image.width != s || v.image.height != s || v.image.channels != ch
+        if v.scale_log2 > big_l
+            || v.image.width != s
+            || v.image.height != s
+            || v.image.channels != ch
         {
             return Err(MipError::InvalidParams {
                 name: "views",
@@ -144,7 +149,9 @@ pub fn fuse(
     }
     let levels = big_l as usize + 1;
     // Per level: sum of kept values, count of kept values.
-    let mut sums: Vec<Vec<f64>> = (0..levels).map(|l| vec![0.0; (1 << (2 * l)) * ch]).collect();
+    let mut sums: Vec<Vec<f64>> = (0..levels)
+        .map(|l| vec![0.0; (1 << (2 * l)) * ch])
+        .collect();
     let mut counts: Vec<Vec<u32>> = (0..levels).map(|l| vec![0; 1 << (2 * l)]).collect();
     let (mut offered, mut rejected) = (vec![0usize; levels], vec![0usize; levels]);
     let images: Vec<Vec<f64>> = views

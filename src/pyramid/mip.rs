@@ -29,7 +29,6 @@
 //! adds per channel), so the whole pyramid costs about `W·H·channels·2·log2(max(W, H))` multiply-
 //! adds, rows in parallel; a trilinear sample reads 8 texels.
 
-
 /// Errors of pyramid construction.
 #[derive(Debug, thiserror::Error, PartialEq)]
 pub enum MipError {
@@ -223,7 +222,10 @@ impl PyramidParams {
                 return bad("coverage_reference", "must lie strictly between 0 and 1");
             }
             if self.alpha == AlphaMode::None {
-                return bad("coverage_reference", "needs an alpha channel (alpha mode not None)");
+                return bad(
+                    "coverage_reference",
+                    "needs an alpha channel (alpha mode not None)",
+                );
             }
         }
         let has_alpha = self.alpha != AlphaMode::None;

@@ -138,7 +138,9 @@ impl RipMap {
                     continue;
                 }
                 self.bilinear_into(iu + du, iv + dv, u, v, buf);
-                out.iter_mut().zip(buf.iter()).for_each(|(o, x)| *o += w * x);
+                out.iter_mut()
+                    .zip(buf.iter())
+                    .for_each(|(o, x)| *o += w * x);
             }
         }
     }

@@ -128,10 +128,7 @@ fn bilinear(t: &Texture, u: f64, v: f64, out: &mut [f64]) {
         .into_iter()
         .enumerate()
     {
-        for (o, x) in out
-            .iter_mut()
-            .zip(t.texel(ii as usize, jj as usize))
-        {
+        for (o, x) in out.iter_mut().zip(t.texel(ii as usize, jj as usize)) {
             *o += wts[k] * f64::from(*x);
         }
     }
@@ -143,7 +140,10 @@ pub fn footprints(view: &PlaneView, tex: &Texture, pixels: usize) -> Vec<Option<
     let half = pixels as f64 / 2.0;
     (0..pixels * pixels)
         .map(|k| {
-            let (x, y) = ((k % pixels) as f64 + 0.5 - half, (k / pixels) as f64 + 0.5 - half);
+            let (x, y) = (
+                (k % pixels) as f64 + 0.5 - half,
+                (k / pixels) as f64 + 0.5 - half,
+            );
             cam.footprint(x, y)
         })
         .collect()
@@ -362,7 +362,13 @@ pub fn measure_view(
     view: &PlaneView,
     sweep: &SweepParams,
 ) -> SweepRow {
-    let t1 = supersampled_truth(view, tex, sweep.pixels, sweep.max_samples_per_pixel, sweep.seed);
+    let t1 = supersampled_truth(
+        view,
+        tex,
+        sweep.pixels,
+        sweep.max_samples_per_pixel,
+        sweep.seed,
+    );
     let t2 = supersampled_truth(
         view,
         tex,

@@ -520,9 +520,7 @@ fn ewa_is_nearest_to_the_truth_on_average() {
         for tilt in [0.0, 45.0, 75.0, 85.0] {
             for az in [0.0, 30.0] {
                 let row = measure_view(&fip, &tex, &view(d, tilt, az), &sweep_params());
-                for k in 0..4 {
-                    sums[k] += row.rms[k];
-                }
+                sums.iter_mut().zip(row.rms).for_each(|(s, e)| *s += e);
             }
         }
     }

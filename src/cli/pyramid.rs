@@ -75,20 +75,8 @@ pub fn run(args: PyramidArgs) -> CliResult {
         args.size, filter, args.pixels
     );
     println!(
-        "{:>6} {:>6} {:>5} {:>9} | {:>8} {:>8} {:>8} {:>8} | {:>6} {:>6} {:>6} {:>6} | {}",
-        "D0",
-        "tilt",
-        "az",
-        "truth±",
-        "mip",
-        "rip",
-        "fip",
-        "ewa",
-        "ns mip",
-        "rip",
-        "fip",
-        "ewa",
-        "decision"
+        "{:>6} {:>6} {:>5} {:>9} | {:>8} {:>8} {:>8} {:>8} | {:>6} {:>6} {:>6} {:>6} | decision",
+        "D0", "tilt", "az", "truth±", "mip", "rip", "fip", "ewa", "ns mip", "rip", "fip", "ewa",
     );
     for r in &report.rows {
         println!(

@@ -566,7 +566,7 @@ fn decision_at_the_three_canonical_directions() {
     };
     let s = fip.shears()[i];
     assert_eq!((s.axis, s.value()), (ShearAxis::U, -0.5));
-    // Moderate tilt, skewed: still the ripmap (fip_min_tilt_deg = 70°).
+    // Moderate tilt, skewed: still the ripmap (fip_min_tilt_deg = 80°).
     let (t, a) = (deg(50.0), deg(30.0));
     assert_eq!(
         fip.decide([t.sin() * a.cos(), t.cos(), t.sin() * a.sin()]),

@@ -142,8 +142,55 @@ pub fn run(args: PyramidArgs) -> CliResult {
             let start = Instant::now();
             let pyr = Pyramid::build(base.clone(), p)?;
             let s = start.elapsed().as_secs_f64();
-            println!("  {f:?}: {s:.3} s, {} levels", pyr.levels().len());
-            builds.push(json!({"filter": format!("{f:?}"), "seconds": s, "size": n}));
+            // The same filter on the `image` crate (RGBA8, no linear light, kernel point-sampled
+            // at texel centres where ours integrates it over each texel), each level resized from
+            // level 0; its largest difference from our linear-colour levels in 8-bit steps.
+            let image_filter = match f {
+                Filter::Triangle => Some(image::imageops::FilterType::Triangle),
+                Filter::Lanczos => Some(image::imageops::FilterType::Lanczos3),
+                _ => None,
+            };
+            let mut line = format!("  {f:?}: {s:.3} s, {} levels", pyr.levels().len());
+            let mut entry = json!({"filter": format!("{f:?}"), "seconds": s, "size": n});
+            if let Some(ft) = image_filter {
+                let bytes: Vec<u8> = base
+                    .data
+                    .iter()
+                    .map(|x| (x.clamp(0.0, 1.0) * 255.0).round() as u8)
+                    .collect();
+                let img = image::RgbaImage::from_raw(n as u32, n as u32, bytes)
+                    .ok_or("image buffer size")?;
+                let start = Instant::now();
+                let theirs: Vec<image::RgbaImage> = pyr.levels()[1..]
+                    .iter()
+                    .map(|l| image::imageops::resize(&img, l.width as u32, l.height as u32, ft))
+                    .collect();
+                let t_image = start.elapsed().as_secs_f64();
+                let linear = Pyramid::build(
+                    base.clone(),
+                    PyramidParams {
+                        filter: f,
+                        ..Default::default()
+                    },
+                )?;
+                let max_diff = linear.levels()[1..]
+                    .iter()
+                    .zip(&theirs)
+                    .flat_map(|(a, b)| {
+                        a.data.iter().zip(b.as_raw()).map(|(x, y)| {
+                            ((x.clamp(0.0, 1.0) * 255.0).round() - f32::from(*y)).abs()
+                        })
+                    })
+                    .fold(0.0f32, f32::max);
+                line += &format!(
+                    "; image crate {ft:?} (8-bit, gamma space, one thread) {t_image:.3} s, ratio ours/image {:.2}, largest difference from our linear-colour levels {max_diff} of 255",
+                    s / t_image
+                );
+                entry["image_seconds"] = json!(t_image);
+                entry["image_max_diff_u8"] = json!(max_diff);
+            }
+            println!("{line}");
+            builds.push(entry);
         }
     }
 

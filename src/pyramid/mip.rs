@@ -175,7 +175,7 @@ pub struct PyramidParams {
 impl Default for PyramidParams {
     /// Clamp on both axes, box filter, mipmap, linear colour, no alpha, no coverage
     /// preservation, not a normal map, fip shears `±½, ±1`, EWA anisotropy up to 64, mipmap
-    /// within 30° of the normal, ripmap up to 70° or within 10° of a texture axis, fipmap beyond.
+    /// within 30° of the normal, ripmap below 80° or within 10° of a texture axis, fipmap beyond.
     fn default() -> Self {
         Self {
             wrap: [WrapMode::Clamp; 2],
@@ -188,7 +188,7 @@ impl Default for PyramidParams {
             fip_shear_steps: 2,
             ewa_max_anisotropy: 64.0,
             mip_max_tilt_deg: 30.0,
-            fip_min_tilt_deg: 70.0,
+            fip_min_tilt_deg: 80.0,
             rip_max_skew_deg: 10.0,
         }
     }
@@ -311,6 +311,23 @@ impl Texture {
             height: self.height,
             pixels,
         }
+    }
+
+    /// The values quantised to 8 bits (`round(255·clamp(x, 0, 1))`), for PNG storage of colour
+    /// (already sRGB-encoded when built with [`ColourSpace::Srgb`]) and alpha.
+    pub fn to_u8(&self) -> Vec<u8> {
+        self.data
+            .iter()
+            .map(|x| (x.clamp(0.0, 1.0) * 255.0).round() as u8)
+            .collect()
+    }
+
+    /// The values quantised to 16 bits (`round(65535·clamp(x, 0, 1))`).
+    pub fn to_u16(&self) -> Vec<u16> {
+        self.data
+            .iter()
+            .map(|x| (x.clamp(0.0, 1.0) * 65535.0).round() as u16)
+            .collect()
     }
 
     /// The texel `(i, j)`.

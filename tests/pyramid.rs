@@ -672,6 +672,33 @@ proptest! {
         prop_assert!(matches!(fip.decide([deriv, deriv, 0.0]), Scheme::Mip | Scheme::Rip | Scheme::Fip(_)));
     }
 
+    /// Fusion of arbitrary (possibly inconsistent) views: a fused texture with finite values or
+    /// a typed error, never a panic.
+    #[test]
+    fn fusion_of_any_views_is_finite_or_refused(
+        log_n in 0u32..6, scales in proptest::collection::vec(0u32..7, 0..6),
+        tol in prop_oneof![Just(0.1f64), Just(0.0), Just(f64::NAN), Just(1e-9)],
+        reject in any::<bool>(), seed in any::<u64>(),
+    ) {
+        let n = 1usize << log_n;
+        let mut rng = SplitMix64::new(seed);
+        let views: Vec<altrep::pyramid::FusionView> = scales
+            .iter()
+            .map(|&m| {
+                let s = (n >> m.min(log_n)).max(1);
+                altrep::pyramid::FusionView {
+                    image: Texture::new(s, s, 2, (0..s * s * 2).map(|_| rng.next_f64() as f32).collect()).unwrap(),
+                    scale_log2: m,
+                }
+            })
+            .collect();
+        let params = altrep::pyramid::FusionParams { reject, tolerance: tol };
+        match altrep::pyramid::fuse(&views, n, &params) {
+            Ok((t, _)) => prop_assert!(t.data.iter().all(|x| x.is_finite())),
+            Err(e) => prop_assert!(matches!(e, MipError::InvalidParams { .. }), "{}", e),
+        }
+    }
+
     /// Texture input with a NaN or infinity is refused, naming the float.
     #[test]
     fn non_finite_texels_are_refused(k in 0usize..12, bad in prop_oneof![Just(f32::NAN), Just(f32::INFINITY)]) {

@@ -18,9 +18,12 @@ pub mod cylinder;
 pub mod ellipsoid;
 pub mod fit;
 pub mod metrics;
-pub mod mip;
 pub mod parallax;
 pub mod pipeline;
+pub mod pyramid;
+
+/// The mip pyramid, kept at its old path (`crate::mip::…`); it lives in [`pyramid::mip`].
+pub use pyramid::mip;
 
 pub use altrep_data_gen as data_gen;
 pub use altrep_solvers as solvers;

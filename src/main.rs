@@ -30,6 +30,8 @@ enum Command {
     Parallax(cli::parallax::ParallaxArgs),
     /// The offline step: plan, build, write and measure the representations a scene manifest asks for.
     Precompute(cli::precompute::PrecomputeArgs),
+    /// Pyramids: mip/rip/fip/EWA error and time against supersampled truth, filters, fusion PSNR.
+    Pyramid(cli::pyramid::PyramidArgs),
 }
 
 fn main() {
@@ -42,6 +44,7 @@ fn main() {
         Command::FitBench(args) => cli::fit_bench::run(args),
         Command::Parallax(args) => cli::parallax::run(args),
         Command::Precompute(args) => cli::precompute::run(args),
+        Command::Pyramid(args) => cli::pyramid::run(args),
     };
     if let Err(e) = result {
         eprintln!("altrep: error: {e}");

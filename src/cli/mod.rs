@@ -8,6 +8,7 @@ pub mod ellipsoid_bench;
 pub mod fit_bench;
 pub mod parallax;
 pub mod precompute;
+pub mod pyramid;
 
 /// Error type of the command-line layer: a message for the user, already formatted.
 pub type CliResult = Result<(), Box<dyn std::error::Error + Send + Sync>>;

@@ -8,27 +8,26 @@
 //! * Texture coordinates `(u, v) ∈ [0, 1]²` span the whole texture; texel `(i, j)` covers
 //!   `[i/w, (i+1)/w] × [j/h, (j+1)/h]` and its **centre** is at `((i + ½)/w, (j + ½)/h)`, as on a
 //!   GPU.
-//! * Level `l + 1` has `max(1, ⌊w_l/2⌋) × max(1, ⌊h_l/2⌋)` texels. The box prefilter is the
+//! * Level `l + 1` has `max(1, ⌊w_l/2⌋) × max(1, ⌊h_l/2⌋)` texels. The (default) box prefilter is the
 //!   exact **area-weighted** mean of **level 0** over the coarse texel's footprint, with
 //!   fractional weights where a footprint cuts a texel. Every level is computed from level 0, not
 //!   from the level above it: for sizes that are not powers of two, filtering the level above
 //!   would weight a cut texel's whole mean by the share of it inside the footprint, which is not
 //!   the mean of that share.
 //! * Wrap modes per axis: [`WrapMode::Repeat`] (periodic textures, e.g. the angle axis of a
-//!   cylindrical texture) or [`WrapMode::Clamp`].
+//!   cylindrical texture), [`WrapMode::Clamp`] or [`WrapMode::Mirror`].
 //! * Level of detail: `λ = log2 D`, `D = max(√((u_x w)² + (v_x h)²), √((u_y w)² + (v_y h)²))`
 //!   with level-0 sizes `w, h`, clamped to `[0, levels − 1]`; trilinear sampling blends the two
 //!   nearest levels linearly in `λ`.
 //!
-//! Room for later work: [`Filter`] and [`PyramidKind`] are non-exhaustive (better prefilters,
-//! ripmaps, fipmaps); sRGB inputs are converted to linear before building (the caller's job,
-//! with [`altrep_data_gen::srgb_to_linear`]).
+//! Other prefilters ([`Filter`]), sRGB decoding, alpha handling, coverage preservation and
+//! normal renormalisation are chosen in [`PyramidParams`] and applied by
+//! [`super::levels`] and [`super::filter`]; ripmaps and fipmaps are in [`super::rip`] and
+//! [`super::fip`].
 //!
 //! Cost: building level `l` reads all of level 0 once (separable: `W·H·(1 + 1/ratio)` weighted
 //! adds per channel), so the whole pyramid costs about `W·H·channels·2·log2(max(W, H))` multiply-
 //! adds, rows in parallel; a trilinear sample reads 8 texels.
-
-use rayon::prelude::*;
 
 /// Errors of pyramid construction.
 #[derive(Debug, thiserror::Error, PartialEq)]
@@ -53,54 +52,195 @@ pub enum MipError {
         /// Index of the first offending float.
         index: usize,
     },
+    /// A parameter is out of range or does not fit the texture.
+    #[error("pyramid parameter {name}: {reason}")]
+    InvalidParams {
+        /// Field of [`PyramidParams`] (or of the fusion / evaluation parameters).
+        name: &'static str,
+        /// What is wrong.
+        reason: &'static str,
+    },
+    /// A combination this implementation does not build.
+    #[error("unsupported: {0}")]
+    Unsupported(&'static str),
 }
 
-/// How coordinates outside `[0, 1]` are treated along one axis.
+/// How coordinates outside `[0, 1]` are treated along one axis (see
+/// [`super::filter::wrap_index`]).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 pub enum WrapMode {
     /// Clamp to the edge texel.
     Clamp,
     /// Periodic: the texture tiles.
     Repeat,
+    /// Mirrored repeat (period `2n`, as GL's `MIRRORED_REPEAT`).
+    Mirror,
 }
 
-/// Prefilter used to build coarser levels.
+/// Prefilter used to build coarser levels (kernels in [`super::filter`]).
 #[non_exhaustive]
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
 pub enum Filter {
     /// Exact area-weighted box.
     #[default]
     Box,
+    /// Tent of radius one output texel.
+    Triangle,
+    /// Kaiser-windowed sinc, radius 3 output texels, `α = 4` (NVIDIA Texture Tools).
+    Kaiser,
+    /// Lanczos-3 windowed sinc.
+    Lanczos,
 }
 
-/// Which pyramid: levels reduced in both directions at once.
+/// Which pyramid.
 #[non_exhaustive]
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
 pub enum PyramidKind {
     /// Mipmap: both axes halved per level.
     #[default]
     Mip,
+    /// Ripmap: `u` and `v` halved independently ([`super::RipMap`]).
+    Rip,
+    /// Fipmap: ripmaps of sheared copies of the texture ([`super::FipMap`]).
+    Fip,
 }
 
-/// Parameters of [`Pyramid::build`].
+/// How texel values encode colour.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
+pub enum ColourSpace {
+    /// Values are linear: filtered as they are.
+    #[default]
+    Linear,
+    /// The colour channels (the first three, or fewer, not counting alpha) are sRGB-encoded in
+    /// `[0, 1]`: decoded to linear light, filtered, encoded back (as NVTT does by default).
+    Srgb,
+}
+
+/// Whether the last channel is alpha and how colour relates to it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
+pub enum AlphaMode {
+    /// No alpha channel: every channel is filtered alike (this also averages premultiplied data
+    /// correctly, as the module conventions require of RGBA textures).
+    #[default]
+    None,
+    /// The last channel is alpha and colour is premultiplied by it (in linear light for sRGB:
+    /// stored colour `= a · encode(c)`).
+    Premultiplied,
+    /// The last channel is alpha and colour is straight: premultiplied for filtering, divided
+    /// back afterwards.
+    Straight,
+}
+
+/// Parameters of [`Pyramid::build`] and of [`super::build`]. Lookup-time options (EWA
+/// anisotropy, the mip/rip/fip decision thresholds) live here too so one struct describes a
+/// pyramid and how it is read.
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(default, deny_unknown_fields)]
 pub struct PyramidParams {
     /// Wrap mode along `u` (columns) and `v` (rows).
     pub wrap: [WrapMode; 2],
     /// Prefilter.
     pub filter: Filter,
-    /// Pyramid kind.
+    /// Pyramid kind (used by [`super::build`]; [`Pyramid::build`] always builds a mipmap).
     pub kind: PyramidKind,
+    /// Colour encoding of the texel values.
+    pub colour: ColourSpace,
+    /// Alpha channel handling.
+    pub alpha: AlphaMode,
+    /// Alpha-test reference value: when set (and `alpha` is not `None`), each level's alpha is
+    /// scaled so that the fraction of its area with `alpha > reference` (measured with 4×4
+    /// bilinear samples per texel) matches level 0's, as NVTT's `scaleAlphaToCoverage`.
+    pub coverage_reference: Option<f32>,
+    /// The first three channels hold a unit normal in `[−1, 1]³`: renormalised after filtering
+    /// (a zero mean becomes `(0, 0, 1)`).
+    pub normal_map: bool,
+    /// Fipmap shear denominators: shears `k / fip_shear_steps` for `k = ±1 … ±fip_shear_steps`
+    /// along each axis (so `|shear| ≤ 1`); 1 to 8.
+    pub fip_shear_steps: u32,
+    /// EWA: longest allowed ratio of the footprint's major to minor axis (the minor axis is
+    /// lengthened beyond it); 1 to 1024.
+    pub ewa_max_anisotropy: f64,
+    /// Mip/rip/fip decision: views within this angle of the polygon normal use the mipmap
+    /// (degrees, 0 to 90).
+    pub mip_max_tilt_deg: f64,
+    /// Mip/rip/fip decision: views not handled by the mipmap but within this angle of the normal
+    /// use the ripmap whatever their azimuth (degrees, 0 to 90): the fipmap pays one resampling
+    /// of level 0 and only wins on strongly anisotropic footprints.
+    pub fip_min_tilt_deg: f64,
+    /// Mip/rip/fip decision: oblique views whose direction, projected into the polygon, lies
+    /// within this angle of a texture axis use the ripmap; others the fipmap (degrees, 0 to 45).
+    pub rip_max_skew_deg: f64,
 }
 
 impl Default for PyramidParams {
-    /// Clamp on both axes, box filter, mipmap.
+    /// Clamp on both axes, box filter, mipmap, linear colour, no alpha, no coverage
+    /// preservation, not a normal map, fip shears `±½, ±1`, EWA anisotropy up to 64, mipmap
+    /// within 30° of the normal, ripmap below 80° or within 10° of a texture axis, fipmap beyond.
     fn default() -> Self {
         Self {
             wrap: [WrapMode::Clamp; 2],
             filter: Filter::Box,
             kind: PyramidKind::Mip,
+            colour: ColourSpace::Linear,
+            alpha: AlphaMode::None,
+            coverage_reference: None,
+            normal_map: false,
+            fip_shear_steps: 2,
+            ewa_max_anisotropy: 64.0,
+            mip_max_tilt_deg: 30.0,
+            fip_min_tilt_deg: 80.0,
+            rip_max_skew_deg: 10.0,
         }
+    }
+}
+
+impl PyramidParams {
+    /// Checks ranges and combinations against a texture of `channels` channels.
+    pub fn validate(&self, channels: usize) -> Result<(), MipError> {
+        let bad = |name: &'static str, reason: &'static str| {
+            Err(MipError::InvalidParams { name, reason })
+        };
+        if !(1..=8).contains(&self.fip_shear_steps) {
+            return bad("fip_shear_steps", "must be 1 to 8");
+        }
+        if !(self.ewa_max_anisotropy.is_finite()
+            && (1.0..=1024.0).contains(&self.ewa_max_anisotropy))
+        {
+            return bad("ewa_max_anisotropy", "must be 1 to 1024");
+        }
+        if !(self.mip_max_tilt_deg.is_finite() && (0.0..=90.0).contains(&self.mip_max_tilt_deg)) {
+            return bad("mip_max_tilt_deg", "must be 0 to 90");
+        }
+        if !(self.fip_min_tilt_deg.is_finite() && (0.0..=90.0).contains(&self.fip_min_tilt_deg)) {
+            return bad("fip_min_tilt_deg", "must be 0 to 90");
+        }
+        if !(self.rip_max_skew_deg.is_finite() && (0.0..=45.0).contains(&self.rip_max_skew_deg)) {
+            return bad("rip_max_skew_deg", "must be 0 to 45");
+        }
+        if let Some(r) = self.coverage_reference {
+            if !(r.is_finite() && r > 0.0 && r < 1.0) {
+                return bad("coverage_reference", "must lie strictly between 0 and 1");
+            }
+            if self.alpha == AlphaMode::None {
+                return bad(
+                    "coverage_reference",
+                    "needs an alpha channel (alpha mode not None)",
+                );
+            }
+        }
+        let has_alpha = self.alpha != AlphaMode::None;
+        if has_alpha && channels < 2 {
+            return bad("alpha", "needs at least 2 channels (colour and alpha)");
+        }
+        if self.normal_map {
+            if channels < 3 + usize::from(has_alpha) {
+                return bad("normal_map", "needs 3 normal channels (plus alpha if any)");
+            }
+            if self.colour == ColourSpace::Srgb {
+                return bad("normal_map", "normals are not sRGB colour");
+            }
+        }
+        Ok(())
     }
 }
 
@@ -173,66 +313,28 @@ impl Texture {
         }
     }
 
+    /// The values quantised to 8 bits (`round(255·clamp(x, 0, 1))`), for PNG storage of colour
+    /// (already sRGB-encoded when built with [`ColourSpace::Srgb`]) and alpha.
+    pub fn to_u8(&self) -> Vec<u8> {
+        self.data
+            .iter()
+            .map(|x| (x.clamp(0.0, 1.0) * 255.0).round() as u8)
+            .collect()
+    }
+
+    /// The values quantised to 16 bits (`round(65535·clamp(x, 0, 1))`).
+    pub fn to_u16(&self) -> Vec<u16> {
+        self.data
+            .iter()
+            .map(|x| (x.clamp(0.0, 1.0) * 65535.0).round() as u16)
+            .collect()
+    }
+
     /// The texel `(i, j)`.
     #[inline]
     pub fn texel(&self, i: usize, j: usize) -> &[f32] {
         let k = (j * self.width + i) * self.channels;
         &self.data[k..k + self.channels]
-    }
-}
-
-/// Weights of the area-weighted box resampling of `n` texels to `m ≤ n`: for each output texel,
-/// the `(source index, weight)` pairs, weights summing to 1.
-fn box_weights(n: usize, m: usize) -> Vec<Vec<(usize, f64)>> {
-    let ratio = n as f64 / m as f64;
-    (0..m)
-        .map(|i| {
-            let (a, b) = (i as f64 * ratio, (i + 1) as f64 * ratio);
-            let mut w = Vec::new();
-            let mut k = a.floor() as usize;
-            while (k as f64) < b && k < n {
-                let overlap = (b.min(k as f64 + 1.0) - a.max(k as f64)).max(0.0);
-                if overlap > 0.0 {
-                    w.push((k, overlap / ratio));
-                }
-                k += 1;
-            }
-            w
-        })
-        .collect()
-}
-
-/// Level 0 resampled to `w2 × h2` by the area-weighted box (separable: rows, then columns).
-fn box_resample(t: &Texture, w2: usize, h2: usize) -> Texture {
-    let c = t.channels;
-    let wx = box_weights(t.width, w2);
-    let wy = box_weights(t.height, h2);
-    // Horizontal pass: height × w2.
-    let mut tmp = vec![0.0f64; t.height * w2 * c];
-    tmp.par_chunks_mut(w2 * c).enumerate().for_each(|(j, row)| {
-        for (i, weights) in wx.iter().enumerate() {
-            for &(k, wk) in weights {
-                for ch in 0..c {
-                    row[i * c + ch] += wk * f64::from(t.data[(j * t.width + k) * c + ch]);
-                }
-            }
-        }
-    });
-    let mut data = vec![0.0f32; h2 * w2 * c];
-    data.par_chunks_mut(w2 * c)
-        .enumerate()
-        .for_each(|(j, row)| {
-            for &(k, wk) in &wy[j] {
-                for (x, v) in row.iter_mut().enumerate() {
-                    *v += (wk * tmp[k * w2 * c + x]) as f32;
-                }
-            }
-        });
-    Texture {
-        width: w2,
-        height: h2,
-        channels: c,
-        data,
     }
 }
 
@@ -248,6 +350,9 @@ impl Pyramid {
     /// Builds the pyramid of `base`. Cost: see the module docs.
     pub fn build(base: Texture, params: PyramidParams) -> Result<Self, MipError> {
         let base = Texture::new(base.width, base.height, base.channels, base.data)?;
+        params.validate(base.channels)?;
+        let work0 = super::levels::prepare(&base, &params);
+        let coverage = super::levels::coverage_target(&base, &params);
         let mut levels = vec![base];
         loop {
             let last = levels.last().expect("at least the base level");
@@ -255,12 +360,20 @@ impl Pyramid {
                 break;
             }
             let (w2, h2) = ((last.width / 2).max(1), (last.height / 2).max(1));
-            let next = match params.filter {
-                Filter::Box => box_resample(&levels[0], w2, h2),
-            };
-            levels.push(next);
+            levels.push(super::levels::build_level(
+                &work0, w2, h2, &params, coverage,
+            ));
         }
         Ok(Self { levels, params })
+    }
+
+    /// A pyramid holding only `level` (no coarser levels), for the ripmap and fipmap, which
+    /// reuse its bilinear lookup.
+    pub(crate) fn single_level(level: Texture, params: PyramidParams) -> Self {
+        Self {
+            levels: vec![level],
+            params,
+        }
     }
 
     /// The levels, finest first.
@@ -282,10 +395,7 @@ impl Pyramid {
     }
 
     fn wrap(&self, axis: usize, i: i64, n: usize) -> usize {
-        match self.params.wrap[axis] {
-            WrapMode::Clamp => i.clamp(0, n as i64 - 1) as usize,
-            WrapMode::Repeat => i.rem_euclid(n as i64) as usize,
-        }
+        super::filter::wrap_index(self.params.wrap[axis], i, n)
     }
 
     /// Bilinear sample of level `level` (clamped to the last level) at `(u, v)`, written into

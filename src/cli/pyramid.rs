@@ -1,0 +1,219 @@
+//! `altrep pyramid` — pyramids for minification (SPEC §10): the error/time table of mip, rip,
+//! fip and EWA lookups against the supersampled truth over distances and tilts, build times per
+//! prefilter, and the PSNR of quad-tree texture fusion with and without median rejection.
+
+use std::path::PathBuf;
+use std::time::Instant;
+
+use serde_json::json;
+
+use super::CliResult;
+use crate::pyramid::fusion::fusion_experiment;
+use crate::pyramid::truth::{METHODS, test_texture};
+use crate::pyramid::{
+    AlphaMode, ColourSpace, Filter, Pyramid, PyramidParams, SweepParams, Texture, WrapMode,
+    measure_sweep,
+};
+
+/// Arguments of `altrep pyramid`.
+#[derive(clap::Args, Debug)]
+pub struct PyramidArgs {
+    /// Side of the square test texture of the sweep, in texels.
+    #[arg(long, default_value_t = 256, value_parser = clap::value_parser!(u32).range(4..=2048))]
+    pub size: u32,
+    /// Prefilter of every pyramid: box, triangle, kaiser or lanczos.
+    #[arg(long, default_value = "box")]
+    pub filter: String,
+    /// Image side of each view, in pixels.
+    #[arg(long, default_value_t = 16, value_parser = clap::value_parser!(u32).range(1..=256))]
+    pub pixels: u32,
+    /// Cap on supersampled truth samples per pixel.
+    #[arg(long, default_value_t = 8192)]
+    pub max_samples: u32,
+    /// Side of the RGBA sRGB texture whose mip chain is timed per filter (0: skip).
+    #[arg(long, default_value_t = 1024)]
+    pub build_size: u32,
+    /// Side of the fused texture (a power of two).
+    #[arg(long, default_value_t = 128)]
+    pub fusion_size: u32,
+    /// Write every figure as JSON to this file.
+    #[arg(long)]
+    pub json: Option<PathBuf>,
+}
+
+fn parse_filter(s: &str) -> Result<Filter, String> {
+    match s.to_ascii_lowercase().as_str() {
+        "box" => Ok(Filter::Box),
+        "triangle" => Ok(Filter::Triangle),
+        "kaiser" => Ok(Filter::Kaiser),
+        "lanczos" => Ok(Filter::Lanczos),
+        _ => Err(format!(
+            "unknown filter {s:?}: use box, triangle, kaiser or lanczos"
+        )),
+    }
+}
+
+/// Runs the sweep, the build timings and the fusion experiment; prints the tables.
+pub fn run(args: PyramidArgs) -> CliResult {
+    let filter = parse_filter(&args.filter)?;
+    let params = PyramidParams {
+        filter,
+        wrap: [WrapMode::Repeat; 2],
+        ..Default::default()
+    };
+    let sweep = SweepParams {
+        pixels: args.pixels as usize,
+        max_samples_per_pixel: args.max_samples as usize,
+        ..Default::default()
+    };
+    let tex = test_texture(args.size as usize, 7);
+    let report = measure_sweep(&tex, &params, &sweep)?;
+    println!(
+        "pyramid sweep: {0}×{0} grey test texture, {1:?} prefilter, {2}×{2} pixels per view; \
+         RMS error against the supersampled truth (texel-value units) and ns per lookup \
+         (one thread); truth noise = RMS noise of the reference",
+        args.size, filter, args.pixels
+    );
+    println!(
+        "{:>6} {:>6} {:>5} {:>9} | {:>8} {:>8} {:>8} {:>8} | {:>6} {:>6} {:>6} {:>6} | decision",
+        "D0", "tilt", "az", "truth±", "mip", "rip", "fip", "ewa", "ns mip", "rip", "fip", "ewa",
+    );
+    for r in &report.rows {
+        println!(
+            "{:>6.1} {:>6.1} {:>5.1} {:>9.5} | {:>8.5} {:>8.5} {:>8.5} {:>8.5} | {:>6.0} {:>6.0} {:>6.0} {:>6.0} | {:?}",
+            r.view.texels_per_pixel,
+            r.view.tilt_deg,
+            r.view.azimuth_deg,
+            r.truth_noise,
+            r.rms[0],
+            r.rms[1],
+            r.rms[2],
+            r.rms[3],
+            r.ns_per_sample[0],
+            r.ns_per_sample[1],
+            r.ns_per_sample[2],
+            r.ns_per_sample[3],
+            r.scheme
+        );
+    }
+    let wins = |k: usize| {
+        report
+            .rows
+            .iter()
+            .filter(|r| (0..4).all(|j| r.rms[k] <= r.rms[j]))
+            .count()
+    };
+    println!(
+        "best per row: mip {}, rip {}, fip {}, ewa {} of {}; bytes (f32): mip {}, rip {}, fip database {}; fip build {:.2} s",
+        wins(0),
+        wins(1),
+        wins(2),
+        wins(3),
+        report.rows.len(),
+        report.mip_bytes,
+        report.rip_bytes,
+        report.fip_bytes,
+        report.build_seconds
+    );
+
+    // Build time of an RGBA sRGB straight-alpha mip chain per filter.
+    let mut builds = Vec::new();
+    if args.build_size > 0 {
+        let n = args.build_size as usize;
+        let data: Vec<f32> = (0..n * n * 4)
+            .map(|k| ((k * 7919) % 251) as f32 / 250.0)
+            .collect();
+        let base = Texture::new(n, n, 4, data)?;
+        println!(
+            "mip chain build, {n}×{n} RGBA, sRGB in linear light, straight alpha (dev profile, all cores):"
+        );
+        for f in [
+            Filter::Box,
+            Filter::Triangle,
+            Filter::Kaiser,
+            Filter::Lanczos,
+        ] {
+            let p = PyramidParams {
+                filter: f,
+                colour: ColourSpace::Srgb,
+                alpha: AlphaMode::Straight,
+                ..Default::default()
+            };
+            let start = Instant::now();
+            let pyr = Pyramid::build(base.clone(), p)?;
+            let s = start.elapsed().as_secs_f64();
+            // The same filter on the `image` crate (RGBA8, no linear light, kernel point-sampled
+            // at texel centres where ours integrates it over each texel), each level resized from
+            // level 0; its largest difference from our linear-colour levels in 8-bit steps.
+            let image_filter = match f {
+                Filter::Triangle => Some(image::imageops::FilterType::Triangle),
+                Filter::Lanczos => Some(image::imageops::FilterType::Lanczos3),
+                _ => None,
+            };
+            let mut line = format!("  {f:?}: {s:.3} s, {} levels", pyr.levels().len());
+            let mut entry = json!({"filter": format!("{f:?}"), "seconds": s, "size": n});
+            if let Some(ft) = image_filter {
+                let bytes: Vec<u8> = base
+                    .data
+                    .iter()
+                    .map(|x| (x.clamp(0.0, 1.0) * 255.0).round() as u8)
+                    .collect();
+                let img = image::RgbaImage::from_raw(n as u32, n as u32, bytes)
+                    .ok_or("image buffer size")?;
+                let start = Instant::now();
+                let theirs: Vec<image::RgbaImage> = pyr.levels()[1..]
+                    .iter()
+                    .map(|l| image::imageops::resize(&img, l.width as u32, l.height as u32, ft))
+                    .collect();
+                let t_image = start.elapsed().as_secs_f64();
+                let linear = Pyramid::build(
+                    base.clone(),
+                    PyramidParams {
+                        filter: f,
+                        ..Default::default()
+                    },
+                )?;
+                let max_diff = linear.levels()[1..]
+                    .iter()
+                    .zip(&theirs)
+                    .flat_map(|(a, b)| {
+                        a.data.iter().zip(b.as_raw()).map(|(x, y)| {
+                            ((x.clamp(0.0, 1.0) * 255.0).round() - f32::from(*y)).abs()
+                        })
+                    })
+                    .fold(0.0f32, f32::max);
+                line += &format!(
+                    "; image crate {ft:?} (8-bit, gamma space, one thread) {t_image:.3} s, ratio ours/image {:.2}, largest difference from our linear-colour levels {max_diff} of 255",
+                    s / t_image
+                );
+                entry["image_seconds"] = json!(t_image);
+                entry["image_max_diff_u8"] = json!(max_diff);
+            }
+            println!("{line}");
+            builds.push(entry);
+        }
+    }
+
+    let fusion = fusion_experiment(args.fusion_size as usize, 3)?;
+    println!(
+        "quad-tree fusion, {0}×{0} RGB, 5 views (scales 0,0,0,1,1), occluder in 2: PSNR {1:.2} dB with median rejection, {2:.2} dB without; rejected per level {3:?} of {4:?}",
+        args.fusion_size,
+        fusion.psnr_with_rejection,
+        fusion.psnr_without_rejection,
+        fusion.report.rejected,
+        fusion.report.offered
+    );
+
+    if let Some(path) = &args.json {
+        let doc = json!({
+            "methods": METHODS,
+            "sweep": report,
+            "filter": format!("{filter:?}"),
+            "texture_size": args.size,
+            "builds": builds,
+            "fusion": fusion,
+        });
+        std::fs::write(path, serde_json::to_string_pretty(&doc)?)?;
+    }
+    Ok(())
+}

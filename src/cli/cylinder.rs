@@ -12,9 +12,9 @@ use super::CliResult;
 use super::capture::load_shape;
 use super::demo::{DemoContext, DemoSection, truth_image};
 use crate::cylinder::{
-    CylinderError, CylindricalTexture, EvalParams, EvalReport, ExactMethod, OffsetMode, OffsetParams,
-    OffsetTexture, RadiusModel, RenderParams, SWEEP_GRIDS, evaluate, render_exact, sweep,
-    sweep_markdown,
+    BoundsParams, CylinderError, CylindricalTexture, EvalParams, EvalReport, ExactMethod,
+    LambdaRule, OffsetMode, OffsetParams, OffsetTexture, RadiusModel, RenderParams, SWEEP_GRIDS,
+    evaluate, render_exact, sweep, sweep_markdown,
 };
 
 /// Arguments of `altrep cylinder`.
@@ -38,6 +38,13 @@ pub struct CylinderArgs {
     /// Cells of the fitted offset grid, `AxxAyxAα` (x, rows, angles; the angle axis is periodic).
     #[arg(long, default_value = "15x8x16", value_parser = parse_grid)]
     pub grid: [usize; 3],
+    /// Regularisation λ of the offset fit, fixed; by default it is chosen per fit (the smallest
+    /// that keeps the coefficients within twice the data range).
+    #[arg(long)]
+    pub lambda: Option<f64>,
+    /// Cells of the march bounds, `BxxGxBα` (abscissae, texture rows per cell, angles).
+    #[arg(long, default_value = "64x2x64", value_parser = parse_grid)]
+    pub bounds: [usize; 3],
     /// Camera angles measured.
     #[arg(long, default_value_t = 8, value_parser = clap::value_parser!(u32).range(1..=360))]
     pub angles: u32,
@@ -97,7 +104,15 @@ pub fn run(args: CylinderArgs) -> CliResult {
     let params = EvalParams {
         offset: OffsetParams {
             cells: args.grid,
+            lambda: args
+                .lambda
+                .map_or(OffsetParams::default().lambda, LambdaRule::Fixed),
             ..OffsetParams::default()
+        },
+        bounds: BoundsParams {
+            cells_x: args.bounds[0],
+            rows_per_cell: args.bounds[1],
+            cells_alpha: args.bounds[2],
         },
         angles: args.angles as usize,
         size: args.size as usize,

@@ -4,9 +4,9 @@
 use std::path::PathBuf;
 
 use crate::parallax::{
-    BoundKind, BoundParams, Bounds, ParallaxError, ParallaxImages, ParallaxParams, QualityParams, QualityRow,
-    RenderParams, StepsReport, WarpMethod, build_bounds, measure_quality, measure_steps, render,
-    render_blend_baseline, render_offset_baseline,
+    BoundKind, BoundParams, Bounds, ParallaxError, ParallaxImages, ParallaxParams, QualityParams,
+    QualityRow, RenderParams, StepsReport, WarpMethod, build_bounds, measure_quality,
+    measure_steps, render, render_blend_baseline, render_offset_baseline,
 };
 use altrep_data_gen::{RgbaImage, scene_shape, srgb_to_linear};
 use serde_json::json;

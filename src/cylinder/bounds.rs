@@ -4,22 +4,24 @@
 //! Exact inverse warping marches, per pixel, the sectors a screen ray crosses front to back
 //! (march positions `n = 0, 1, …` from the sector holding `β_front = α − asin x`) and stops at
 //! the first sector `n*` holding a front-facing edge that covers the pixel: 50–72 tests per
-//! sub-sample on the evaluation shapes. [`MarchBounds`] stores, per cell of
-//! `Bx` abscissae × row groups × `Bα` angles, a range `[start, stop]` of march positions such
-//! that for **every** pixel of the cell the first hit, if any, lies at `start ≤ n* ≤ stop`. The
-//! march then runs from `start` and gives up after `stop`: it tests the same sectors in the same
-//! order as the exact march from `start` on, so its result is the exact one, fragment for
-//! fragment, at `n* − start + 1` tests (a miss costs `stop − start + 1`, an empty cell 0).
+//! sub-sample on the evaluation shapes. [`MarchBounds`] stores, per cell of `Bx` abscissae ×
+//! row groups × `Bα` angles, the smallest and largest **sector number** that any edge able to
+//! be a first hit in that cell can have. A pixel turns them into march positions with its own
+//! ray (`n = first − s` on the right half, `s − first` on the left), so that for **every**
+//! pixel of the cell the first hit lies at `start ≤ n* ≤ stop`. The march then runs from
+//! `start` and gives up after `stop`: it tests the same sectors in the same order as the exact
+//! march from `start` on, so its result is the exact one, fragment for fragment, at
+//! `n* − start + 1` tests (a miss costs at most `stop − start + 1`, an empty cell 0).
 //!
 //! ## Why the range is conservative (derived, not sampled)
 //!
 //! Write `θ = α − β` (right half, `x ≥ 0`) or `θ = β − α` (left half) for a point of polar angle
-//! `β` on the ray at abscissa `x`: `θ ∈ [asin|x|, π − asin|x|]` grows along the ray, and
-//! `d = (θ − asin|x|)/dα` is the angular distance from the ray's entry, in sectors. The march
-//! position of the sector holding the point is `n = ⌊β_front/dα⌋ − ⌊β/dα⌋` (right half; mirrored
-//! on the left), so `⌊d⌋ ≤ n ≤ ⌊d⌋ + 1` (`⌊a⌋ − ⌊b⌋ ≥ ⌊a − b⌋`; a point on the sector's far
-//! half-line only raises `n`). The first hit lies on some edge of the slice that covers `x` and
-//! faces the camera. For each sector edge the build bounds, over the whole cell:
+//! `β` on the ray at abscissa `x`: `θ ∈ [asin|x|, π − asin|x|]`. Sector numbers are unwrapped in
+//! the frame of the reduced angle `α ∈ [0, 2π)`: the sector of a point is `⌊β/dα⌋` with
+//! `β = α ∓ θ`, and the ray's sectors run from `first = ⌊(α − asin x)/dα⌋` one by one, so the
+//! first hit, in sector `s*`, sits at `n* = first − s*` (right) or `s* − first` (left). The
+//! first hit lies on an edge of the slice that covers `x` and faces the camera. For each sector
+//! edge the build bounds, over the whole cell:
 //! * which rows hold it: a slice between two rows interpolates the radii of an edge present in
 //!   both, and the two quantities below are linear in the radii for a fixed angle, so their
 //!   extremes over the cell's rows are reached at the rows themselves;
@@ -27,21 +29,23 @@
 //!   cell's angles is exact;
 //! * where it can project: `x` is linear along the edge between `ρ·sin(α − β)` of its endpoints
 //!   (interval sine);
-//! * `θ` of its points: the edge lies in one sector, so `θ ∈ [α₀ − β_{s+1}, α₁ − β_s]`;
+//! * which unwrapped sector numbers it takes: its points have `θ ∈ [α₀ − β_{s+1}, α₁ − β_s]`
+//!   (right half), and the turn that brings this interval into `[asin|x|, π − asin|x|]` fixes
+//!   the number;
 //!
-//! and widens the cell's range by the edge's `[⌊d_lo⌋, ⌊d_hi⌋ + 1]` in every abscissa cell it can
-//! project into. Occlusion and the actual hit are ignored, which keeps it conservative; the
-//! price is a looser start in cells holding several surfaces. A tolerance of `1e-7` sectors
-//! covers floating-point rounding. The tests check the range against the exact march on a sweep
-//! four times finer than the cells and the rendered fragments against exact inverse warping.
+//! and the cell keeps the least and greatest number over its candidate edges. Occlusion is
+//! ignored, which keeps the range conservative; its price is a later `stop` for misses and an
+//! earlier `start` where the surface moves across the cell. The tests check the range against
+//! the exact march on a sweep four times finer than the cells, the rendered fragments against
+//! exact inverse warping on three shapes, and the march on random textures (proptest).
 //!
 //! ## Cost
 //!
-//! Build: `O(rows/g · Bα · L)` edge tests plus the cells each edge touches (tens of ms).
-//! Storage: two values per cell, one byte each when `L/2 + 2 < 256` (two bytes otherwise); the
-//! default 64 × 32 × 64 cells are 256 KiB at 256 × 64 texels, twice the texture (see the README
-//! for the sweep of cell counts against steps).
-//! Per pixel: one fetch and `n* − start + 1` sector tests.
+//! Build: `O(rows · Bα · L)` edge tests plus the cells each edge reaches (0.1–0.6 s on two
+//! shared cores at the defaults). Storage: two codes per cell, one byte each (codes below
+//! `L/2 + w + 6`, `w` sectors per angle cell; two bytes past 255): the default 64 × 32 × 64
+//! cells are 256 KiB at 256 × 64 texels, twice the texture (the README sweeps the cell counts
+//! against the steps). Per pixel: one fetch and `n* − start + 1` sector tests.
 
 use std::f64::consts::{FRAC_PI_2, PI, TAU};
 use std::time::Instant;
@@ -113,22 +117,23 @@ pub struct BoundsReport {
     pub bytes_per_value: usize,
     /// Cells with at least one candidate edge.
     pub nonempty_cells: usize,
-    /// Mean `stop − start` over the non-empty cells (march positions).
+    /// Mean spread (greatest − least candidate sector) over the non-empty cells, in sectors.
     pub mean_span: f64,
     /// Build time (s).
     pub build_s: f64,
 }
 
-/// Per cell a conservative range of march positions of the first hit (see the module docs).
+/// Per cell the least and greatest sector number of the edges that can be a first hit there,
+/// from which each pixel gets a conservative range of march positions (see the module docs).
 #[derive(Clone, Debug, PartialEq)]
 pub struct MarchBounds {
     params: BoundsParams,
     columns: usize,
     rows: usize,
     row_cells: usize,
-    /// `start[i + Bx·(r + row_cells·a)]`; 0 in empty cells.
+    /// Code of the least candidate sector, `start[i + Bx·(r + row_cells·a)]`; 0 in empty cells.
     start: Vec<u16>,
-    /// Last march position to test, inclusive; 0 marks an empty cell (a non-empty one has ≥ 1).
+    /// Code of the greatest candidate sector; 0 marks an empty cell (a non-empty one has ≥ 1).
     stop: Vec<u16>,
 }
 
@@ -196,7 +201,9 @@ impl MarchBounds {
                     let mut x_range: [Option<(f64, f64)>; 2] = [None, None];
                     let mut faces = [false; 2];
                     for j in j0..=j1 {
-                        for (k, (a, negative)) in [(s, false), (s + l / 2, true)].into_iter().enumerate() {
+                        for (k, (a, negative)) in
+                            [(s, false), (s + l / 2, true)].into_iter().enumerate()
+                        {
                             let (Some((ra, na)), Some((rb, nb))) = (sample(a, j), sample(a + 1, j))
                             else {
                                 continue;
@@ -207,7 +214,8 @@ impl MarchBounds {
                             let sigma = if negative { -1.0 } else { 1.0 };
                             let (f, (x0, x1)) = edge_reach(ra, rb, sigma, s, da, (alpha0, alpha1));
                             faces[k] |= f;
-                            x_range[k] = Some(x_range[k].map_or((x0, x1), |(a, b)| (a.min(x0), b.max(x1))));
+                            x_range[k] =
+                                Some(x_range[k].map_or((x0, x1), |(a, b)| (a.min(x0), b.max(x1))));
                         }
                     }
                     for (reach, _) in x_range.into_iter().zip(faces).filter(|(_, f)| *f) {
@@ -264,12 +272,16 @@ impl MarchBounds {
         self.params.rows_per_cell
     }
 
-    /// First march position to test per cell, layout `i + Bx·(r + row_cells·a)` (x fastest).
+    /// Per cell the code of the least candidate sector, layout `i + Bx·(r + row_cells·a)` (x
+    /// fastest; `r` = row cell, `a` = angle cell). Code `q` stands for sector `q + base`, with
+    /// `base = ⌊α₀/dα⌋ − L/2 − 4` on the right half (`i ≥ Bx/2`) and `⌊α₀/dα⌋ − 3` on the left
+    /// (`α₀ = 2πa/Bα`); fits in [`BoundsReport::bytes_per_value`] bytes.
     pub fn start(&self) -> &[u16] {
         &self.start
     }
 
-    /// Last march position to test per cell (inclusive); 0 marks an empty cell.
+    /// Per cell the code of the greatest candidate sector (see [`Self::start`]); 0 marks an
+    /// empty cell.
     pub fn stop(&self) -> &[u16] {
         &self.stop
     }
@@ -337,7 +349,12 @@ impl MarchBounds {
             return (None, 0);
         };
         let rs = ray_sectors(x, view.alpha, self.columns);
-        view.march(x, rs.first + rs.step * start as i64, rs.step, stop + 1 - start)
+        view.march(
+            x,
+            rs.first + rs.step * start as i64,
+            rs.step,
+            stop + 1 - start,
+        )
     }
 
     /// Renders `texture` by the bounded exact march (same image as exact inverse warping);
@@ -391,7 +408,10 @@ fn edge_reach(
     let best = if sigma > 0.0 { amp * mx } else { -amp * mn };
     // Abscissa range of the edge over the cell's angles: x is linear along the edge between
     // its endpoints' abscissae ρ·sin(α − β).
-    let (sa, sb) = (sin_range(u0, u1), sin_range(alpha.0 - beta_b, alpha.1 - beta_b));
+    let (sa, sb) = (
+        sin_range(u0, u1),
+        sin_range(alpha.0 - beta_b, alpha.1 - beta_b),
+    );
     let lo = (ra * sa.0).min(rb * sb.0);
     let hi = (ra * sa.1).max(rb * sb.1);
     // The margin covers the f32 interpolation of radii between rows (a few ulps).

@@ -45,8 +45,8 @@ pub struct CoverageParams {
     /// Sub-samples per pixel side (≥ 1). Default 2.
     pub supersample: usize,
     /// Smallest reproduced share of the true silhouette accepted, in `[0, 1]`. Default 0.5:
-    /// the six evaluation shapes reproduce 0.80 (chair, its legs lost) to 1.00 (pear) of their
-    /// silhouette, a flat cut-out holding the axis under 0.05 (see the README).
+    /// the evaluation shapes and meshes reproduce 0.75 (chair, its legs lost; beetle) to 0.99
+    /// (pear) of their silhouette, a flat cut-out holding the axis 0.00 (see the README).
     pub min_share: f64,
 }
 
@@ -114,9 +114,7 @@ pub struct Coverage {
 impl Coverage {
     /// Measures the reproduced share from pairs of (texture reconstruction, truth) images.
     /// Errors: sizes differ; [`CylinderError::NothingVisible`] when every truth is empty.
-    pub fn from_images(
-        pairs: &[(f64, &RgbaImage, &RgbaImage)],
-    ) -> Result<Coverage, CylinderError> {
+    pub fn from_images(pairs: &[(f64, &RgbaImage, &RgbaImage)]) -> Result<Coverage, CylinderError> {
         let mut per_angle = Vec::with_capacity(pairs.len());
         let (mut truth, mut reproduced) = (0.0, 0.0);
         for &(angle, image, reference) in pairs {

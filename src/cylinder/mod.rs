@@ -80,8 +80,8 @@ pub use eval::{
     evaluate, minification, sweep, sweep_markdown,
 };
 pub use offset::{
-    FitSupport, LambdaRule, LambdaTrial, OffsetMode, OffsetParams, OffsetReport, OffsetSamples, OffsetTexture,
-    SilhouetteMask, sample_offsets,
+    FitSupport, LambdaRule, LambdaTrial, OffsetMode, OffsetParams, OffsetReport, OffsetSamples,
+    OffsetTexture, SilhouetteMask, sample_offsets,
 };
 pub use render::{CylinderRender, ExactMethod, RenderParams, render_exact};
 pub use texture::{CylindricalTexture, RowPyramid, Slice, Texel};

@@ -5,6 +5,12 @@
 //! Errors are computed over the four premultiplied channels, so a silhouette error counts like a
 //! colour error. PSNR uses a peak of 1: `PSNR = 10·log10(1 / MSE)` dB; identical images give
 //! `f64::INFINITY`.
+//!
+//! **Nothing visible is not a perfect score.** Two pictures that are both empty (every compared
+//! pixel zero in all four channels, or no silhouette pixel in either) agree trivially; [`compare`]
+//! and [`silhouette_iou`] return [`MetricsError::NothingVisible`] for them instead of an infinite
+//! PSNR or an IoU of 1, so that an object no view sees cannot be reported as perfectly
+//! reproduced.
 
 use altrep_data_gen::RgbaImage;
 use serde::Serialize;
@@ -31,6 +37,12 @@ pub enum MetricsError {
     /// No pixel is left to compare (empty image or empty mask).
     #[error("no pixel to compare (empty image or all-false mask)")]
     NothingToCompare,
+    /// Both pictures are empty (nothing visible in the reference nor in the result): agreement
+    /// is trivial and no error figure is meaningful.
+    #[error(
+        "nothing visible: the reference and the compared picture are both empty, so no error can be measured"
+    )]
+    NothingVisible,
     /// A pixel holds NaN or infinity.
     #[error("pixel {index} of the {which} image is not finite")]
     NonFinite {
@@ -93,6 +105,9 @@ fn check(a: &RgbaImage, b: &RgbaImage, mask: Option<&[bool]>) -> Result<(), Metr
 }
 
 /// Compares `image` with `reference`. Cost: one pass over the pixels.
+///
+/// Errors: sizes differ, mask size, non-finite pixels, no pixel compared, or
+/// [`MetricsError::NothingVisible`] when every compared pixel of both images is zero.
 pub fn compare(
     image: &RgbaImage,
     reference: &RgbaImage,
@@ -100,11 +115,13 @@ pub fn compare(
 ) -> Result<ImageError, MetricsError> {
     check(image, reference, options.mask)?;
     let (mut sum2, mut max_abs, mut above, mut n) = (0.0f64, 0.0f64, 0usize, 0usize);
+    let mut visible = false;
     for (k, (p, q)) in image.pixels.iter().zip(&reference.pixels).enumerate() {
         if options.mask.is_some_and(|m| !m[k]) {
             continue;
         }
         n += 1;
+        visible |= p.iter().chain(q).any(|c| *c != 0.0);
         let mut worst = 0.0f64;
         for c in 0..4 {
             let e = f64::from(p[c] - q[c]).abs();
@@ -116,6 +133,9 @@ pub fn compare(
     }
     if n == 0 {
         return Err(MetricsError::NothingToCompare);
+    }
+    if !visible {
+        return Err(MetricsError::NothingVisible);
     }
     let mse = sum2 / (4 * n) as f64;
     Ok(ImageError {
@@ -136,13 +156,14 @@ pub fn psnr_from_mse(mse: f64) -> f64 {
     }
 }
 
-/// PSNR of `image` against `reference` over all pixels (see [`compare`]).
+/// PSNR of `image` against `reference` over all pixels (see [`compare`]; two empty pictures are
+/// [`MetricsError::NothingVisible`]).
 pub fn psnr(image: &RgbaImage, reference: &RgbaImage) -> Result<f64, MetricsError> {
     compare(image, reference, &CompareOptions::default()).map(|e| e.psnr_db)
 }
 
 /// Silhouette intersection over union: pixels with `alpha > alpha_threshold` form each
-/// silhouette. Two empty silhouettes give 1.
+/// silhouette. Two empty silhouettes are [`MetricsError::NothingVisible`], not an IoU of 1.
 pub fn silhouette_iou(
     a: &RgbaImage,
     b: &RgbaImage,
@@ -155,11 +176,10 @@ pub fn silhouette_iou(
         inter += usize::from(x && y);
         union += usize::from(x || y);
     }
-    Ok(if union == 0 {
-        1.0
-    } else {
-        inter as f64 / union as f64
-    })
+    if union == 0 {
+        return Err(MetricsError::NothingVisible);
+    }
+    Ok(inter as f64 / union as f64)
 }
 
 #[cfg(test)]
@@ -192,10 +212,12 @@ mod tests {
         assert!((e.psnr_db - 10.0 * (8.0f64 / 0.25).log10()).abs() < 1e-9);
         assert_eq!(e.max_abs, 0.5);
         assert_eq!(e.share_above, 0.5);
-        // Masking the wrong pixel out leaves identical images.
-        let m = [true, false];
+        // Masking the wrong pixel out leaves identical images: infinite PSNR when something is
+        // visible, no figure at all when the compared pixels are empty in both.
+        let m = [false, true];
+        let c = img(vec![[0.0; 4], [0.5, 1.0, 1.0, 1.0]], 2);
         let e = compare(
-            &a,
+            &c,
             &b,
             &CompareOptions {
                 mask: Some(&m),
@@ -205,6 +227,38 @@ mod tests {
         .unwrap();
         assert_eq!(e.psnr_db, f64::INFINITY);
         assert_eq!(e.pixels, 1);
+        let m = [true, false];
+        assert_eq!(
+            compare(
+                &a,
+                &b,
+                &CompareOptions {
+                    mask: Some(&m),
+                    threshold: 0.0,
+                },
+            ),
+            Err(MetricsError::NothingVisible)
+        );
+    }
+
+    /// An object no view sees gives two empty pictures: an error, never PSNR ∞ or IoU 1; one
+    /// empty side is a real (finite) error.
+    #[test]
+    fn empty_pictures_are_not_a_perfect_score() {
+        let empty = img(vec![[0.0; 4]; 4], 2);
+        assert_eq!(psnr(&empty, &empty), Err(MetricsError::NothingVisible));
+        assert_eq!(
+            silhouette_iou(&empty, &empty, 0.5),
+            Err(MetricsError::NothingVisible)
+        );
+        let one = img(vec![[0.0; 4], [0.0; 4], [0.0; 4], [1.0; 4]], 2);
+        // One pixel of four wrong by 1 in all channels: MSE 1/4.
+        approx::assert_relative_eq!(
+            psnr(&one, &empty).unwrap(),
+            10.0 * 4.0f64.log10(),
+            epsilon = 1e-12
+        );
+        assert_eq!(silhouette_iou(&one, &empty, 0.5), Ok(0.0));
     }
 
     #[test]

@@ -12,22 +12,24 @@ use super::CliResult;
 use super::capture::load_shape;
 use super::demo::{DemoContext, DemoSection, truth_image};
 use crate::cylinder::{
-    CylindricalTexture, EvalParams, EvalReport, ExactMethod, OffsetMode, OffsetParams,
-    OffsetTexture, RadiusModel, RenderParams, SWEEP_GRIDS, evaluate, render_exact, sweep,
-    sweep_markdown,
+    BoundsParams, CylinderError, CylindricalTexture, EvalParams, EvalReport, ExactMethod,
+    LambdaRule, OffsetMode, OffsetParams, OffsetTexture, RadiusModel, RenderParams, SWEEP_GRIDS,
+    evaluate, render_exact, sweep, sweep_markdown,
 };
 
 /// Arguments of `altrep cylinder`.
 #[derive(clap::Args, Debug)]
 pub struct CylinderArgs {
-    /// OBJ mesh to represent.
-    #[arg(long, conflicts_with_all = ["shape", "suite"], required_unless_present_any = ["shape", "suite"])]
-    pub mesh: Option<PathBuf>,
-    /// Procedural shape instead (sphere, box, torus, capsule, pear, truck, chair, tree, building).
+    /// OBJ mesh to represent (repeat for several; with `--shape` too, a summary follows).
+    #[arg(long, conflicts_with = "suite", required_unless_present_any = ["shape", "suite"])]
+    pub mesh: Vec<PathBuf>,
+    /// Procedural shape instead (sphere, box, torus, capsule, pear, truck, chair, tree,
+    /// building); repeat for several.
     #[arg(long, conflicts_with = "suite")]
-    pub shape: Option<String>,
-    /// Measure the six evaluation shapes (truck, pear, tree, chair, and the teapot and beetle
-    /// meshes of `--meshes`, skipped with a message when absent) and print a summary.
+    pub shape: Vec<String>,
+    /// Measure the evaluation shapes (truck, pear, tree, chair, and the teapot, beetle and
+    /// stanford-bunny meshes of `--meshes`, skipped with a message when absent) and print a
+    /// summary.
     #[arg(long)]
     pub suite: bool,
     /// Folder of the evaluation meshes for `--suite`.
@@ -36,6 +38,13 @@ pub struct CylinderArgs {
     /// Cells of the fitted offset grid, `AxxAyxAα` (x, rows, angles; the angle axis is periodic).
     #[arg(long, default_value = "15x8x16", value_parser = parse_grid)]
     pub grid: [usize; 3],
+    /// Regularisation λ of the offset fit, fixed; by default it is chosen per fit (the smallest
+    /// that keeps the coefficients within twice the data range).
+    #[arg(long)]
+    pub lambda: Option<f64>,
+    /// Cells of the march bounds, `BxxGxBα` (abscissae, texture rows per cell, angles).
+    #[arg(long, default_value = "64x2x64", value_parser = parse_grid)]
+    pub bounds: [usize; 3],
     /// Camera angles measured.
     #[arg(long, default_value_t = 8, value_parser = clap::value_parser!(u32).range(1..=360))]
     pub angles: u32,
@@ -74,7 +83,7 @@ pub fn run(args: CylinderArgs) -> CliResult {
         for name in ["truck", "pear", "tree", "chair"] {
             shapes.push(Box::new(scene_shape(name)?) as Box<dyn Shape>);
         }
-        for name in ["teapot", "beetle"] {
+        for name in ["teapot", "beetle", "stanford-bunny"] {
             let path = args.meshes.join(format!("{name}.obj"));
             match Mesh::load_obj(&path, &MeshLoadOptions::default()) {
                 Ok(mesh) => shapes.push(Box::new(mesh)),
@@ -83,12 +92,27 @@ pub fn run(args: CylinderArgs) -> CliResult {
         }
         shapes
     } else {
-        vec![load_shape(args.mesh.as_ref(), args.shape.as_deref())?]
+        let mut shapes = Vec::new();
+        for path in &args.mesh {
+            shapes.push(load_shape(Some(path), None)?);
+        }
+        for name in &args.shape {
+            shapes.push(load_shape(None, Some(name))?);
+        }
+        shapes
     };
     let params = EvalParams {
         offset: OffsetParams {
             cells: args.grid,
+            lambda: args
+                .lambda
+                .map_or(OffsetParams::default().lambda, LambdaRule::Fixed),
             ..OffsetParams::default()
+        },
+        bounds: BoundsParams {
+            cells_x: args.bounds[0],
+            rows_per_cell: args.bounds[1],
+            cells_alpha: args.bounds[2],
         },
         angles: args.angles as usize,
         size: args.size as usize,
@@ -96,8 +120,19 @@ pub fn run(args: CylinderArgs) -> CliResult {
     };
     let mut results = Vec::new();
     let mut reports = Vec::new();
+    let several = shapes.len() > 1;
     for shape in &shapes {
-        let report = evaluate(shape.as_ref(), &params)?;
+        let report = match evaluate(shape.as_ref(), &params) {
+            Ok(r) => r,
+            // With several shapes, one the representation cannot hold is skipped with the reason.
+            Err(
+                e @ (CylinderError::NotRepresentable { .. } | CylinderError::NothingVisible { .. }),
+            ) if several => {
+                eprintln!("altrep: skipping {}: {e}", shape.name());
+                continue;
+            }
+            Err(e) => return Err(e.into()),
+        };
         println!("{}", report.markdown());
         let sweep_rows = if args.sweep {
             let rows = sweep(shape.as_ref(), &params, &SWEEP_GRIDS)?;
@@ -115,6 +150,8 @@ pub fn run(args: CylinderArgs) -> CliResult {
                 "capture_ms": report.capture_ms,
                 "bytes": report.texture_bytes,
             },
+            "silhouette": report.silhouette,
+            "bounds": report.bounds,
             "offset": report.offset,
             "renderers": report.rows.iter().map(|r| r.json()).collect::<Vec<_>>(),
             "minification": report.minification,
@@ -161,16 +198,27 @@ pub fn summary_markdown(reports: &[EvalReport]) -> String {
         s += "\n";
     }
     s += "\nOffsets (texels, RMS / p99; away from / near discontinuities), vs inverse warping, \
-          costs:\n\n| shape | fitted all | away | near | hybrid m=4 all | fitted / m=4 vs inverse dB | \
-          inverse steps | m=4 steps | precompute ms (capture, sampling, assembly, solve, quantisation) | bytes |\n\
-          |---|---|---|---|---|---|---|---|---|---|\n";
+          costs:\n\n| shape | fitted all | away | near | hybrid m=4 all | fitted / m=4 / bounded vs inverse dB | \
+          inverse steps | m=4 steps | bounded steps | precompute ms (capture, sampling, assembly, solve, quantisation) | bytes | λ | coefficients / data range |\n\
+          |---|---|---|---|---|---|---|---|---|---|---|---|---|\n";
     for r in reports {
-        let (Some(f), Some(h), Some(i)) = (r.row("fitted"), r.row("hybrid-m4"), r.row("inverse"))
-        else {
+        let (Some(f), Some(h), Some(i), Some(b)) = (
+            r.row("fitted"),
+            r.row("hybrid-m4"),
+            r.row("inverse"),
+            r.row("bounded"),
+        ) else {
             continue;
         };
+        let vs = |x: f64| {
+            if x.is_finite() {
+                format!("{x:.1}")
+            } else {
+                "=".into()
+            }
+        };
         s += &format!(
-            "| {} | {:.2} / {:.2} | {:.2} / {:.2} | {:.2} / {:.2} | {:.2} / {:.2} | {:.1} / {:.1} | {:.1} | {:.2} | {:.0} ({:.0}, {:.0}, {:.1}, {:.1}, {:.1}) | {} |\n",
+            "| {} | {:.2} / {:.2} | {:.2} / {:.2} | {:.2} / {:.2} | {:.2} / {:.2} | {:.1} / {:.1} / {} | {:.1} | {:.2} | {:.2} | {:.0} ({:.0}, {:.0}, {:.1}, {:.1}, {:.1}) | {} | {:.1e} | {:.0}…{:.0} / {:.0}…{:.0} |\n",
             r.shape,
             f.offset.rms,
             f.offset.p99,
@@ -182,8 +230,10 @@ pub fn summary_markdown(reports: &[EvalReport]) -> String {
             h.offset.p99,
             f.psnr_vs_inverse_db,
             h.psnr_vs_inverse_db,
+            vs(b.psnr_vs_inverse_db),
             i.mean_steps.unwrap_or(0.0),
             h.mean_steps.unwrap_or(0.0),
+            b.mean_steps.unwrap_or(0.0),
             f.precompute_ms,
             r.capture_ms,
             r.offset.sampling_s * 1e3,
@@ -191,6 +241,11 @@ pub fn summary_markdown(reports: &[EvalReport]) -> String {
             r.offset.solve_s * 1e3,
             r.offset.quantization_s * 1e3,
             f.bytes,
+            r.offset.lambda,
+            r.offset.fit.coef_min,
+            r.offset.fit.coef_max,
+            r.offset.fit.data.min,
+            r.offset.fit.data.max,
         );
     }
     s

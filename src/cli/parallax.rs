@@ -4,9 +4,9 @@
 use std::path::PathBuf;
 
 use crate::parallax::{
-    BoundKind, BoundParams, Bounds, ParallaxImages, ParallaxParams, QualityParams, QualityRow,
-    RenderParams, StepsReport, WarpMethod, build_bounds, measure_quality, measure_steps, render,
-    render_blend_baseline, render_offset_baseline,
+    BoundKind, BoundParams, Bounds, ParallaxError, ParallaxImages, ParallaxParams, QualityParams,
+    QualityRow, RenderParams, StepsReport, WarpMethod, build_bounds, measure_quality,
+    measure_steps, render, render_blend_baseline, render_offset_baseline,
 };
 use altrep_data_gen::{RgbaImage, scene_shape, srgb_to_linear};
 use serde_json::json;
@@ -141,6 +141,9 @@ pub fn run(args: ParallaxArgs) -> CliResult {
         ..ParallaxParams::default()
     };
     let images = ParallaxImages::capture(shape.as_ref(), &base)?;
+    if images.views.iter().all(|v| v.coverage() == 0.0) {
+        return Err(ParallaxError::NothingVisible { views: base.views }.into());
+    }
     let capture_ms = images.capture_time.as_secs_f64() * 1e3;
     let bp = BoundParams {
         subdivisions: args.subdivisions as usize,

@@ -19,6 +19,8 @@ use altrep_data_gen::{CylinderParams, Light, RgbaImage, Shape, TruthParams, rend
 use serde::Serialize;
 
 use super::CylinderError;
+use super::bounds::{BoundsParams, BoundsReport, MarchBounds};
+use super::coverage::{Coverage, CoverageParams, coverage};
 use super::offset::{
     OffsetMode, OffsetParams, OffsetReport, OffsetSamples, OffsetTexture, sample_offsets,
 };
@@ -37,6 +39,11 @@ pub struct EvalParams {
     pub prefilter: usize,
     /// The offset fit. Default [`OffsetParams::default`].
     pub offset: OffsetParams,
+    /// The coverage check run before anything else ([`coverage`]); below its threshold
+    /// [`evaluate`] refuses the object. Default [`CoverageParams::default`].
+    pub coverage: CoverageParams,
+    /// The march bounds of the `bounded` row. Default [`BoundsParams::default`].
+    pub bounds: BoundsParams,
     /// Camera angles. Default 8.
     pub angles: usize,
     /// Image size in pixels. Default 64.
@@ -64,6 +71,8 @@ impl Default for EvalParams {
             texture: CylinderParams::default(),
             prefilter: 3,
             offset: OffsetParams::default(),
+            coverage: CoverageParams::default(),
+            bounds: BoundsParams::default(),
             angles: 8,
             size: 64,
             supersample: 3,
@@ -112,7 +121,7 @@ impl OffsetError {
 #[derive(Clone, Debug, Serialize)]
 pub struct MethodRow {
     /// `mesh`, `direct-btf`, `direct-ftb`, `direct-simple`, `inverse`, `inverse-rgba8`,
-    /// `fitted`, `hybrid-m<m>`.
+    /// `fitted`, `hybrid-m<m>`, `bounded` (the exact march within [`MarchBounds`]).
     pub method: String,
     /// PSNR against the ground truth (dB; MSE averaged over the angles).
     pub psnr_db: f64,
@@ -181,6 +190,10 @@ pub struct EvalReport {
     pub negative_share: f64,
     /// Capture time (ms).
     pub capture_ms: f64,
+    /// Share of the true silhouette the texture reproduces ([`coverage`]).
+    pub silhouette: Coverage,
+    /// The march bounds of the `bounded` row.
+    pub bounds: BoundsReport,
     /// Texture bytes (two RGBA8 textures).
     pub texture_bytes: usize,
     /// The offset precomputation (split times, fit report).
@@ -273,14 +286,19 @@ impl EvalReport {
     /// A Markdown table of the rows.
     pub fn markdown(&self) -> String {
         let mut s = format!(
-            "**{}** — texture {}×{} ({:.1} % defined, {:.1} % negative radii), capture {:.0} ms; \
+            "**{}** — texture {}×{} ({:.1} % defined, {:.1} % negative radii, {:.1} % of the true \
+             silhouette reproduced), capture {:.0} ms; \
              offsets {}×{}×{} cells ({} coefficients, {} B with the mask): sampling {:.0} ms, \
-             assembly {:.1} ms, solve {:.1} ms, quantisation {:.1} ms, {} of {} samples fitted\n\n",
+             assembly {:.1} ms, solve {:.1} ms, quantisation {:.1} ms, {} of {} samples fitted; \
+             λ = {:.1e} ({} tried), coefficients {:.1}…{:.1} for data {:.1}…{:.1} ({:.2}× the \
+             half range), offset RMS {:.2} float / {:.2} stored / {:.2} at 8 bits; march bounds \
+             {}×{}×{} cells, {} B, mean span {:.1}, built in {:.0} ms\n\n",
             self.shape,
             self.texture_size[0],
             self.texture_size[1],
             100.0 * self.coverage,
             100.0 * self.negative_share,
+            100.0 * self.silhouette.share,
             self.capture_ms,
             self.offset.params.cells[0],
             self.offset.params.cells[1],
@@ -293,6 +311,22 @@ impl EvalReport {
             self.offset.quantization_s * 1e3,
             self.offset.fitted,
             self.offset.defined,
+            self.offset.lambda,
+            self.offset.lambda_trials.len().max(1),
+            self.offset.fit.coef_min,
+            self.offset.fit.coef_max,
+            self.offset.fit.data.min,
+            self.offset.fit.data.max,
+            self.offset.coef_excursion,
+            self.offset.error_defined_float.rms,
+            self.offset.error_defined.rms,
+            self.offset.error_defined_8bit.rms,
+            self.bounds.cells[0],
+            self.bounds.cells[1],
+            self.bounds.cells[2],
+            self.bounds.bytes,
+            self.bounds.mean_span,
+            self.bounds.build_s * 1e3,
         );
         s += "| method | PSNR dB | vs inverse dB | IoU | offset RMS / p99 (texels) | away RMS / p99 | near RMS / p99 | >1 texel | steps | precompute ms | bytes |\n";
         s += "|---|---|---|---|---|---|---|---|---|---|---|\n";
@@ -527,14 +561,19 @@ fn near_discontinuity(
         .collect()
 }
 
-/// Captures `shape`, fits its offsets and measures every renderer against the ground truth (see
-/// the module docs). Cost: the capture (`L·Ly·prefilter²` rays), `angles` ground-truth images,
+/// Captures `shape`, checks that the texture reproduces enough of its silhouette ([`coverage`];
+/// [`CylinderError::NotRepresentable`] or [`CylinderError::NothingVisible`] otherwise), fits
+/// its offsets, builds its march bounds and measures every renderer against the ground truth
+/// (see the module docs). Cost: the capture (`L·Ly·prefilter²` rays), `angles` ground-truth images,
 /// the offset sampling and fit, and `angles` images per renderer.
 pub fn evaluate(shape: &dyn Shape, params: &EvalParams) -> Result<EvalReport, CylinderError> {
     let t0 = Instant::now();
     let texture = CylindricalTexture::capture(shape, &params.texture, params.prefilter)?;
     let capture_ms = t0.elapsed().as_secs_f64() * 1e3;
+    let silhouette = coverage(shape, &texture, &params.coverage)?;
+    silhouette.check(params.coverage.min_share)?;
     let offsets = OffsetTexture::fit(&texture, &params.offset)?;
+    let (bounds, bounds_report) = MarchBounds::build(&texture, &params.bounds)?;
     let refs = References::new(shape, &texture, params)?;
     let l = texture.columns();
     let tex_bytes = texture.storage_bytes();
@@ -570,6 +609,13 @@ pub fn evaluate(shape: &dyn Shape, params: &EvalParams) -> Result<EvalReport, Cy
             offsets.render(&texture, mode, params.tolerance_px, p)
         })?);
     }
+    rows.push(refs.measure(
+        "bounded",
+        l,
+        capture_ms + bounds_report.build_s * 1e3,
+        tex_bytes + bounds_report.bytes,
+        |p| bounds.render(&texture, p),
+    )?);
     let minification = minification(shape, &texture, params)?;
     Ok(EvalReport {
         shape: shape.name().to_string(),
@@ -577,6 +623,8 @@ pub fn evaluate(shape: &dyn Shape, params: &EvalParams) -> Result<EvalReport, Cy
         coverage: texture.coverage(),
         negative_share: texture.negative_share(),
         capture_ms,
+        silhouette,
+        bounds: bounds_report,
         texture_bytes: tex_bytes,
         offset: offsets.report,
         rows,

@@ -14,6 +14,11 @@
 //!   fitted by the trilinear least-squares fit ([`crate::fit`]) so that a shader gets it from one
 //!   3D-texture fetch; validated and optionally refined by a few exact steps (hybrid).
 //!
+//! * [`MarchBounds`] — beyond the source: per cell of (abscissa, rows, angle) a conservative
+//!   range of march positions where the first hit can lie, so that an exact march starts next
+//!   to the surface and stops past the last candidate: the exact picture at a few steps.
+//!
+//! [`coverage`] refuses objects the representation cannot hold (a flat cut-out holding the axis);
 //! [`evaluate`] measures all of them against the ray-cast ground truth.
 //!
 //! ## Conventions (derived once here; the tests against the ground truth decide)
@@ -59,6 +64,8 @@
 //! `L/2 + 1` sector tests per pixel. Offset texture: `Ax·(Ay + 1)·Aα` coefficients (α periodic),
 //! 2 bytes each at 16 bits.
 
+mod bounds;
+mod coverage;
 mod eval;
 pub mod frame;
 mod offset;
@@ -66,13 +73,15 @@ mod render;
 mod texture;
 mod warp;
 
+pub use bounds::{BoundsParams, BoundsReport, MarchBounds};
+pub use coverage::{AngleCoverage, Coverage, CoverageParams, check_coverage, coverage};
 pub use eval::{
     EvalParams, EvalReport, MethodRow, MinificationRow, OffsetError, SWEEP_GRIDS, SweepRow,
     evaluate, minification, sweep, sweep_markdown,
 };
 pub use offset::{
-    FitSupport, OffsetMode, OffsetParams, OffsetReport, OffsetSamples, OffsetTexture,
-    SilhouetteMask, sample_offsets,
+    FitSupport, LambdaRule, LambdaTrial, OffsetMode, OffsetParams, OffsetReport, OffsetSamples,
+    OffsetTexture, SilhouetteMask, sample_offsets,
 };
 pub use render::{CylinderRender, ExactMethod, RenderParams, render_exact};
 pub use texture::{CylindricalTexture, RowPyramid, Slice, Texel};
@@ -123,6 +132,28 @@ pub enum CylinderError {
     ZeroSize {
         /// Which size.
         what: &'static str,
+    },
+    /// The texture reproduces too little of the object's true silhouette ([`coverage`]): radial
+    /// rays see only the parts whose slices are star-shaped around the axis.
+    #[error(
+        "the cylindrical texture cannot represent this object: it reproduces {:.1} % of the true silhouette (threshold {:.0} %); radial capture rays see a slice only where it is star-shaped around the axis (a flat cut-out holding the axis is seen only at the axis). Use images with parallax instead (`altrep parallax`)",
+        100.0 * share,
+        100.0 * min_share
+    )]
+    NotRepresentable {
+        /// Reproduced share of the true silhouette, `[0, 1]`.
+        share: f64,
+        /// The threshold it fell below.
+        min_share: f64,
+    },
+    /// No camera angle sees the object: the ground truth is empty at every angle measured (for
+    /// example a horizontal flat object seen edge-on by horizontal views).
+    #[error(
+        "nothing visible: the object's ground truth is empty at all {angles} horizontal view angles, so there is nothing to represent or measure (is it flat and horizontal?)"
+    )]
+    NothingVisible {
+        /// Angles measured.
+        angles: usize,
     },
     /// A parameter is outside its range.
     #[error("invalid {name} = {value}: {reason}")]

@@ -117,6 +117,15 @@ pub enum ParallaxError {
         /// What does not fit.
         reason: String,
     },
+    /// No view sees the object: every captured view is empty (for example a horizontal flat
+    /// object seen edge-on by horizontal views). Nothing can be represented or measured.
+    #[error(
+        "nothing visible: all {views} captured views are empty (is the object flat and horizontal?), so there is nothing to represent or measure"
+    )]
+    NothingVisible {
+        /// Views captured.
+        views: usize,
+    },
     /// Capture or ground truth failed.
     #[error(transparent)]
     DataGen(#[from] DataGenError),

@@ -93,7 +93,7 @@ impl BoundsParams {
                 return Err(CylinderError::ZeroSize { what });
             }
         }
-        if self.cells_x % 2 != 0 || self.cells_x > 4096 || self.cells_alpha > 4096 {
+        if !self.cells_x.is_multiple_of(2) || self.cells_x > 4096 || self.cells_alpha > 4096 {
             return Err(CylinderError::InvalidParameter {
                 name: "bound cells",
                 value: format!("{} × {}", self.cells_x, self.cells_alpha),

@@ -19,6 +19,7 @@ pub mod fit;
 pub mod metrics;
 pub mod mip;
 pub mod parallax;
+pub mod slices;
 
 pub use altrep_data_gen as data_gen;
 pub use altrep_solvers as solvers;

@@ -28,6 +28,8 @@ enum Command {
     FitBench(cli::fit_bench::FitBenchArgs),
     /// Images with parallax: march steps per bound type, violations, bytes, and quality vs ground truth.
     Parallax(cli::parallax::ParallaxArgs),
+    /// Volumetric textures as slices: merge rules, levels and directions vs a ray-marched volume.
+    Slices(cli::slices::SlicesArgs),
 }
 
 fn main() {
@@ -39,6 +41,7 @@ fn main() {
         Command::EllipsoidBench(args) => cli::ellipsoid_bench::run(args),
         Command::FitBench(args) => cli::fit_bench::run(args),
         Command::Parallax(args) => cli::parallax::run(args),
+        Command::Slices(args) => cli::slices::run(args),
     };
     if let Err(e) = result {
         eprintln!("altrep: error: {e}");

@@ -7,6 +7,7 @@ pub mod demo;
 pub mod ellipsoid_bench;
 pub mod fit_bench;
 pub mod parallax;
+pub mod slices;
 
 /// Error type of the command-line layer: a message for the user, already formatted.
 pub type CliResult = Result<(), Box<dyn std::error::Error + Send + Sync>>;

@@ -85,10 +85,10 @@ fn print_report(r: &MeasureReport, all_rows: bool) {
         r.params.d_pixels
     );
     println!(
-        "\n| tile | px/voxel | side | angle | need | y slices | all y | {} | three (axis:slices) | three | three, all |",
+        "\n| tile | px/voxel | side | angle | need | y slices | all y | {} | three (axis:slices) | three | three, all | three, 1 spp + 2D mip |",
         rules.join(" | ")
     );
-    println!("|---|---|---|---|---|---|---|{}---|---|---|", "---|".repeat(rules.len()));
+    println!("|---|---|---|---|---|---|---|{}---|---|---|---|", "---|".repeat(rules.len()));
     let first = r.params.pixel_voxels[0];
     for row in r
         .sweep
@@ -105,7 +105,7 @@ fn print_report(r: &MeasureReport, all_rows: bool) {
             .map(|n| format!("{:.1}", row.psnr_rule[n]))
             .collect();
         println!(
-            "| {} | {} | {} | {} | {} | {} | {:.1} | {} | {}:{} | {:.1} | {:.1} |",
+            "| {} | {} | {} | {} | {} | {} | {:.1} | {} | {}:{} | {:.1} | {:.1} | {:.1} |",
             row.tile.name(),
             row.pixel_voxels,
             row.side,
@@ -117,7 +117,8 @@ fn print_report(r: &MeasureReport, all_rows: bool) {
             row.three.axis.name(),
             row.three.slices,
             row.psnr_three,
-            row.psnr_three_all
+            row.psnr_three_all,
+            row.psnr_three_gpu
         );
     }
     println!("\nError against level (y stack, 1 px/voxel, mean over angles and sides):\n");

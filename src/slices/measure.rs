@@ -125,6 +125,9 @@ pub struct SweepRow {
     pub psnr_three: f64,
     /// PSNR of the three-direction choice with all its slices.
     pub psnr_three_all: f64,
+    /// PSNR of the three-direction choice at its level drawn as a GPU would: one sample per
+    /// pixel, slices read with trilinear 2D mip filtering.
+    pub psnr_three_gpu: f64,
 }
 
 /// Mean PSNR of the `y` stack per level and rule (first distance, every angle and side).
@@ -408,6 +411,15 @@ fn sweep_tile(
                 psnr_rule,
                 psnr_three: err(def, three.axis, three.level)?,
                 psnr_three_all: err(def, three.axis, 0)?,
+                psnr_three_gpu: {
+                    let gpu = RenderParams {
+                        supersample: 1,
+                        mip_2d: true,
+                        ..rp.clone()
+                    };
+                    let img = render_slices(def, three.axis, three.level, &view, &gpu)?;
+                    capped(psnr(&img, &reference)?)
+                },
             });
         }
     }

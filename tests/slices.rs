@@ -62,7 +62,11 @@ fn merge_conserves_opacity_of_every_column() {
             ..SliceParams::default()
         };
         let (data, report) = build_slices(&vol, &params).unwrap();
-        assert!(report.opacity_error_max <= 1e-6, "{rule:?}: {}", report.opacity_error_max);
+        assert!(
+            report.opacity_error_max <= 1e-6,
+            "{rule:?}: {}",
+            report.opacity_error_max
+        );
         // Independent check: every merged texel's alpha is 1 − Π(1 − a) of its column.
         for stack in data.stacks() {
             let axis = stack.axis();
@@ -99,7 +103,11 @@ fn dropping_slices_does_not_conserve_opacity() {
         ..SliceParams::default()
     };
     let (_, report) = build_slices(&vol, &params).unwrap();
-    assert!(report.opacity_error_max > 0.1, "{}", report.opacity_error_max);
+    assert!(
+        report.opacity_error_max > 0.1,
+        "{}",
+        report.opacity_error_max
+    );
 }
 
 #[test]
@@ -116,7 +124,9 @@ fn merge_sides_composite_in_the_documented_order() {
     let (data, _) = build_slices(&vol, &params).unwrap();
     let stack = data.stack(Axis::Y, 1).unwrap();
     let plus = stack.slices(Side::Plus)[0].levels()[0].texel(0, 0).to_vec();
-    let minus = stack.slices(Side::Minus)[0].levels()[0].texel(0, 0).to_vec();
+    let minus = stack.slices(Side::Minus)[0].levels()[0]
+        .texel(0, 0)
+        .to_vec();
     // From above (plus side): green over red.
     assert_relative_eq!(plus[0], 0.5 * 0.8, epsilon = 1e-6);
     assert_relative_eq!(plus[1], 0.5, epsilon = 1e-6);
@@ -222,7 +232,15 @@ fn truth_has_converged_at_eight_steps_per_voxel() {
     for polar in [0.0, 60.0] {
         let view = View::degrees(polar, 30.0);
         let t8 = render_truth(&vol, &view, &rp, &TruthParams { steps_per_voxel: 8 }).unwrap();
-        let t32 = render_truth(&vol, &view, &rp, &TruthParams { steps_per_voxel: 32 }).unwrap();
+        let t32 = render_truth(
+            &vol,
+            &view,
+            &rp,
+            &TruthParams {
+                steps_per_voxel: 32,
+            },
+        )
+        .unwrap();
         let db = psnr(&t8, &t32).unwrap();
         assert!(db >= 55.0, "{polar}°: truth 8 vs 32 steps only {db:.1} dB");
     }
@@ -245,7 +263,11 @@ fn slice_error_against_truth_follows_level_and_angle() {
     let db = |data, axis, level, polar: f64| {
         let view = View::degrees(polar, 30.0);
         let truth = render_truth(&vol, &view, &rp, &TruthParams::default()).unwrap();
-        psnr(&render_slices(data, axis, level, &view, &rp).unwrap(), &truth).unwrap()
+        psnr(
+            &render_slices(data, axis, level, &view, &rp).unwrap(),
+            &truth,
+        )
+        .unwrap()
     };
     // All slices near the normal: within 35 dB of the truth.
     for polar in [0.0, 20.0] {
@@ -265,8 +287,15 @@ fn slice_error_against_truth_follows_level_and_angle() {
         let v = View::degrees(polar, 30.0).vector();
         let c = choose(&vol, v, vol.voxel_size(), [false, true, false]).unwrap();
         assert!(c.level > 0, "{polar}°: {c:?}");
-        let (m, d) = (db(&data, Axis::Y, c.level, polar), db(&dropped, Axis::Y, c.level, polar));
-        assert!(m >= d + 3.0, "level {} at {polar}°: merged {m:.1} dB, dropped {d:.1} dB", c.level);
+        let (m, d) = (
+            db(&data, Axis::Y, c.level, polar),
+            db(&dropped, Axis::Y, c.level, polar),
+        );
+        assert!(
+            m >= d + 3.0,
+            "level {} at {polar}°: merged {m:.1} dB, dropped {d:.1} dB",
+            c.level
+        );
     }
     // Three directions beat one at a grazing angle by at least 3 dB.
     let view = View::degrees(80.0, 30.0);
@@ -321,10 +350,20 @@ fn slice_mipmaps_reduce_aliasing_at_a_distance() {
         mip_2d,
         ..far.clone()
     };
-    let with = psnr(&render_slices(&data, Axis::Y, 0, &view, &one(true)).unwrap(), &truth).unwrap();
-    let without =
-        psnr(&render_slices(&data, Axis::Y, 0, &view, &one(false)).unwrap(), &truth).unwrap();
-    assert!(with >= without + 2.0, "mip {with:.1} dB, no mip {without:.1} dB");
+    let with = psnr(
+        &render_slices(&data, Axis::Y, 0, &view, &one(true)).unwrap(),
+        &truth,
+    )
+    .unwrap();
+    let without = psnr(
+        &render_slices(&data, Axis::Y, 0, &view, &one(false)).unwrap(),
+        &truth,
+    )
+    .unwrap();
+    assert!(
+        with >= without + 2.0,
+        "mip {with:.1} dB, no mip {without:.1} dB"
+    );
 }
 
 #[test]
@@ -363,7 +402,10 @@ fn criterion_counts_slices() {
     assert_eq!(slices_needed(1.0, 0.5f64.atan(), d).unwrap(), 16);
     // From the other side (angle beyond 90°) only |cos| counts.
     assert_eq!(slices_needed(1.0, 135f64.to_radians(), d).unwrap(), 32);
-    assert_eq!(slices_needed(1.0, 90f64.to_radians(), d).unwrap(), usize::MAX);
+    assert_eq!(
+        slices_needed(1.0, 90f64.to_radians(), d).unwrap(),
+        usize::MAX
+    );
     // The chosen level holds at least the needed slices, and the next one fewer.
     for needed in 1..=32 {
         let k = level_for_slices(Axis::Y, 32, needed, true).unwrap();
@@ -372,15 +414,28 @@ fn criterion_counts_slices() {
     }
     assert!(matches!(
         level_for_slices(Axis::Y, 32, 33, true),
-        Err(SliceError::TooManySlices { slices: 33, voxels: 32, .. })
+        Err(SliceError::TooManySlices {
+            slices: 33,
+            voxels: 32,
+            ..
+        })
     ));
     assert_eq!(level_for_slices(Axis::Y, 32, 33, false).unwrap(), 0);
     // The seed's criterion for the views it picks: h·tan a / d ≤ 1.
     let vol = uniform(32, [0.0; 4]);
     for polar in [5.0f64, 10.0, 20.0, 40.0] {
-        let c = choose(&vol, View::degrees(polar, 0.0).vector(), d, [false, true, false]).unwrap();
+        let c = choose(
+            &vol,
+            View::degrees(polar, 0.0).vector(),
+            d,
+            [false, true, false],
+        )
+        .unwrap();
         let h = 1.0 / c.slices as f64;
-        assert!(h * polar.to_radians().tan() / d <= 1.0 + 1e-9, "{polar}°: {c:?}");
+        assert!(
+            h * polar.to_radians().tan() / d <= 1.0 + 1e-9,
+            "{polar}°: {c:?}"
+        );
     }
 }
 
@@ -516,9 +571,16 @@ fn shape_tile_fills_its_interior_with_the_boundary_colour() {
     assert!(!boundary.is_empty());
     let nearest = boundary
         .iter()
-        .map(|b| (0..3).map(|c| (b[c] - centre[c]).abs()).fold(0.0f32, f32::max))
+        .map(|b| {
+            (0..3)
+                .map(|c| (b[c] - centre[c]).abs())
+                .fold(0.0f32, f32::max)
+        })
         .fold(f32::INFINITY, f32::min);
-    assert!(nearest <= 0.05, "interior colour {centre:?} is no boundary colour ({nearest})");
+    assert!(
+        nearest <= 0.05,
+        "interior colour {centre:?} is no boundary colour ({nearest})"
+    );
     assert!(centre[0] > 0.2 && centre[0] > centre[2], "{centre:?}");
     // The tree tile (a data-gen scene shape) builds.
     let tree = test_tile(TestTile::Tree, 16, 1).unwrap();
@@ -546,19 +608,29 @@ fn bad_input_gives_typed_errors() {
     };
     assert!(matches!(
         from_height_field(&field, &HeightFieldParams::default()),
-        Err(SliceError::NonFinite { what: "height", index: 1 })
+        Err(SliceError::NonFinite {
+            what: "height",
+            index: 1
+        })
     ));
     let vol = uniform(8, [0.1, 0.1, 0.1, 0.2]);
     let (data, _) = build_slices(&vol, &SliceParams::default()).unwrap();
     assert!(matches!(
         data.stack_with(Axis::Y, 16),
-        Err(SliceError::TooManySlices { slices: 16, voxels: 8, .. })
+        Err(SliceError::TooManySlices {
+            slices: 16,
+            voxels: 8,
+            ..
+        })
     ));
     assert_eq!(data.stack_with(Axis::Z, 2).unwrap().level(), 2);
     let odd = TexelVolume::new([6, 4, 4], 0.25, vec![[0.0; 4]; 96]).unwrap();
     assert!(matches!(
         build_slices(&odd, &SliceParams::default()),
-        Err(SliceError::NotPowerOfTwo { axis: Axis::X, value: 6 })
+        Err(SliceError::NotPowerOfTwo {
+            axis: Axis::X,
+            value: 6
+        })
     ));
     assert!(
         SliceParams {
@@ -569,11 +641,23 @@ fn bad_input_gives_typed_errors() {
         .is_err()
     );
     assert!(
-        render_slices(&data, Axis::Y, 9, &View::degrees(0.0, 0.0), &small_render(4)).is_err()
+        render_slices(
+            &data,
+            Axis::Y,
+            9,
+            &View::degrees(0.0, 0.0),
+            &small_render(4)
+        )
+        .is_err()
     );
     assert!(
-        render_truth(&vol, &View::degrees(89.9, 0.0), &small_render(4), &TruthParams::default())
-            .is_err()
+        render_truth(
+            &vol,
+            &View::degrees(89.9, 0.0),
+            &small_render(4),
+            &TruthParams::default()
+        )
+        .is_err()
     );
     assert!(slices_needed(f64::NAN, 0.1, 0.1).is_err());
     assert!(slices_needed(1.0, 0.1, 0.0).is_err());

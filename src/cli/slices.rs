@@ -20,7 +20,12 @@ pub struct SlicesArgs {
     #[arg(long, default_value_t = 32)]
     pub size: usize,
     /// Tiles, comma-separated.
-    #[arg(long, value_enum, value_delimiter = ',', default_value = "grass,fur,perlin,tree")]
+    #[arg(
+        long,
+        value_enum,
+        value_delimiter = ',',
+        default_value = "grass,fur,perlin,tree"
+    )]
     pub tiles: Vec<TileArg>,
     /// Polar view angles from the surface normal (degrees), comma-separated.
     #[arg(
@@ -88,7 +93,10 @@ fn print_report(r: &MeasureReport, all_rows: bool) {
         "\n| tile | px/voxel | side | angle | need | y slices | all y | {} | three (axis:slices) | three | three, all | three, 1 spp + 2D mip |",
         rules.join(" | ")
     );
-    println!("|---|---|---|---|---|---|---|{}---|---|---|---|", "---|".repeat(rules.len()));
+    println!(
+        "|---|---|---|---|---|---|---|{}---|---|---|---|",
+        "---|".repeat(rules.len())
+    );
     let first = r.params.pixel_voxels[0];
     for row in r
         .sweep
@@ -148,7 +156,9 @@ fn print_report(r: &MeasureReport, all_rows: bool) {
             s.rule, s.above_db, s.below_db, s.views
         );
     }
-    println!("\nPer tile (merge gain = {def} − drop at the criterion's level, mean over all views):\n");
+    println!(
+        "\nPer tile (merge gain = {def} − drop at the criterion's level, mean over all views):\n"
+    );
     println!(
         "| tile | merge gain | gain where merged | three − one, ≥70° | same, all slices | slices drawn/tile | bytes (RGBA8, all) | bytes y level 0 | build s | volume s |"
     );

@@ -62,7 +62,13 @@ fn check_grid(dims: [usize; 3], voxel: f64) -> Result<(), SliceError> {
             });
         }
     }
-    super::check_range("voxel size", voxel, f64::MIN_POSITIVE, f64::MAX, "finite and > 0")
+    super::check_range(
+        "voxel size",
+        voxel,
+        f64::MIN_POSITIVE,
+        f64::MAX,
+        "finite and > 0",
+    )
 }
 
 /// A height field: heights as fractions of the tile height `ny·s`, in `[0, 1]`.
@@ -200,7 +206,9 @@ pub fn from_height_field(
                 });
             }
             let at = |i: i64, j: i64| {
-                f64::from(values[(j.rem_euclid(h as i64) * w as i64 + i.rem_euclid(w as i64)) as usize])
+                f64::from(
+                    values[(j.rem_euclid(h as i64) * w as i64 + i.rem_euclid(w as i64)) as usize],
+                )
             };
             (0..nx * nz)
                 .map(|c| {
@@ -236,7 +244,13 @@ pub fn from_height_field(
                 });
             }
             super::check_range("Perlin base", *base, 0.0, 1.0, "in [0, 1]")?;
-            super::check_range("Perlin amplitude", *amplitude, -1e3, 1e3, "finite, |a| ≤ 1000")?;
+            super::check_range(
+                "Perlin amplitude",
+                *amplitude,
+                -1e3,
+                1e3,
+                "finite, |a| ≤ 1000",
+            )?;
             (0..nx * nz)
                 .into_par_iter()
                 .map(|c| {
@@ -557,7 +571,12 @@ pub enum TestTile {
 
 impl TestTile {
     /// All four.
-    pub const ALL: [TestTile; 4] = [TestTile::Grass, TestTile::Fur, TestTile::Perlin, TestTile::Tree];
+    pub const ALL: [TestTile; 4] = [
+        TestTile::Grass,
+        TestTile::Fur,
+        TestTile::Perlin,
+        TestTile::Tree,
+    ];
 
     /// Lower-case name.
     pub fn name(self) -> &'static str {
@@ -602,12 +621,8 @@ pub fn test_tile(tile: TestTile, n: usize, seed: u64) -> Result<TexelVolume, Sli
                     } else {
                         (rng.range(0.6, 0.85), 0.08, 0.0125, 0.0125)
                     };
-                    let tip = base
-                        + DVec3::new(
-                            rng.range(-lean, lean),
-                            height,
-                            rng.range(-lean, lean),
-                        );
+                    let tip =
+                        base + DVec3::new(rng.range(-lean, lean), height, rng.range(-lean, lean));
                     (base, tip, r0, r1)
                 })
                 .collect();

@@ -97,7 +97,13 @@ impl MeasureParams {
             super::check_range("pixel size", *p, 1e-3, 64.0, "in [0.001, 64] voxels")?;
         }
         super::check_range("d (pixels)", self.d_pixels, 1e-3, 1e3, "in [0.001, 1000]")?;
-        super::check_range("image size", self.image_voxels, 1.0, 4096.0, "in [1, 4096] voxels")?;
+        super::check_range(
+            "image size",
+            self.image_voxels,
+            1.0,
+            4096.0,
+            "in [1, 4096] voxels",
+        )?;
         Ok(())
     }
 }

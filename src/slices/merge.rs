@@ -384,7 +384,10 @@ pub fn build_slices(
         build_seconds: start.elapsed().as_secs_f64(),
         bytes,
         bytes_level0,
-        stacks: stacks.iter().map(|s| (s.axis, s.level, s.count())).collect(),
+        stacks: stacks
+            .iter()
+            .map(|s| (s.axis, s.level, s.count()))
+            .collect(),
         opacity_error_max,
     };
     let data = SliceData {

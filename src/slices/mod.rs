@@ -67,8 +67,8 @@ pub mod truth;
 pub mod volume;
 
 pub use build::{
-    HeightField, HeightFieldParams, ImplicitParams, Lighting, ShapeParams, TestTile, from_height_field,
-    from_implicit, from_shape, perlin_periodic, test_tile,
+    HeightField, HeightFieldParams, ImplicitParams, Lighting, ShapeParams, TestTile,
+    from_height_field, from_implicit, from_shape, perlin_periodic, test_tile,
 };
 pub use measure::{
     LevelRow, MeasureParams, MeasureReport, RuleSummary, SweepRow, TileSummary, measure,

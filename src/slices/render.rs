@@ -108,7 +108,13 @@ impl RenderParams {
                 return Err(SliceError::ZeroSize { what });
             }
         }
-        super::check_range("pixel size", self.pixel_voxels, 1e-6, 1e6, "in [1e-6, 1e6] voxels")?;
+        super::check_range(
+            "pixel size",
+            self.pixel_voxels,
+            1e-6,
+            1e6,
+            "in [1e-6, 1e6] voxels",
+        )?;
         for o in self.offset {
             super::check_range("image offset", o, f64::MIN, f64::MAX, "finite")?;
         }
@@ -165,8 +171,10 @@ impl Camera {
 
     /// Ray of sub-sample `(a, b)` of pixel `(i, j)`.
     pub fn ray(&self, i: usize, j: usize, a: usize, b: usize) -> Ray {
-        let x = -0.5 * self.width as f64 * self.pixel + (i as f64 + (a as f64 + 0.5) / self.k as f64) * self.pixel;
-        let y = 0.5 * self.height as f64 * self.pixel - (j as f64 + (b as f64 + 0.5) / self.k as f64) * self.pixel;
+        let x = -0.5 * self.width as f64 * self.pixel
+            + (i as f64 + (a as f64 + 0.5) / self.k as f64) * self.pixel;
+        let y = 0.5 * self.height as f64 * self.pixel
+            - (j as f64 + (b as f64 + 0.5) / self.k as f64) * self.pixel;
         let o = self.centre + x * self.right + y * self.up;
         let dir = -self.v;
         let ta = -o.y / dir.y;
@@ -235,7 +243,11 @@ fn shade_stack(
     if d_i.abs() < 1e-12 {
         return acc;
     }
-    let side = if cam.v[i] > 0.0 { Side::Plus } else { Side::Minus };
+    let side = if cam.v[i] > 0.0 {
+        Side::Plus
+    } else {
+        Side::Minus
+    };
     let slices = stack.slices(side);
     let n = slices.len() as i64;
     let h = stack.spacing();
@@ -278,7 +290,11 @@ fn shade_stack(
                 dy[va] / extent[va],
             );
             let max = (pyr.levels().len() - 1) as f64;
-            let lod = if lod.is_finite() { lod.clamp(0.0, max) } else { 0.0 };
+            let lod = if lod.is_finite() {
+                lod.clamp(0.0, max)
+            } else {
+                0.0
+            };
             let l0 = lod.floor() as usize;
             let f = (lod - l0 as f64) as f32;
             pyr.bilinear_into(l0, u, v, out);

@@ -90,7 +90,9 @@ pub fn level_for_slices(
     strict: bool,
 ) -> Result<usize, SliceError> {
     if stored == 0 {
-        return Err(SliceError::ZeroSize { what: "stored slices" });
+        return Err(SliceError::ZeroSize {
+            what: "stored slices",
+        });
     }
     if needed > stored {
         if strict {

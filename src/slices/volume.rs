@@ -69,7 +69,12 @@ impl TexelVolume {
             .into_iter()
             .map(|v| {
                 let a = v[3].clamp(0.0, 1.0);
-                [v[0].clamp(0.0, a), v[1].clamp(0.0, a), v[2].clamp(0.0, a), a]
+                [
+                    v[0].clamp(0.0, a),
+                    v[1].clamp(0.0, a),
+                    v[2].clamp(0.0, a),
+                    a,
+                ]
             })
             .collect();
         let [nx, ny, nz] = dims;

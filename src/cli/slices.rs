@@ -146,6 +146,25 @@ fn print_report(r: &MeasureReport, all_rows: bool) {
         );
     }
     println!(
+        "\nShells over a cylindrical patch (8 tiles around, 96 px wide, 3×3 sub-samples), PSNR:\n"
+    );
+    println!("| tile | tilt | level | shells | {} |", rules.join(" | "));
+    println!("|---|---|---|---|{}", "---|".repeat(rules.len()));
+    for c in &r.curved {
+        let per_rule: Vec<String> = rules
+            .iter()
+            .map(|n| format!("{:.1}", c.psnr_rule[n]))
+            .collect();
+        println!(
+            "| {} | {} | {} | {} | {} |",
+            c.tile.name(),
+            c.tilt_deg,
+            c.level,
+            c.slices,
+            per_rule.join(" | ")
+        );
+    }
+    println!(
         "\nMerge rules where the criterion merges (level ≥ 1), mean PSNR over tiles, distances, angles:\n"
     );
     println!("| rule | above | below | views per side |");

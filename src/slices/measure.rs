@@ -12,6 +12,7 @@ use std::collections::BTreeMap;
 use std::time::Instant;
 
 use super::build::{TestTile, test_tile};
+use super::curved::{CurvedParams, render_curved_slices, render_curved_truth};
 use super::merge::{MergeRule, SliceData, SliceParams, build_slices};
 use super::render::{RenderParams, View, render_slices};
 use super::stack::{Axis, ViewChoice, choose};
@@ -149,6 +150,21 @@ pub struct LevelRow {
     pub psnr_rule: BTreeMap<&'static str, f64>,
 }
 
+/// Mean PSNR of the shells over a cylindrical patch ([`super::curved`]) per level and rule.
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct CurvedRow {
+    /// Tile.
+    pub tile: TestTile,
+    /// View tilt toward the axis (degrees).
+    pub tilt_deg: f64,
+    /// Level `k`.
+    pub level: usize,
+    /// Shells, `N/2^k`.
+    pub slices: usize,
+    /// PSNR per rule.
+    pub psnr_rule: BTreeMap<&'static str, f64>,
+}
+
 /// Per-tile summary.
 #[derive(Clone, Debug, PartialEq, serde::Serialize)]
 pub struct TileSummary {
@@ -198,6 +214,8 @@ pub struct MeasureReport {
     pub sweep: Vec<SweepRow>,
     /// Error against level.
     pub levels: Vec<LevelRow>,
+    /// Shells over a cylindrical patch (8 tiles around), error against level and rule.
+    pub curved: Vec<CurvedRow>,
     /// Per tile.
     pub tiles: Vec<TileSummary>,
     /// Per rule.
@@ -238,6 +256,7 @@ pub fn measure(params: &MeasureParams) -> Result<MeasureReport, SliceError> {
     let default_rule = SliceParams::default().rule;
     let mut sweep = Vec::new();
     let mut levels = Vec::new();
+    let mut curved = Vec::new();
     let mut tiles = Vec::new();
     for &tile in &params.tiles {
         let t0 = Instant::now();
@@ -262,6 +281,7 @@ pub fn measure(params: &MeasureParams) -> Result<MeasureReport, SliceError> {
         let td = TileData { by_rule };
         let (rows, level_rows) = sweep_tile(tile, &volume, &td, params, default_rule)?;
         levels.extend(level_rows);
+        curved.extend(curved_rows(tile, &volume, &td, params)?);
         let merge_gain = |only_merged: bool| {
             mean(
                 rows.iter()
@@ -323,6 +343,7 @@ pub fn measure(params: &MeasureParams) -> Result<MeasureReport, SliceError> {
         default_rule,
         sweep,
         levels,
+        curved,
         tiles,
         rules,
         seconds: start.elapsed().as_secs_f64(),
@@ -343,6 +364,40 @@ fn views(params: &MeasureParams) -> Vec<(&'static str, f64, View)> {
         }
     }
     out
+}
+
+/// Shells over the cylindrical patch at tilts 0° and 45°: every level and rule.
+fn curved_rows(
+    tile: TestTile,
+    volume: &TexelVolume,
+    td: &TileData,
+    params: &MeasureParams,
+) -> Result<Vec<CurvedRow>, SliceError> {
+    let n = volume.len(Axis::Y);
+    let mut rows = Vec::new();
+    for tilt_deg in [0.0, 45.0] {
+        let cp = CurvedParams {
+            tilt_deg,
+            truth_steps: params.truth_steps,
+            ..CurvedParams::default()
+        };
+        let truth = render_curved_truth(volume, &cp)?;
+        for level in 0..=n.trailing_zeros() as usize {
+            let mut psnr_rule = BTreeMap::new();
+            for rule in MergeRule::ALL {
+                let img = render_curved_slices(td.get(rule), level, &cp)?;
+                psnr_rule.insert(rule.name(), capped(psnr(&img, &truth)?));
+            }
+            rows.push(CurvedRow {
+                tile,
+                tilt_deg,
+                level,
+                slices: n >> level,
+                psnr_rule,
+            });
+        }
+    }
+    Ok(rows)
 }
 
 fn render_params(params: &MeasureParams, p: f64) -> RenderParams {

@@ -6,8 +6,9 @@
 //! three axes with **mipmapped slice merges** ([`build_slices`]: level `k` holds `N/2^k` slices,
 //! each the composite of `2^k` layers, each slice also mip-mapped in 2D), chooses a direction and
 //! a level per view ([`stack`]: the seed's criterion `h·tan a / d ≤ 1` and its direction rule
-//! `argmin (1/c_i² − 1)·h_i²`), draws them on the CPU ([`render_slices`]) and measures them
-//! against a ray-marched ground truth of the same volume ([`render_truth`], [`measure`]).
+//! `argmin (1/c_i² − 1)·h_i²`), draws them on the CPU over a flat patch ([`render_slices`]) or
+//! a curved one ([`curved`]: shells over a cylinder) and measures them against a ray-marched
+//! ground truth of the same volume ([`render_truth`], [`measure`]).
 //!
 //! ## Conventions (written once here)
 //!
@@ -59,6 +60,7 @@
 //! `N_i/2^k` slice polygons per tile.
 
 pub mod build;
+pub mod curved;
 pub mod measure;
 pub mod merge;
 pub mod render;
@@ -70,8 +72,9 @@ pub use build::{
     HeightField, HeightFieldParams, ImplicitParams, Lighting, ShapeParams, TestTile,
     from_height_field, from_implicit, from_shape, perlin_periodic, test_tile,
 };
+pub use curved::{CurvedParams, render_curved_slices, render_curved_truth};
 pub use measure::{
-    LevelRow, MeasureParams, MeasureReport, RuleSummary, SweepRow, TileSummary, measure,
+    CurvedRow, LevelRow, MeasureParams, MeasureReport, RuleSummary, SweepRow, TileSummary, measure,
 };
 pub use merge::{MergeRule, Side, SliceData, SliceParams, SliceReport, Stack, build_slices};
 pub use render::{RenderParams, View, render_slices};

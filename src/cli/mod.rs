@@ -9,6 +9,7 @@ pub mod fit_bench;
 pub mod parallax;
 pub mod precompute;
 pub mod pyramid;
+pub mod slices;
 
 /// Error type of the command-line layer: a message for the user, already formatted.
 pub type CliResult = Result<(), Box<dyn std::error::Error + Send + Sync>>;

@@ -1,0 +1,400 @@
+//! Slice stacks and their mipmapped merges: level `k` of an axis holds `N/2^k` slices, slice `j`
+//! the composite of layers `j·2^k … (j+1)·2^k − 1` by the [`MergeRule`]; every slice is also a
+//! 2D mip pyramid ([`crate::mip`]) for distance. See the module conventions for sides and rules.
+
+use std::time::Instant;
+
+use rayon::prelude::*;
+
+use super::volume::{over, rescale_thickness};
+use super::{Axis, SliceError, TexelVolume};
+use crate::mip::{Pyramid, PyramidParams, Texture, WrapMode};
+
+/// How a slab of `2^k` layers becomes one slice.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize)]
+pub enum MergeRule {
+    /// Composite as seen from the plus side (higher layers over lower ones).
+    FrontOverBack,
+    /// Composite as seen from the minus side (lower layers over higher ones).
+    BackOverFront,
+    /// Both composites stored; the renderer reads the one of the viewer's side (twice the bytes
+    /// of the merged levels).
+    PerSide,
+    /// The mean of the two composites: one stack for both sides, opacity still exact.
+    Symmetric,
+    /// Baseline, not a merge: keep layer `j·2^k + 2^(k−1)` with its opacity raised to the slab's
+    /// thickness.
+    Drop,
+}
+
+impl MergeRule {
+    /// Every rule, merges first.
+    pub const ALL: [MergeRule; 5] = [
+        MergeRule::FrontOverBack,
+        MergeRule::BackOverFront,
+        MergeRule::PerSide,
+        MergeRule::Symmetric,
+        MergeRule::Drop,
+    ];
+
+    /// Short name for tables.
+    pub fn name(self) -> &'static str {
+        match self {
+            MergeRule::FrontOverBack => "front-over-back",
+            MergeRule::BackOverFront => "back-over-front",
+            MergeRule::PerSide => "per-side",
+            MergeRule::Symmetric => "symmetric",
+            MergeRule::Drop => "drop",
+        }
+    }
+}
+
+/// The side of a stack the viewer is on.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+pub enum Side {
+    /// `v_i > 0`: higher slice indices are in front.
+    Plus,
+    /// `v_i ≤ 0`: lower slice indices are in front.
+    Minus,
+}
+
+/// Parameters of [`build_slices`].
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct SliceParams {
+    /// Axes to build stacks for (`[x, y, z]`); a direction no view selects need not be built.
+    pub axes: [bool; 3],
+    /// Levels per axis (`1` = level 0 only); `None` builds every level down to one slice.
+    pub levels: Option<usize>,
+    /// Merge rule of the levels above 0.
+    pub rule: MergeRule,
+    /// Count the 2D mip levels of each slice in the bytes (the pyramids are always built).
+    pub mip_2d: bool,
+}
+
+impl Default for SliceParams {
+    /// All three axes, every level, [`MergeRule::PerSide`] (the most accurate rule from both
+    /// sides in `altrep slices`; see the README's "Measured" section), 2D mip-maps counted.
+    fn default() -> Self {
+        Self {
+            axes: [true; 3],
+            levels: None,
+            rule: MergeRule::PerSide,
+            mip_2d: true,
+        }
+    }
+}
+
+impl SliceParams {
+    /// Errors: no axis, `levels = Some(0)`.
+    pub fn validate(&self) -> Result<(), SliceError> {
+        if !self.axes.iter().any(|a| *a) {
+            return Err(SliceError::InvalidParameter {
+                name: "axes",
+                value: format!("{:?}", self.axes),
+                reason: "at least one axis must be built",
+            });
+        }
+        if self.levels == Some(0) {
+            return Err(SliceError::ZeroSize { what: "levels" });
+        }
+        Ok(())
+    }
+}
+
+/// One stack: the slices of one axis at one merge level.
+#[derive(Clone, Debug)]
+pub struct Stack {
+    axis: Axis,
+    level: usize,
+    spacing: f64,
+    plus: Vec<Pyramid>,
+    minus: Option<Vec<Pyramid>>,
+}
+
+impl Stack {
+    /// Slice direction.
+    pub fn axis(&self) -> Axis {
+        self.axis
+    }
+
+    /// Merge level `k`.
+    pub fn level(&self) -> usize {
+        self.level
+    }
+
+    /// Slice spacing `h_k = 2^k·s` (world units).
+    pub fn spacing(&self) -> f64 {
+        self.spacing
+    }
+
+    /// Slices per tile.
+    pub fn count(&self) -> usize {
+        self.plus.len()
+    }
+
+    /// Whether a separate stack is stored for the minus side ([`MergeRule::PerSide`], levels ≥ 1).
+    pub fn per_side(&self) -> bool {
+        self.minus.is_some()
+    }
+
+    /// The slices to draw from `side`, index `j` in the plane `q = (j + ½)·h_k`; each a 2D
+    /// pyramid whose level 0 is `w × h` texels of premultiplied RGBA f32 (see [`Axis::plane_axes`]).
+    pub fn slices(&self, side: Side) -> &[Pyramid] {
+        match (side, &self.minus) {
+            (Side::Minus, Some(m)) => m,
+            _ => &self.plus,
+        }
+    }
+
+    fn bytes(&self, mip_2d: bool) -> usize {
+        let sides = 1 + usize::from(self.minus.is_some());
+        let one: usize = self
+            .plus
+            .iter()
+            .map(|p| {
+                if mip_2d {
+                    p.bytes(1)
+                } else {
+                    let t = &p.levels()[0];
+                    t.width * t.height * t.channels
+                }
+            })
+            .sum();
+        sides * one
+    }
+}
+
+/// The slice data of a texel volume: stacks per built axis and level.
+#[derive(Clone, Debug)]
+pub struct SliceData {
+    dims: [usize; 3],
+    voxel: f64,
+    rule: MergeRule,
+    stacks: Vec<Stack>,
+}
+
+impl SliceData {
+    /// Voxels of the source volume along `x, y, z`.
+    pub fn dims(&self) -> [usize; 3] {
+        self.dims
+    }
+
+    /// Voxel edge `s` (world units).
+    pub fn voxel_size(&self) -> f64 {
+        self.voxel
+    }
+
+    /// The merge rule of the levels above 0.
+    pub fn rule(&self) -> MergeRule {
+        self.rule
+    }
+
+    /// Every stack, by axis then level.
+    pub fn stacks(&self) -> &[Stack] {
+        &self.stacks
+    }
+
+    /// The stack of `axis` at `level`. Errors: not built.
+    pub fn stack(&self, axis: Axis, level: usize) -> Result<&Stack, SliceError> {
+        self.stacks
+            .iter()
+            .find(|s| s.axis == axis && s.level == level)
+            .ok_or(SliceError::MissingStack { axis, level })
+    }
+
+    /// The stack of `axis` with exactly `slices` slices. Errors: more slices than voxels,
+    /// a count that is not `N/2^k`, a stack not built.
+    pub fn stack_with(&self, axis: Axis, slices: usize) -> Result<&Stack, SliceError> {
+        let n = self.dims[axis.index()];
+        if slices > n {
+            return Err(SliceError::TooManySlices {
+                axis,
+                slices,
+                voxels: n,
+            });
+        }
+        if slices == 0 || !slices.is_power_of_two() {
+            return Err(SliceError::InvalidParameter {
+                name: "slice count",
+                value: format!("{slices}"),
+                reason: "must be N/2^k for some level k",
+            });
+        }
+        self.stack(axis, (n / slices).trailing_zeros() as usize)
+    }
+}
+
+/// Costs and the opacity check of [`build_slices`].
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct SliceReport {
+    /// Wall time of the build (seconds).
+    pub build_seconds: f64,
+    /// Bytes of every stack at RGBA8 (2D mip levels included when [`SliceParams::mip_2d`]).
+    pub bytes: usize,
+    /// Bytes of the level-0 stacks alone at RGBA8 (no 2D mip levels): the unmerged slices.
+    pub bytes_level0: usize,
+    /// `(axis, level, slices per tile)` of each stack built.
+    pub stacks: Vec<(Axis, usize, usize)>,
+    /// Largest `|a_slice − (1 − Π(1 − a_layer))|` over every texel of every merged slice
+    /// (opacity conservation; 0 up to rounding for every merge rule, large for `Drop`).
+    pub opacity_error_max: f64,
+}
+
+/// The premultiplied value of the slab of `layers` (lowest index first) under `rule`, with the
+/// composite's exact opacity `1 − Π(1 − a)` for the check.
+fn merge_column(layers: &[[f64; 4]], rule: MergeRule, side: Side) -> [f64; 4] {
+    let plus = || layers.iter().fold([0.0; 4], |acc, l| over(*l, acc));
+    let minus = || layers.iter().rev().fold([0.0; 4], |acc, l| over(*l, acc));
+    match (rule, side) {
+        (MergeRule::FrontOverBack, _) | (MergeRule::PerSide, Side::Plus) => plus(),
+        (MergeRule::BackOverFront, _) | (MergeRule::PerSide, Side::Minus) => minus(),
+        (MergeRule::Symmetric, _) => {
+            let (a, b) = (plus(), minus());
+            std::array::from_fn(|k| 0.5 * (a[k] + b[k]))
+        }
+        (MergeRule::Drop, _) => {
+            let g = layers.len();
+            rescale_thickness(layers[g / 2], g as f64)
+        }
+    }
+}
+
+/// Builds the slices of `axis` at `level` for `side`, with the worst opacity error.
+fn build_stack_side(
+    volume: &TexelVolume,
+    axis: Axis,
+    level: usize,
+    rule: MergeRule,
+    side: Side,
+) -> Result<(Vec<Pyramid>, f64), SliceError> {
+    let dims = volume.dims();
+    let (ua, va) = axis.plane_axes();
+    let (w, h) = (dims[ua], dims[va]);
+    let g = 1usize << level;
+    let count = dims[axis.index()] / g;
+    let wrap = [
+        if ua == 1 {
+            WrapMode::Clamp
+        } else {
+            WrapMode::Repeat
+        },
+        if va == 1 {
+            WrapMode::Clamp
+        } else {
+            WrapMode::Repeat
+        },
+    ];
+    let params = PyramidParams {
+        wrap,
+        ..PyramidParams::default()
+    };
+    let built: Vec<Result<(Pyramid, f64), SliceError>> = (0..count)
+        .into_par_iter()
+        .map(|j| {
+            let mut data = Vec::with_capacity(w * h * 4);
+            let mut err = 0.0f64;
+            let mut layers = vec![[0.0f64; 4]; g];
+            for tv in 0..h {
+                for tu in 0..w {
+                    let mut c = [0usize; 3];
+                    c[ua] = tu;
+                    c[va] = tv;
+                    let mut transmit = 1.0f64;
+                    for (l, layer) in layers.iter_mut().enumerate() {
+                        c[axis.index()] = j * g + l;
+                        let v = volume.get(c[0], c[1], c[2]);
+                        *layer = v.map(f64::from);
+                        transmit *= 1.0 - layer[3];
+                    }
+                    let m = merge_column(&layers, rule, side);
+                    err = err.max((m[3] - (1.0 - transmit)).abs());
+                    data.extend(m.iter().map(|x| *x as f32));
+                }
+            }
+            let pyramid = Pyramid::build(Texture::new(w, h, 4, data)?, params)?;
+            Ok((pyramid, err))
+        })
+        .collect();
+    let mut slices = Vec::with_capacity(count);
+    let mut worst = 0.0f64;
+    for b in built {
+        let (p, e) = b?;
+        worst = worst.max(e);
+        slices.push(p);
+    }
+    Ok((slices, worst))
+}
+
+/// Cuts `volume` into stacks along the axes asked for, every level merged by `params.rule`.
+/// Cost: `levels` passes over the volume per axis (a level-`k` texel composites `2^k` layers),
+/// plus a 2D pyramid per slice; slices in parallel.
+///
+/// Errors: invalid parameters, a dimension of a built axis or of a slice plane that is not a
+/// power of two.
+pub fn build_slices(
+    volume: &TexelVolume,
+    params: &SliceParams,
+) -> Result<(SliceData, SliceReport), SliceError> {
+    params.validate()?;
+    let start = Instant::now();
+    let dims = volume.dims();
+    for axis in Axis::ALL {
+        let n = dims[axis.index()];
+        if !n.is_power_of_two() {
+            return Err(SliceError::NotPowerOfTwo { axis, value: n });
+        }
+    }
+    let mut stacks = Vec::new();
+    let mut opacity_error_max = 0.0f64;
+    for axis in Axis::ALL {
+        if !params.axes[axis.index()] {
+            continue;
+        }
+        let n = dims[axis.index()];
+        let all = n.trailing_zeros() as usize + 1;
+        let levels = params.levels.map_or(all, |l| l.min(all));
+        for level in 0..levels {
+            let two_sides = level > 0 && params.rule == MergeRule::PerSide;
+            let (plus, e1) = build_stack_side(volume, axis, level, params.rule, Side::Plus)?;
+            let minus = if two_sides {
+                let (m, e2) = build_stack_side(volume, axis, level, params.rule, Side::Minus)?;
+                opacity_error_max = opacity_error_max.max(e2);
+                Some(m)
+            } else {
+                None
+            };
+            opacity_error_max = opacity_error_max.max(e1);
+            stacks.push(Stack {
+                axis,
+                level,
+                spacing: volume.voxel_size() * (1usize << level) as f64,
+                plus,
+                minus,
+            });
+        }
+    }
+    let bytes = stacks.iter().map(|s| s.bytes(params.mip_2d)).sum();
+    let bytes_level0 = stacks
+        .iter()
+        .filter(|s| s.level == 0)
+        .map(|s| s.bytes(false))
+        .sum();
+    let report = SliceReport {
+        build_seconds: start.elapsed().as_secs_f64(),
+        bytes,
+        bytes_level0,
+        stacks: stacks
+            .iter()
+            .map(|s| (s.axis, s.level, s.count()))
+            .collect(),
+        opacity_error_max,
+    };
+    let data = SliceData {
+        dims,
+        voxel: volume.voxel_size(),
+        rule: params.rule,
+        stacks,
+    };
+    Ok((data, report))
+}

@@ -1,0 +1,209 @@
+//! The texel volume: premultiplied RGBA voxels, cubic voxels of edge `s`, periodic in `x` and `z`
+//! (see the module conventions in [`crate::slices`]).
+
+use glam::DVec3;
+
+use super::{Axis, SliceError};
+
+/// Largest opacity used when converting to extinction (`σ = −ln(1 − a)/s` stays finite).
+pub(crate) const MAX_ALPHA: f64 = 1.0 - 1e-7;
+
+/// A tileable texel volume (see the module conventions).
+#[derive(Clone, Debug, PartialEq)]
+pub struct TexelVolume {
+    dims: [usize; 3],
+    voxel: f64,
+    rgba: Vec<[f32; 4]>,
+    /// Per voxel `(x, y, z)`: the trilinear cell spanning voxels `{x, x+1} × {y, min(y+1, ny−1)}
+    /// × {z, z+1}` (wrapped) is fully transparent, so [`TexelVolume::sample`] can skip it.
+    empty_cell: Vec<bool>,
+}
+
+impl TexelVolume {
+    /// A volume of `dims` voxels of edge `voxel` (world units) with premultiplied RGBA values,
+    /// index `x + nx·(y + ny·z)`. Checks: non-zero dimensions, `rgba.len() = nx·ny·nz`, a finite
+    /// positive voxel size, finite values with `a ∈ [0, 1]` and colour channels in `[0, a]`
+    /// (premultiplied, colour ≤ 1), within `1e-5`.
+    pub fn new(dims: [usize; 3], voxel: f64, rgba: Vec<[f32; 4]>) -> Result<Self, SliceError> {
+        for (k, n) in dims.iter().enumerate() {
+            if *n == 0 {
+                return Err(SliceError::ZeroSize {
+                    what: ["volume dims x", "volume dims y", "volume dims z"][k],
+                });
+            }
+        }
+        super::check_range(
+            "voxel size",
+            voxel,
+            f64::MIN_POSITIVE,
+            f64::MAX,
+            "must be finite and positive",
+        )?;
+        let n = dims[0] * dims[1] * dims[2];
+        if rgba.len() != n {
+            return Err(SliceError::InvalidParameter {
+                name: "voxel count",
+                value: format!("{}", rgba.len()),
+                reason: "must equal nx·ny·nz",
+            });
+        }
+        const TOL: f32 = 1e-5;
+        for (index, v) in rgba.iter().enumerate() {
+            if v.iter().any(|c| !c.is_finite()) {
+                return Err(SliceError::NonFinite {
+                    what: "voxel value",
+                    index,
+                });
+            }
+            let a = v[3];
+            if !(-TOL..=1.0 + TOL).contains(&a) || v[..3].iter().any(|c| *c < -TOL || *c > a + TOL)
+            {
+                return Err(SliceError::InvalidParameter {
+                    name: "voxel value",
+                    value: format!("{v:?} at index {index}"),
+                    reason: "premultiplied RGBA needs 0 ≤ colour ≤ alpha ≤ 1",
+                });
+            }
+        }
+        let rgba: Vec<[f32; 4]> = rgba
+            .into_iter()
+            .map(|v| {
+                let a = v[3].clamp(0.0, 1.0);
+                [
+                    v[0].clamp(0.0, a),
+                    v[1].clamp(0.0, a),
+                    v[2].clamp(0.0, a),
+                    a,
+                ]
+            })
+            .collect();
+        let [nx, ny, nz] = dims;
+        let empty_cell = (0..n)
+            .map(|i| {
+                let (x, y, z) = (i % nx, (i / nx) % ny, i / (nx * ny));
+                [x, (x + 1) % nx].iter().all(|&a| {
+                    [y, (y + 1).min(ny - 1)].iter().all(|&b| {
+                        [z, (z + 1) % nz]
+                            .iter()
+                            .all(|&c| rgba[a + nx * (b + ny * c)][3] == 0.0)
+                    })
+                })
+            })
+            .collect();
+        Ok(Self {
+            dims,
+            voxel,
+            rgba,
+            empty_cell,
+        })
+    }
+
+    /// Voxels along `x`, `y`, `z`.
+    pub fn dims(&self) -> [usize; 3] {
+        self.dims
+    }
+
+    /// Voxels along `axis`.
+    pub fn len(&self, axis: Axis) -> usize {
+        self.dims[axis.index()]
+    }
+
+    /// Voxel edge `s` (world units).
+    pub fn voxel_size(&self) -> f64 {
+        self.voxel
+    }
+
+    /// Size of the tile, `dims·s` (world units).
+    pub fn extent(&self) -> DVec3 {
+        DVec3::new(
+            self.dims[0] as f64,
+            self.dims[1] as f64,
+            self.dims[2] as f64,
+        ) * self.voxel
+    }
+
+    /// The voxels, premultiplied RGBA, index `x + nx·(y + ny·z)`.
+    pub fn rgba(&self) -> &[[f32; 4]] {
+        &self.rgba
+    }
+
+    /// Storage index of voxel `(x, y, z)`.
+    #[inline]
+    pub fn index(&self, x: usize, y: usize, z: usize) -> usize {
+        x + self.dims[0] * (y + self.dims[1] * z)
+    }
+
+    /// Voxel `(x, y, z)`.
+    #[inline]
+    pub fn get(&self, x: usize, y: usize, z: usize) -> [f32; 4] {
+        self.rgba[self.index(x, y, z)]
+    }
+
+    /// Bytes at RGBA8.
+    pub fn bytes_rgba8(&self) -> usize {
+        4 * self.rgba.len()
+    }
+
+    /// Trilinear sample of the premultiplied RGBA field at `p` (world units), wrapped in `x` and
+    /// `z`, clamped in `y` (the caller keeps `p.y` inside `[0, ny·s]`). Cost: 8 voxel reads.
+    pub fn sample(&self, p: DVec3) -> [f64; 4] {
+        let g = p / self.voxel - 0.5;
+        let (fx, fy, fz) = (g.x.floor(), g.y.floor(), g.z.floor());
+        let (tx, ty, tz) = (g.x - fx, g.y - fy, g.z - fz);
+        let [nx, ny, nz] = self.dims;
+        let wrap = |i: f64, n: usize| (i as i64).rem_euclid(n as i64) as usize;
+        let xs = [wrap(fx, nx), wrap(fx + 1.0, nx)];
+        let zs = [wrap(fz, nz), wrap(fz + 1.0, nz)];
+        let clamp = |i: f64| (i.max(0.0) as usize).min(ny - 1);
+        let ys = [clamp(fy), clamp(fy + 1.0)];
+        let mut out = [0.0f64; 4];
+        if self.empty_cell[self.index(xs[0], ys[0], zs[0])] {
+            return out;
+        }
+        for (a, wz) in [(0, 1.0 - tz), (1, tz)] {
+            for (b, wy) in [(0, 1.0 - ty), (1, ty)] {
+                for (c, wx) in [(0, 1.0 - tx), (1, tx)] {
+                    let w = wx * wy * wz;
+                    if w == 0.0 {
+                        continue;
+                    }
+                    let v = self.get(xs[c], ys[b], zs[a]);
+                    for k in 0..4 {
+                        out[k] += w * f64::from(v[k]);
+                    }
+                }
+            }
+        }
+        out
+    }
+}
+
+/// Opacity of a path of `ratio` times the reference thickness through material of opacity `a`
+/// (for the reference thickness): `1 − (1 − a)^ratio`, with `a` capped at [`MAX_ALPHA`].
+#[inline]
+pub(crate) fn alpha_for_thickness(a: f64, ratio: f64) -> f64 {
+    if a <= 0.0 {
+        return 0.0;
+    }
+    1.0 - (1.0 - a.min(MAX_ALPHA)).powf(ratio)
+}
+
+/// A premultiplied RGBA value re-expressed for `ratio` times its thickness: alpha by
+/// [`alpha_for_thickness`], colour scaled by the same factor (the emitted colour is unchanged).
+#[inline]
+pub(crate) fn rescale_thickness(v: [f64; 4], ratio: f64) -> [f64; 4] {
+    let a = v[3];
+    if a <= 0.0 {
+        return [0.0; 4];
+    }
+    let a2 = alpha_for_thickness(a, ratio);
+    let f = a2 / a;
+    [v[0] * f, v[1] * f, v[2] * f, a2]
+}
+
+/// `front over back` for premultiplied RGBA.
+#[inline]
+pub(crate) fn over(front: [f64; 4], back: [f64; 4]) -> [f64; 4] {
+    let t = 1.0 - front[3];
+    std::array::from_fn(|k| front[k] + t * back[k])
+}

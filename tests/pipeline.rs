@@ -7,6 +7,7 @@ use std::time::{Duration, Instant};
 
 use altrep::asset::{AssetError, AssetReader, AssetWriter, Conventions, DESCRIPTION_FILE};
 use altrep::parallax::render_bounded;
+use altrep::pipeline::cylinder::{Cylinder, CylinderSpec};
 use altrep::pipeline::octree::{OctreeRepr, OctreeSpec};
 use altrep::pipeline::parallax::{Parallax, ParallaxSpec};
 use altrep::pipeline::{
@@ -116,6 +117,74 @@ fn octree_files_read_back_bit_for_bit() {
     assert_eq!(loaded.nodes(), tree.nodes());
     assert_eq!(loaded.depth(), tree.depth());
     assert_eq!(desc.data_bytes() as usize, tree.nodes().len() * 52);
+}
+
+#[test]
+fn cylinder_files_read_back_bit_for_bit() {
+    let dir = tempfile::tempdir().unwrap();
+    let shape = scene_shape("truck").unwrap();
+    let src = source("truck", &shape);
+    for lighting in [Lighting::Dynamic, Lighting::Baked] {
+        let spec = CylinderSpec {
+            columns: 64,
+            rows: 16,
+            ..CylinderSpec::default()
+        };
+        let needs = Needs {
+            lighting,
+            ..Needs::default()
+        };
+        let (plan, dec) = Cylinder::plan(&spec, &needs, &src).unwrap();
+        assert!(plan.refused.is_none(), "{plan:?}");
+        let (data, _) = Cylinder::build(&spec, &needs, &dec, &src).unwrap();
+        let name = format!("truck-{lighting:?}");
+        let (loaded, _) = round_trip::<Cylinder>(dir.path(), &name, &data);
+        assert_eq!(loaded.texture, data.texture);
+        assert_eq!(loaded.bounds, data.bounds);
+        let params = altrep::cylinder::RenderParams {
+            angle: 0.7,
+            width: 24,
+            height: 24,
+            supersample: 1,
+            light: src.light,
+        };
+        let a = loaded.bounds.render(&loaded.texture, &params).unwrap();
+        let b = data.bounds.render(&data.texture, &params).unwrap();
+        assert_eq!(a.steps, b.steps);
+        assert_eq!(a.image, b.image);
+    }
+}
+
+#[test]
+fn a_flat_cut_out_is_refused_for_the_cylinder_and_kept_for_parallax() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(
+        dir.path().join("cutout.obj"),
+        "v -1 0 0\nv 1 0 0\nv 1 2 0\nv -1 2 0\nf 1 2 3\nf 1 3 4\n",
+    )
+    .unwrap();
+    let scene = "[[asset]]\nname = \"sign\"\nmesh = \"cutout.obj\"\n[asset.needs]\nazimuth_deg = [45, 135]\n[asset.parallax]\nviews = 8\nsize = 16\n[asset.cylinder]\ncolumns = 64\nrows = 16\n";
+    let m = Manifest::parse(scene, &dir.path().join("scene.toml")).unwrap();
+    let out = dir.path().join("out");
+    let s = run_scene(&m, &options(&out)).unwrap();
+    let cyl = s
+        .outcomes
+        .iter()
+        .find(|o| o.representation == "cylinder")
+        .unwrap();
+    match &cyl.outcome {
+        Outcome::Refused(r) => assert!(r.contains("images with parallax"), "{r}"),
+        other => panic!("the cut-out's cylinder must be refused, got {other:?}"),
+    }
+    assert!(!out.join("sign/cylinder").exists());
+    let par = s
+        .outcomes
+        .iter()
+        .find(|o| o.representation == "parallax")
+        .unwrap();
+    assert_eq!(par.outcome, Outcome::Built);
+    let report = std::fs::read_to_string(out.join("report.md")).unwrap();
+    assert!(report.contains("**Refused**"), "{report}");
 }
 
 /// A written asset folder to damage.

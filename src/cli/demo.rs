@@ -65,13 +65,22 @@ pub fn sections() -> Vec<(&'static str, SectionFn)> {
 
 /// The bundled scene manifest (`scenes/demo.toml`).
 pub const DEMO_SCENE: &str = include_str!("../../scenes/demo.toml");
+/// The bundled scene's flat cut-out (`scenes/cutout.obj`).
+pub const DEMO_CUTOUT: &str = include_str!("../../scenes/cutout.obj");
 
 /// Runs `altrep demo`: `precompute` of the bundled scene into `OUT/scene`, then the measured
 /// sections into `OUT/report.md`.
 pub fn run(args: DemoArgs) -> CliResult {
     std::fs::create_dir_all(&args.out)
         .map_err(|e| format!("cannot create output folder {}: {e}", args.out.display()))?;
-    let manifest = crate::pipeline::Manifest::parse(DEMO_SCENE, Path::new("scenes/demo.toml"))?;
+    // The scene's own mesh (a flat cut-out) is written beside a copy of the manifest, so the
+    // demo runs from any folder.
+    let inputs = args.out.join("scene-inputs");
+    std::fs::create_dir_all(&inputs)
+        .map_err(|e| format!("cannot create {}: {e}", inputs.display()))?;
+    std::fs::write(inputs.join("cutout.obj"), DEMO_CUTOUT)
+        .map_err(|e| format!("cannot write {}: {e}", inputs.display()))?;
+    let manifest = crate::pipeline::Manifest::parse(DEMO_SCENE, &inputs.join("demo.toml"))?;
     let scene_out = args.out.join("scene");
     super::precompute::run_manifest(
         &manifest,

@@ -72,6 +72,9 @@ pub fn run_manifest(manifest: &Manifest, args: &PrecomputeArgs) -> CliResult {
     if args.dry_run {
         for (asset, repr, plan) in plan_scene(manifest, &options)? {
             println!("{asset} / {repr}:");
+            if let Some(r) = &plan.refused {
+                println!("  REFUSED — {r}");
+            }
             for item in &plan.items {
                 match &item.skipped {
                     None => println!("  build  {}", item.what),

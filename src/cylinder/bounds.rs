@@ -262,6 +262,40 @@ impl MarchBounds {
         ))
     }
 
+    /// The parameters the bounds were built with.
+    pub fn params(&self) -> &BoundsParams {
+        &self.params
+    }
+
+    /// Bounds of `texture` from stored codes (as a loader decodes [`Self::start`] and
+    /// [`Self::stop`]). Errors: invalid parameters, code arrays of another length.
+    pub fn from_codes(
+        texture: &CylindricalTexture,
+        params: BoundsParams,
+        start: Vec<u16>,
+        stop: Vec<u16>,
+    ) -> Result<Self, CylinderError> {
+        params.validate()?;
+        let (l, ly) = (texture.columns(), texture.rows());
+        let row_cells = (ly - 1).div_ceil(params.rows_per_cell).max(1);
+        let n = params.cells_x * row_cells * params.cells_alpha;
+        if start.len() != n || stop.len() != n {
+            return Err(CylinderError::InvalidParameter {
+                name: "stored march bounds",
+                value: format!("{} and {} codes", start.len(), stop.len()),
+                reason: "must hold one start and one stop code per cell",
+            });
+        }
+        Ok(Self {
+            params,
+            columns: l,
+            rows: ly,
+            row_cells,
+            start,
+            stop,
+        })
+    }
+
     /// `[Bx, row cells, Bα]`.
     pub fn cells(&self) -> [usize; 3] {
         [self.params.cells_x, self.row_cells, self.params.cells_alpha]

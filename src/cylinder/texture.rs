@@ -271,6 +271,107 @@ impl CylindricalTexture {
         }
     }
 
+    /// The 8-bit codes of the texture's storage (see [`Self::quantized_rgba8`]), row-major:
+    /// `albedo[n] = [sRGB r, g, b, defined ? 255 : 0]`, `geometry[n] = [(n + 1)/2 ×3, (r + 1)/2]`
+    /// (codes of undefined texels are 0). [`Self::from_codes`] restores
+    /// `self.quantized_rgba8()` exactly. Cost: one pass.
+    pub fn codes(&self) -> (Vec<[u8; 4]>, Vec<[u8; 4]>) {
+        use altrep_data_gen::linear_to_srgb;
+        let q = |c: f32| (c.clamp(0.0, 1.0) * 255.0).round() as u8;
+        let q_signed = |c: f32| q(c * 0.5 + 0.5);
+        self.texels
+            .iter()
+            .map(|t| match t {
+                None => ([0; 4], [0; 4]),
+                Some(t) => (
+                    [
+                        q(linear_to_srgb(t.albedo.x.clamp(0.0, 1.0))),
+                        q(linear_to_srgb(t.albedo.y.clamp(0.0, 1.0))),
+                        q(linear_to_srgb(t.albedo.z.clamp(0.0, 1.0))),
+                        255,
+                    ],
+                    [
+                        q_signed(t.normal.x),
+                        q_signed(t.normal.y),
+                        q_signed(t.normal.z),
+                        q_signed(t.radius),
+                    ],
+                ),
+            })
+            .unzip()
+    }
+
+    /// A texture from the codes of [`Self::codes`] (alpha 0 = undefined), decoded exactly as
+    /// [`Self::quantized_rgba8`] decodes. Errors: fewer than 4 or an odd number of columns, no
+    /// row, code arrays of another length.
+    pub fn from_codes(
+        columns: usize,
+        rows: usize,
+        cylinder: BoundingCylinder,
+        albedo: &[[u8; 4]],
+        geometry: &[[u8; 4]],
+    ) -> Result<Self, CylinderError> {
+        use altrep_data_gen::srgb_to_linear;
+        check_columns(columns)?;
+        if rows == 0 {
+            return Err(CylinderError::ZeroSize {
+                what: "texture rows",
+            });
+        }
+        cylinder.validate()?;
+        if albedo.len() != columns * rows || geometry.len() != columns * rows {
+            return Err(CylinderError::InvalidParameter {
+                name: "texture codes",
+                value: format!("{} and {} texels", albedo.len(), geometry.len()),
+                reason: "must hold columns × rows texels",
+            });
+        }
+        let v = |c: u8| f32::from(c) / 255.0;
+        let signed = |c: u8| v(c) * 2.0 - 1.0;
+        let texels = albedo
+            .iter()
+            .zip(geometry)
+            .map(|(a, g)| {
+                (a[3] != 0).then(|| Texel {
+                    albedo: Vec3::new(
+                        srgb_to_linear(v(a[0])),
+                        srgb_to_linear(v(a[1])),
+                        srgb_to_linear(v(a[2])),
+                    ),
+                    normal: Vec3::new(signed(g[0]), signed(g[1]), signed(g[2])),
+                    radius: signed(g[3]),
+                })
+            })
+            .collect();
+        Ok(Self {
+            columns,
+            rows,
+            cylinder,
+            texels,
+        })
+    }
+
+    /// The texture with lighting baked in: every albedo replaced by its colour shaded by
+    /// `light`, every normal by the light's direction (so shading with `light` again is the
+    /// identity). Cost: one pass.
+    pub fn baked(&self, light: &Light) -> Self {
+        let texels = self
+            .texels
+            .iter()
+            .map(|t| {
+                t.map(|t| Texel {
+                    albedo: light.shade(t.albedo, t.normal),
+                    normal: light.direction,
+                    ..t
+                })
+            })
+            .collect();
+        Self {
+            texels,
+            ..self.clone()
+        }
+    }
+
     /// The texture shaded by `light` as an `L × Ly` image (alpha 0 where undefined), for reports.
     pub fn shade(&self, light: &Light) -> RgbaImage {
         self.image(|t| {

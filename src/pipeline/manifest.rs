@@ -15,6 +15,8 @@
 //! lighting = "dynamic"         # or "baked"
 //! [asset.parallax]             # presence = wanted; every key optional (documented defaults)
 //! views = 8
+//! [asset.cylinder]            # cylindrical texture (refused when it cannot hold the object)
+//! columns = 256
 //! [asset.octree]
 //! resolution = 64
 //! ```
@@ -29,6 +31,7 @@ use serde::{Deserialize, Serialize};
 use toml::Spanned;
 
 use super::PipelineError;
+use super::cylinder::CylinderSpec;
 use super::octree::OctreeSpec as OctreeParams;
 use super::parallax::ParallaxSpec as ParallaxParams;
 
@@ -118,6 +121,8 @@ struct RawAsset {
     #[serde(default)]
     parallax: Option<ParallaxParams>,
     #[serde(default)]
+    cylinder: Option<CylinderSpec>,
+    #[serde(default)]
     octree: Option<OctreeParams>,
 }
 
@@ -150,6 +155,8 @@ pub struct AssetSpec {
     pub needs: Needs,
     /// Images with parallax, if wanted.
     pub parallax: Option<ParallaxParams>,
+    /// Cylindrical texture, if wanted.
+    pub cylinder: Option<CylinderSpec>,
     /// Ellipsoid octree, if wanted.
     pub octree: Option<OctreeParams>,
 }
@@ -267,7 +274,7 @@ impl Manifest {
                 None => (name_span.clone(), Needs::default()),
             };
             check_needs(&needs).map_err(|m| err(path, text, needs_span, m))?;
-            if a.parallax.is_none() && a.octree.is_none() {
+            if a.parallax.is_none() && a.cylinder.is_none() && a.octree.is_none() {
                 return Err(err(
                     path,
                     text,
@@ -277,6 +284,7 @@ impl Manifest {
             }
             for check in [
                 a.parallax.as_ref().map(|p| p.validate()),
+                a.cylinder.as_ref().map(|p| p.validate()),
                 a.octree.as_ref().map(|p| p.validate()),
             ]
             .into_iter()
@@ -289,6 +297,7 @@ impl Manifest {
                 source,
                 needs,
                 parallax: a.parallax,
+                cylinder: a.cylinder,
                 octree: a.octree,
             });
         }

@@ -11,6 +11,7 @@
 //! Output layout: `DIR/ASSET/REPR/asset.json` + data files, `DIR/report.json`, `DIR/report.md`,
 //! `DIR/pictures/*.png`. Format: `docs/asset-format.md`.
 
+pub mod cylinder;
 pub mod manifest;
 pub mod octree;
 pub mod parallax;
@@ -71,6 +72,9 @@ pub enum PipelineError {
     /// Capture or mesh loading failed.
     #[error(transparent)]
     DataGen(#[from] altrep_data_gen::DataGenError),
+    /// The cylindrical texture failed.
+    #[error(transparent)]
+    Cylinder(#[from] crate::cylinder::CylinderError),
     /// Images with parallax failed.
     #[error(transparent)]
     Parallax(#[from] crate::parallax::ParallaxError),
@@ -96,6 +100,9 @@ pub struct PlanItem {
 pub struct Plan {
     /// Decisions, in order.
     pub items: Vec<PlanItem>,
+    /// Set when the representation cannot hold the object: the whole representation is
+    /// skipped, for this reason.
+    pub refused: Option<String>,
 }
 
 impl Plan {
@@ -113,6 +120,11 @@ impl Plan {
             what,
             skipped: Some(reason),
         });
+    }
+
+    /// Skips the whole representation: it cannot hold the object.
+    pub fn refuse(&mut self, reason: String) {
+        self.refused = Some(reason);
     }
 
     /// The skipped items.

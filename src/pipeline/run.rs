@@ -10,6 +10,7 @@ use rayon::prelude::*;
 use serde::Serialize;
 use serde_json::json;
 
+use super::cylinder::Cylinder;
 use super::manifest::{AssetSpec, Lighting, Manifest, Needs, SourceSpec};
 use super::octree::OctreeRepr;
 use super::parallax::Parallax;
@@ -78,6 +79,8 @@ pub enum Outcome {
     Built,
     /// The asset folder's cache key matched and every file verified.
     Cached,
+    /// The planner refused the representation: it cannot hold the object (the reason).
+    Refused(String),
     /// Failed; the message says why.
     Failed(String),
 }
@@ -135,6 +138,7 @@ impl RunSummary {
             let outcome = match &o.outcome {
                 Outcome::Built => "built".to_string(),
                 Outcome::Cached => "cached".to_string(),
+                Outcome::Refused(r) => format!("skipped: {r}"),
                 Outcome::Failed(m) => format!("FAILED: {m}"),
             };
             let (psnr, iou, steps) = o.measurement.as_ref().map_or(
@@ -285,10 +289,7 @@ pub fn run_scene(manifest: &Manifest, options: &RunOptions) -> Result<RunSummary
         .assets
         .iter()
         .partition(|a| options.shard.is_none_or(|s| s.owns(&a.name)));
-    let jobs: u64 = mine
-        .iter()
-        .map(|a| u64::from(a.parallax.is_some()) + u64::from(a.octree.is_some()))
-        .sum();
+    let jobs: u64 = mine.iter().map(|a| wanted(a).len() as u64).sum();
     let bar = if options.progress {
         indicatif::ProgressBar::new(jobs)
     } else {
@@ -320,11 +321,8 @@ pub fn run_scene(manifest: &Manifest, options: &RunOptions) -> Result<RunSummary
             };
             match loaded {
                 Err(e) => {
-                    if spec.parallax.is_some() {
-                        v.push(fail(Parallax::NAME, &e));
-                    }
-                    if spec.octree.is_some() {
-                        v.push(fail(OctreeRepr::NAME, &e));
+                    for repr in wanted(spec) {
+                        v.push(fail(repr, &e));
                     }
                 }
                 Ok((shape, input_hash)) => {
@@ -333,21 +331,28 @@ pub fn run_scene(manifest: &Manifest, options: &RunOptions) -> Result<RunSummary
                         shape: shape.as_ref(),
                         light,
                     };
-                    if let Some(p) = &spec.parallax {
-                        bar.set_message(format!("{} parallax", spec.name));
-                        v.push(
-                            run_one::<Parallax>(p, &needs, &source, &input_hash, options)
-                                .unwrap_or_else(|e| fail(Parallax::NAME, &e)),
-                        );
+                    let mut go = |repr: &str, r: Result<AssetOutcome, PipelineError>| {
+                        v.push(r.unwrap_or_else(|e| fail(repr, &e)));
                         bar.inc(1);
+                    };
+                    bar.set_message(spec.name.clone());
+                    if let Some(p) = &spec.parallax {
+                        go(
+                            Parallax::NAME,
+                            run_one::<Parallax>(p, &needs, &source, &input_hash, options),
+                        );
+                    }
+                    if let Some(p) = &spec.cylinder {
+                        go(
+                            Cylinder::NAME,
+                            run_one::<Cylinder>(p, &needs, &source, &input_hash, options),
+                        );
                     }
                     if let Some(p) = &spec.octree {
-                        bar.set_message(format!("{} octree", spec.name));
-                        v.push(
-                            run_one::<OctreeRepr>(p, &needs, &source, &input_hash, options)
-                                .unwrap_or_else(|e| fail(OctreeRepr::NAME, &e)),
+                        go(
+                            OctreeRepr::NAME,
+                            run_one::<OctreeRepr>(p, &needs, &source, &input_hash, options),
                         );
-                        bar.inc(1);
                     }
                 }
             }
@@ -362,6 +367,21 @@ pub fn run_scene(manifest: &Manifest, options: &RunOptions) -> Result<RunSummary
     };
     write_report(&summary, options)?;
     Ok(summary)
+}
+
+/// The representations `spec` asks for, by name.
+fn wanted(spec: &AssetSpec) -> Vec<&'static str> {
+    let mut v = Vec::new();
+    if spec.parallax.is_some() {
+        v.push(Parallax::NAME);
+    }
+    if spec.cylinder.is_some() {
+        v.push(Cylinder::NAME);
+    }
+    if spec.octree.is_some() {
+        v.push(OctreeRepr::NAME);
+    }
+    v
 }
 
 /// The cache key of one representation of one asset.
@@ -394,8 +414,26 @@ fn run_one<R: Representation>(
 ) -> Result<AssetOutcome, PipelineError> {
     let t0 = Instant::now();
     let (plan, decisions) = R::plan(spec, needs, source)?;
-    let key = cache_key::<R>(spec, &decisions, needs, input_hash, &source.light);
     let dir = options.out.join(source.name).join(R::NAME);
+    if let Some(reason) = &plan.refused {
+        // Nothing of it is kept: a folder from an earlier run would be stale.
+        if dir.exists() {
+            std::fs::remove_dir_all(&dir).map_err(io(&dir))?;
+        }
+        return Ok(AssetOutcome {
+            asset: source.name.into(),
+            representation: R::NAME.into(),
+            outcome: Outcome::Refused(reason.clone()),
+            plan,
+            seconds: t0.elapsed().as_secs_f64(),
+            build_seconds: 0.0,
+            bytes: 0,
+            cache_note: None,
+            measurement: None,
+            pictures: Vec::new(),
+        });
+    }
+    let key = cache_key::<R>(spec, &decisions, needs, input_hash, &source.light);
     let mut cache_note = None;
     if !options.force && dir.join(DESCRIPTION_FILE).exists() {
         match AssetReader::open(&dir) {
@@ -492,6 +530,9 @@ fn write_report(summary: &RunSummary, options: &RunOptions) -> Result<(), Pipeli
         md += &format!("\n## {} — {}\n\n", o.asset, o.representation);
         if let Some(m) = &o.measurement {
             md += &format!("Measured: {}.\n\n", m.method);
+        }
+        if let Some(r) = &o.plan.refused {
+            md += &format!("**Refused**: {r}.\n\n");
         }
         if let Some(n) = &o.cache_note {
             md += &format!("Rebuilt: {n}.\n\n");

@@ -1,0 +1,372 @@
+//! The cylindrical texture (SPEC §6) in the pipeline: the texture and its per-cell march
+//! bounds, so a shader draws the exact inverse warp in a few sector tests.
+//!
+//! Files: `texture-albedo.png` (RGBA8: sRGB albedo, or the baked colour; alpha 255 = defined),
+//! `texture-geometry.png` (RGBA8: normal `(n + 1)/2` and radius `(r + 1)/2`; with baked lighting
+//! the normal channels hold the light direction), `march-start.png` / `march-stop.png` (L16: per
+//! bound cell the codes of the least and greatest candidate sector, layout and meaning in
+//! [`crate::cylinder::MarchBounds::start`]). Column `c` of the texture is captured at
+//! `α_c = 2πc/L`; row `j` at height `y_j = H − (j + ½)H/Ly`.
+//!
+//! The planner refuses an object the texture cannot hold: the share of the true silhouette that
+//! a preview texture reproduces ([`crate::cylinder::coverage`]) below `min_coverage` skips the
+//! representation with that reason (use images with parallax instead).
+
+use std::time::Instant;
+
+use altrep_data_gen::{BoundingCylinder, CylinderParams};
+use serde::{Deserialize, Serialize};
+use serde_json::json;
+
+use super::manifest::{Lighting, Needs};
+use super::repr::{Measurement, Picture, Representation, Source, fold, score, secs, truth};
+use super::{PipelineError, Plan};
+use crate::asset::{AssetReader, AssetWriter, Channel, CodeImage, Encoding};
+use crate::cylinder::{
+    BoundsParams, CoverageParams, CylinderError, CylindricalTexture, MarchBounds, RenderParams,
+    coverage,
+};
+
+/// Manifest parameters of the cylindrical texture (`[asset.cylinder]`).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct CylinderSpec {
+    /// Columns `L` (angles; even, ≥ 4). Default 256.
+    pub columns: usize,
+    /// Rows `Ly`. Default 64; the planner lowers it to the largest screen size.
+    pub rows: usize,
+    /// Rays per texel side for the albedo prefilter (odd). Default 3.
+    pub prefilter: usize,
+    /// Cells of the march bounds.
+    pub bounds: BoundsParams,
+    /// Smallest share of the true silhouette a preview texture must reproduce, `[0, 1]`.
+    /// Default 0.5 (see [`CoverageParams::min_share`]).
+    pub min_coverage: f64,
+}
+
+impl Default for CylinderSpec {
+    fn default() -> Self {
+        Self {
+            columns: 256,
+            rows: 64,
+            prefilter: 3,
+            bounds: BoundsParams::default(),
+            min_coverage: 0.5,
+        }
+    }
+}
+
+impl CylinderSpec {
+    /// Checks ranges; the message names the key.
+    pub fn validate(&self) -> Result<(), String> {
+        if self.columns < 4 || !self.columns.is_multiple_of(2) || self.columns > 8192 {
+            return Err(format!(
+                "cylinder.columns = {} must be even, in 4..=8192",
+                self.columns
+            ));
+        }
+        if !(2..=4096).contains(&self.rows) {
+            return Err(format!("cylinder.rows = {} must be in 2..=4096", self.rows));
+        }
+        if self.prefilter.is_multiple_of(2) || self.prefilter > 7 {
+            return Err(format!(
+                "cylinder.prefilter = {} must be odd, at most 7",
+                self.prefilter
+            ));
+        }
+        self.bounds
+            .validate()
+            .map_err(|e| format!("cylinder.bounds: {e}"))?;
+        if !(0.0..=1.0).contains(&self.min_coverage) {
+            return Err(format!(
+                "cylinder.min_coverage = {} must be in [0, 1]",
+                self.min_coverage
+            ));
+        }
+        Ok(())
+    }
+}
+
+/// What the planner decided for the cylindrical texture.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct CylinderDecisions {
+    /// Columns captured.
+    pub columns: usize,
+    /// Rows captured.
+    pub rows: usize,
+    /// Whether normals are stored (dynamic lighting).
+    pub normals: bool,
+    /// Share of the true silhouette the preview reproduced.
+    pub coverage: f64,
+    /// Light direction and ambient share (baked colour; relighting of loaded baked data).
+    pub light: [f32; 4],
+}
+
+/// The cylindrical texture as loaded: the 8-bit texture and its march bounds.
+pub struct CylinderData {
+    /// The texture (as its 8-bit storage restores it).
+    pub texture: CylindricalTexture,
+    /// Per-cell march bounds.
+    pub bounds: MarchBounds,
+}
+
+/// The cylindrical texture for the pipeline.
+pub struct Cylinder;
+
+fn texture_params(columns: usize, rows: usize) -> CylinderParams {
+    CylinderParams {
+        columns,
+        rows,
+        cylinder: BoundingCylinder::default(),
+    }
+}
+
+impl Representation for Cylinder {
+    const NAME: &'static str = "cylinder";
+    type Spec = CylinderSpec;
+    type Data = CylinderData;
+    type Decisions = CylinderDecisions;
+
+    fn relevant_needs(needs: &Needs) -> serde_json::Value {
+        json!({ "screen_px_max": needs.screen_px[1], "lighting": needs.lighting })
+    }
+
+    fn plan(
+        spec: &CylinderSpec,
+        needs: &Needs,
+        source: &Source,
+    ) -> Result<(Plan, CylinderDecisions), PipelineError> {
+        let mut plan = Plan::default();
+        // The preview: a quarter-size texture, point-sampled, against the silhouette.
+        let preview = CylindricalTexture::capture(
+            source.shape,
+            &texture_params((spec.columns / 4).max(16) & !1, (spec.rows / 4).max(8)),
+            1,
+        )?;
+        let cov = match coverage(source.shape, &preview, &CoverageParams::default()) {
+            Ok(c) => c.share,
+            Err(CylinderError::NothingVisible { .. }) => 0.0,
+            Err(e) => return Err(e.into()),
+        };
+        if cov < spec.min_coverage {
+            plan.refuse(format!(
+                "a cylindrical texture reproduces {:.1} % of the object's silhouette (minimum {:.0} %): \
+                 radial rays miss most of it; use images with parallax",
+                100.0 * cov,
+                100.0 * spec.min_coverage
+            ));
+        } else {
+            plan.build(format!(
+                "coverage check: {:.1} % of the silhouette reproduced",
+                100.0 * cov
+            ));
+        }
+        let max_px = needs.screen_px[1].ceil() as usize;
+        let (mut columns, mut rows) = (spec.columns, spec.rows);
+        if max_px < spec.rows {
+            rows = max_px.next_power_of_two().clamp(2, spec.rows);
+            columns = (spec.columns * rows / spec.rows).max(4).next_multiple_of(2);
+            plan.skip(
+                format!("texels above {columns} × {rows}"),
+                format!(
+                    "the largest screen size is {} px: texture {columns} × {rows} instead of {} × {}",
+                    needs.screen_px[1], spec.columns, spec.rows
+                ),
+            );
+        } else {
+            plan.build(format!("texture {columns} × {rows}"));
+        }
+        let normals = needs.lighting == Lighting::Dynamic;
+        if !normals {
+            plan.skip("normals".into(), "lighting is baked".into());
+        }
+        plan.build("march bounds".into());
+        let d = source.light.direction;
+        Ok((
+            plan,
+            CylinderDecisions {
+                columns,
+                rows,
+                normals,
+                coverage: cov,
+                light: [d.x, d.y, d.z, source.light.ambient],
+            },
+        ))
+    }
+
+    fn build(
+        spec: &CylinderSpec,
+        _needs: &Needs,
+        d: &CylinderDecisions,
+        source: &Source,
+    ) -> Result<(CylinderData, serde_json::Value), PipelineError> {
+        let t0 = Instant::now();
+        let mut texture = CylindricalTexture::capture(
+            source.shape,
+            &texture_params(d.columns, d.rows),
+            spec.prefilter,
+        )?;
+        if !d.normals {
+            texture = texture.baked(&source.light);
+        }
+        let texture = texture.quantized_rgba8();
+        let capture_s = secs(t0);
+        let (bounds, report) = MarchBounds::build(&texture, &spec.bounds)?;
+        Ok((
+            CylinderData { texture, bounds },
+            json!({ "capture_s": capture_s, "bounds_s": report.build_s,
+                    "bounds_bytes": report.bytes, "texture_defined": d.coverage }),
+        ))
+    }
+
+    fn write(data: &CylinderData, w: &mut AssetWriter) -> Result<serde_json::Value, PipelineError> {
+        let t = &data.texture;
+        let (cols, rows) = (t.columns(), t.rows());
+        let (albedo, geometry) = t.codes();
+        let flat = |v: Vec<[u8; 4]>| CodeImage {
+            width: cols,
+            height: rows,
+            channels: 4,
+            data: v.into_iter().flatten().collect(),
+        };
+        let ch = |name: &str, encoding: Encoding| Channel {
+            name: name.into(),
+            encoding,
+        };
+        let signed = || Encoding::Linear {
+            scale: 2.0 / 255.0,
+            offset: -1.0,
+        };
+        w.png8(
+            "texture/albedo",
+            "texture-albedo.png",
+            &flat(albedo),
+            vec![
+                ch("albedo.r", Encoding::Srgb),
+                ch("albedo.g", Encoding::Srgb),
+                ch("albedo.b", Encoding::Srgb),
+                ch("defined", Encoding::Mask),
+            ],
+        )?;
+        w.png8(
+            "texture/geometry",
+            "texture-geometry.png",
+            &flat(geometry),
+            vec![
+                ch("normal.x", signed()),
+                ch("normal.y", signed()),
+                ch("normal.z", signed()),
+                ch("radius", signed()),
+            ],
+        )?;
+        let [bx, ry, ba] = data.bounds.cells();
+        for (role, file, codes) in [
+            ("bounds/start", "march-start.png", data.bounds.start()),
+            ("bounds/stop", "march-stop.png", data.bounds.stop()),
+        ] {
+            w.png16(
+                role,
+                file,
+                &CodeImage {
+                    width: bx,
+                    height: ry * ba,
+                    channels: 1,
+                    data: codes.to_vec(),
+                },
+                vec![ch(
+                    "sector code (see docs/asset-format.md)",
+                    Encoding::Integer,
+                )],
+            )?;
+        }
+        Ok(json!({
+            "columns": cols,
+            "rows": rows,
+            "column_angle": "column c at α_c = 2πc/columns",
+            "bounds": data.bounds.params(),
+            "bound_cells": [bx, ry, ba],
+        }))
+    }
+
+    fn read(r: &AssetReader) -> Result<CylinderData, PipelineError> {
+        r.expect_representation(Self::NAME)?;
+        let m = &r.description().metadata;
+        let get = |k: &str| -> Result<usize, PipelineError> {
+            m[k].as_u64()
+                .map(|v| v as usize)
+                .ok_or_else(|| r.content(format!("metadata.{k} missing")).into())
+        };
+        let (cols, rows) = (get("columns")?, get("rows")?);
+        let params: BoundsParams = serde_json::from_value(m["bounds"].clone())
+            .map_err(|e| r.content(format!("metadata.bounds: {e}")))?;
+        let quad = |role: &str| -> Result<Vec<[u8; 4]>, PipelineError> {
+            let img = r.png8(role)?;
+            if (img.width, img.height, img.channels) != (cols, rows, 4) {
+                return Err(r
+                    .content(format!("{role}: size differs from metadata"))
+                    .into());
+            }
+            Ok(img
+                .data
+                .chunks_exact(4)
+                .map(|c| [c[0], c[1], c[2], c[3]])
+                .collect())
+        };
+        let texture = CylindricalTexture::from_codes(
+            cols,
+            rows,
+            BoundingCylinder::default(),
+            &quad("texture/albedo")?,
+            &quad("texture/geometry")?,
+        )?;
+        let start = r.png16("bounds/start")?.data;
+        let stop = r.png16("bounds/stop")?.data;
+        let bounds = MarchBounds::from_codes(&texture, params, start, stop)?;
+        Ok(CylinderData { texture, bounds })
+    }
+
+    fn measure(
+        data: &CylinderData,
+        needs: &Needs,
+        source: &Source,
+    ) -> Result<(Measurement, Vec<Picture>), PipelineError> {
+        let size = data.texture.rows().min(64);
+        let mut scores = Vec::new();
+        let mut pictures = Vec::new();
+        let (mut steps, mut samples) = (0u64, 0u64);
+        for (i, &angle) in super::repr::measure_angles(needs, 4).iter().enumerate() {
+            let reference = truth(source, angle, size, 3)?;
+            let render = data.bounds.render(
+                &data.texture,
+                &RenderParams {
+                    angle,
+                    width: size,
+                    height: size,
+                    supersample: 1,
+                    light: source.light,
+                },
+            )?;
+            steps += render.steps;
+            samples += (render.sub_width * render.sub_height) as u64;
+            scores.push(score(&render.image, &reference)?);
+            if i == 0 {
+                pictures.push(Picture {
+                    file: format!("{}-cylinder.png", source.name),
+                    caption: format!(
+                        "{}: ground truth | cylindrical texture (bounded exact march), azimuth {:.0}°",
+                        source.name,
+                        angle.to_degrees()
+                    ),
+                    image: altrep_data_gen::RgbaImage::side_by_side(&[&reference, &render.image]),
+                });
+            }
+        }
+        let method = format!(
+            "bounded exact march of the {} × {} texture, 1 ray per pixel at {size}², vs truth 3×3 supersampled; sector tests per pixel",
+            data.texture.columns(),
+            data.texture.rows()
+        );
+        let mean = (samples > 0).then(|| steps as f64 / samples as f64);
+        Ok((fold(method, &scores, mean), pictures))
+    }
+}

@@ -23,7 +23,8 @@ const BIN: &str = env!("CARGO_BIN_EXE_altrep");
 fn source<'a>(name: &'a str, shape: &'a (dyn altrep_data_gen::Shape + Sync)) -> Source<'a> {
     Source {
         name,
-        shape,
+        geometry: Some(shape),
+        texture: None,
         light: Light::default(),
     }
 }

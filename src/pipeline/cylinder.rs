@@ -139,11 +139,11 @@ impl Representation for Cylinder {
         let mut plan = Plan::default();
         // The preview: a quarter-size texture, point-sampled, against the silhouette.
         let preview = CylindricalTexture::capture(
-            source.shape,
+            source.shape()?,
             &texture_params((spec.columns / 4).max(16) & !1, (spec.rows / 4).max(8)),
             1,
         )?;
-        let cov = match coverage(source.shape, &preview, &CoverageParams::default()) {
+        let cov = match coverage(source.shape()?, &preview, &CoverageParams::default()) {
             Ok(c) => c.share,
             Err(CylinderError::NothingVisible { .. }) => 0.0,
             Err(e) => return Err(e.into()),
@@ -202,7 +202,7 @@ impl Representation for Cylinder {
     ) -> Result<(CylinderData, serde_json::Value), PipelineError> {
         let t0 = Instant::now();
         let mut texture = CylindricalTexture::capture(
-            source.shape,
+            source.shape()?,
             &texture_params(d.columns, d.rows),
             spec.prefilter,
         )?;

@@ -63,6 +63,14 @@ pub enum PipelineError {
         /// Where it was looked for.
         what: String,
     },
+    /// The representation needs another kind of source than the asset has.
+    #[error("asset '{asset}': this representation needs {needed}")]
+    WrongSource {
+        /// The asset.
+        asset: String,
+        /// What it needs.
+        needed: &'static str,
+    },
     /// An inconsistent parameter reached the builder.
     #[error("invalid parameter: {0}")]
     Spec(String),

@@ -140,7 +140,7 @@ impl Representation for OctreeRepr {
         let n = decisions.resolution;
         let t0 = Instant::now();
         let volume = voxelize(
-            source.shape,
+            source.shape()?,
             &VoxelParams {
                 dims: [n; 3],
                 min: DVec3::new(-1.0, 0.0, -1.0),

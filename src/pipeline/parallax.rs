@@ -282,7 +282,7 @@ impl Representation for Parallax {
                     });
                 }
                 let mut g = capture_view(
-                    source.shape,
+                    source.shape()?,
                     &ViewParams {
                         angle,
                         width: params.width,

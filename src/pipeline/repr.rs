@@ -13,14 +13,35 @@ use super::manifest::{Lighting, Needs};
 use super::{PipelineError, Plan};
 use crate::asset::{AssetReader, AssetWriter};
 
-/// What a representation is built from: the asset's geometry and the scene's light.
+/// What a representation is built from: the asset's geometry (a shape or mesh, ray-cast by
+/// data-gen) or its texture, and the scene's light.
 pub struct Source<'a> {
     /// Asset name.
     pub name: &'a str,
-    /// The geometry (ray-cast by data-gen).
-    pub shape: &'a (dyn Shape + Sync),
+    /// The geometry, for assets given by `shape` or `mesh`.
+    pub geometry: Option<&'a (dyn Shape + Sync)>,
+    /// The texture, for assets given by `texture` (pyramids).
+    pub texture: Option<&'a crate::pyramid::Texture>,
     /// The scene's light (baked lighting and every measured image).
     pub light: Light,
+}
+
+impl<'a> Source<'a> {
+    /// The geometry. Errors: the asset is a texture ([`PipelineError::WrongSource`]).
+    pub fn shape(&self) -> Result<&'a (dyn Shape + Sync), PipelineError> {
+        self.geometry.ok_or_else(|| PipelineError::WrongSource {
+            asset: self.name.into(),
+            needed: "a shape or mesh",
+        })
+    }
+
+    /// The texture. Errors: the asset is a shape or mesh ([`PipelineError::WrongSource`]).
+    pub fn texture(&self) -> Result<&'a crate::pyramid::Texture, PipelineError> {
+        self.texture.ok_or_else(|| PipelineError::WrongSource {
+            asset: self.name.into(),
+            needed: "a texture",
+        })
+    }
 }
 
 /// Error figures of a representation against the ray-cast ground truth.
@@ -113,7 +134,7 @@ pub fn truth(
     k: usize,
 ) -> Result<RgbaImage, PipelineError> {
     let img = render_truth(
-        source.shape,
+        source.shape()?,
         &TruthParams {
             angle,
             width: size,

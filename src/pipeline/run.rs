@@ -255,7 +255,8 @@ pub fn plan_scene(
         let (shape, _) = load_source(spec)?;
         let source = Source {
             name: &spec.name,
-            shape: shape.as_ref(),
+            geometry: Some(shape.as_ref()),
+            texture: None,
             light,
         };
         let needs = effective_needs(spec, options.everything);
@@ -328,7 +329,8 @@ pub fn run_scene(manifest: &Manifest, options: &RunOptions) -> Result<RunSummary
                 Ok((shape, input_hash)) => {
                     let source = Source {
                         name: &spec.name,
-                        shape: shape.as_ref(),
+                        geometry: Some(shape.as_ref()),
+                        texture: None,
                         light,
                     };
                     let mut go = |repr: &str, r: Result<AssetOutcome, PipelineError>| {

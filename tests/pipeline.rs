@@ -626,3 +626,80 @@ proptest! {
         }
     }
 }
+
+#[test]
+fn capture_rerun_leaves_no_stale_views() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("cap");
+    let run = |views: &str| {
+        let o = Command::new(BIN)
+            .args([
+                "capture", "--shape", "pear", "--size", "8", "--views", views, "--out",
+            ])
+            .arg(&out)
+            .output()
+            .unwrap();
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    };
+    run("8");
+    assert!(out.join("view007.albedo.png").exists());
+    run("2");
+    assert!(out.join("view001.albedo.png").exists());
+    assert!(
+        !out.join("view007.albedo.png").exists(),
+        "a view of the earlier run survived"
+    );
+    let leftovers: Vec<_> = std::fs::read_dir(dir.path())
+        .unwrap()
+        .map(|e| e.unwrap().file_name())
+        .collect();
+    assert_eq!(leftovers, vec![std::ffi::OsString::from("cap")]);
+}
+
+#[test]
+fn every_json_output_is_checked_before_the_work() {
+    for cmd in [
+        vec!["parallax", "--shape", "pear"],
+        vec!["cylinder", "--shape", "pear"],
+        vec!["fit-bench"],
+        vec!["ellipsoid-bench"],
+        vec!["pyramid"],
+        vec!["slices"],
+    ] {
+        let t0 = Instant::now();
+        let o = Command::new(BIN)
+            .args(&cmd)
+            .args(["--json", "no/such/dir/x.json"])
+            .output()
+            .unwrap();
+        assert!(!o.status.success(), "{cmd:?}");
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(err.contains("no/such/dir"), "{cmd:?}: {err}");
+        // Failing before the work: the message says the folder is missing (no output of a run).
+        assert!(
+            String::from_utf8_lossy(&o.stdout).trim().is_empty(),
+            "{cmd:?} printed results before failing"
+        );
+        let _ = t0;
+    }
+}
+
+#[test]
+fn shards_split_the_assets_once() {
+    use altrep::pipeline::Shard;
+    let names: Vec<String> = (0..40).map(|i| format!("asset{i}")).collect();
+    let shards: Vec<Shard> = (0..3)
+        .map(|i| Shard::parse(&format!("{i}/3")).unwrap())
+        .collect();
+    for n in &names {
+        assert_eq!(shards.iter().filter(|s| s.owns(n)).count(), 1, "{n}");
+    }
+    let sizes: Vec<usize> = shards
+        .iter()
+        .map(|s| names.iter().filter(|n| s.owns(n)).count())
+        .collect();
+    assert!(sizes.iter().all(|&k| k >= 5), "unbalanced shards {sizes:?}");
+    for bad in ["3/3", "1", "a/2", "0/0"] {
+        assert!(Shard::parse(bad).is_err(), "{bad}");
+    }
+}

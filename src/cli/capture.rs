@@ -48,18 +48,58 @@ pub fn run(args: CaptureArgs) -> CliResult {
     let t_load = Instant::now();
     let shape = load_shape(args.mesh.as_ref(), args.shape.as_deref())?;
     let load_ms = t_load.elapsed().as_secs_f64() * 1e3;
+    // Everything is written into a staging folder beside `--out`, then swapped in whole: a rerun
+    // never leaves files of an earlier run (e.g. more views) beside the new ones, and an
+    // interrupted run leaves the earlier output intact.
+    let parent = match args.out.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
+        _ => PathBuf::from("."),
+    };
+    std::fs::create_dir_all(&parent)
+        .map_err(|e| format!("cannot create {}: {e}", parent.display()))?;
+    let name = args
+        .out
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .ok_or_else(|| format!("--out {} has no folder name", args.out.display()))?;
+    let staging = parent.join(format!(".{name}.staging{}", std::process::id()));
+    if staging.exists() {
+        std::fs::remove_dir_all(&staging)
+            .map_err(|e| format!("cannot clear {}: {e}", staging.display()))?;
+    }
+    std::fs::create_dir_all(&staging)
+        .map_err(|e| format!("cannot create {}: {e}", staging.display()))?;
+    let result = capture_into(&args, shape.as_ref(), &staging, load_ms);
+    match result {
+        Ok(summary) => {
+            crate::asset::replace_dir(&staging, &args.out)?;
+            println!("{summary}");
+            Ok(())
+        }
+        Err(e) => {
+            let _ = std::fs::remove_dir_all(&staging);
+            Err(e)
+        }
+    }
+}
+
+/// Captures the views into `dir`; returns the summary line.
+fn capture_into(
+    args: &CaptureArgs,
+    shape: &dyn Shape,
+    dir: &std::path::Path,
+    load_ms: f64,
+) -> Result<String, Box<dyn std::error::Error + Send + Sync>> {
     let cylinder = BoundingCylinder::default();
     let size = args.size as usize;
     let n = args.views as usize;
-    std::fs::create_dir_all(&args.out)
-        .map_err(|e| format!("cannot create {}: {e}", args.out.display()))?;
     let mut capture_s = 0.0;
     let mut files = Vec::new();
     for k in 0..n {
         let angle = std::f64::consts::TAU * k as f64 / n as f64;
         let t0 = Instant::now();
         let view = capture_view(
-            shape.as_ref(),
+            shape,
             &ViewParams {
                 angle,
                 width: size,
@@ -68,7 +108,7 @@ pub fn run(args: CaptureArgs) -> CliResult {
             },
         )?;
         capture_s += t0.elapsed().as_secs_f64();
-        let base = args.out.join(format!("view{k:03}"));
+        let base = dir.join(format!("view{k:03}"));
         let colour = base.with_extension("color.png");
         view.shade(&Light::default()).write_png(&colour)?;
         let albedo = base.with_extension("albedo.png");
@@ -90,14 +130,13 @@ pub fn run(args: CaptureArgs) -> CliResult {
         "conventions": "view k looks along -d(2πk/N); depth16: 0 = undefined, 1..65535 maps depth/R in [-1,1]; normal: rgb=(n+1)/2, object frame",
         "load_ms": load_ms, "rays": rays, "rays_per_second": rps, "files": files,
     });
-    let json_path = args.out.join("capture.json");
+    let json_path = dir.join("capture.json");
     std::fs::write(&json_path, serde_json::to_string_pretty(&desc)?)?;
-    println!(
+    Ok(format!(
         "captured {} views of {} at {size}×{size} into {}: {rays:.0} rays in {:.1} ms, {rps:.3e} rays/s (load {load_ms:.0} ms)",
         n,
         shape.name(),
         args.out.display(),
         capture_s * 1e3
-    );
-    Ok(())
+    ))
 }

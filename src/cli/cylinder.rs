@@ -78,6 +78,10 @@ pub fn parse_grid(s: &str) -> Result<[usize; 3], String> {
 
 /// Runs `altrep cylinder`.
 pub fn run(args: CylinderArgs) -> CliResult {
+    // Output paths are checked before the work, not after it.
+    if let Some(path) = &args.json {
+        super::precompute::check_writable(path)?;
+    }
     let shapes: Vec<Box<dyn Shape>> = if args.suite {
         let mut shapes = Vec::new();
         for name in ["truck", "pear", "tree", "chair"] {

@@ -100,6 +100,10 @@ fn winner_line(rows: &[FilterRow], case: &str) -> Option<String> {
 
 /// Runs `altrep ellipsoid-bench`.
 pub fn run(args: EllipsoidBenchArgs) -> CliResult {
+    // Output paths are checked before the work, not after it.
+    if let Some(path) = &args.json {
+        super::precompute::check_writable(path)?;
+    }
     let on = |s: Section| args.sections.contains(&s);
     let mut report = EllipsoidBenchReport {
         eigen: Vec::new(),

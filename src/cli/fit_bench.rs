@@ -136,6 +136,10 @@ fn median(mut v: Vec<f64>) -> f64 {
 
 /// Runs `altrep fit-bench`.
 pub fn run(args: FitBenchArgs) -> CliResult {
+    // Output paths are checked before the work, not after it.
+    if let Some(path) = &args.json {
+        super::precompute::check_writable(path)?;
+    }
     let periodic = parse_periodic(&args.periodic)?;
     let cells = args.grid;
     let t0 = Instant::now();

@@ -131,6 +131,10 @@ pub fn quality_markdown(rows: &[QualityRow]) -> String {
 
 /// Runs `altrep parallax`.
 pub fn run(args: ParallaxArgs) -> CliResult {
+    // Output paths are checked before the work, not after it.
+    if let Some(path) = &args.json {
+        super::precompute::check_writable(path)?;
+    }
     let shape = load_shape(args.mesh.as_ref(), args.shape.as_deref())?;
     let base = ParallaxParams {
         views: args.views as usize,

@@ -55,6 +55,10 @@ fn parse_filter(s: &str) -> Result<Filter, String> {
 
 /// Runs the sweep, the build timings and the fusion experiment; prints the tables.
 pub fn run(args: PyramidArgs) -> CliResult {
+    // Output paths are checked before the work, not after it.
+    if let Some(path) = &args.json {
+        super::precompute::check_writable(path)?;
+    }
     let filter = parse_filter(&args.filter)?;
     let params = PyramidParams {
         filter,

@@ -202,6 +202,10 @@ fn print_report(r: &MeasureReport, all_rows: bool) {
 
 /// Runs `altrep slices`.
 pub fn run(args: SlicesArgs) -> CliResult {
+    // Output paths are checked before the work, not after it.
+    if let Some(path) = &args.json {
+        super::precompute::check_writable(path)?;
+    }
     let params = MeasureParams {
         size: args.size,
         tiles: args.tiles.iter().map(|t| TestTile::from(*t)).collect(),

@@ -426,6 +426,23 @@ fn an_object_no_view_sees_is_a_typed_error() {
         other => panic!("an invisible object must fail, got {other:?}"),
     }
     assert!(!dir.path().join("out/flat/parallax").exists());
+    // The same from every command that takes a mesh.
+    for cmd in ["capture", "parallax", "cylinder"] {
+        let mut c = Command::new(BIN);
+        c.args([cmd, "--mesh"]).arg(dir.path().join("flat.obj"));
+        if cmd == "capture" {
+            c.arg("--out").arg(dir.path().join("cli-capture"));
+        }
+        let o = c.output().unwrap();
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(!o.status.success(), "{cmd} accepted an invisible object");
+        assert!(
+            err.contains("not visible")
+                || err.contains("nothing visible")
+                || err.contains("no view sees"),
+            "{cmd}: {err}"
+        );
+    }
 }
 
 #[test]

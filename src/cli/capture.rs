@@ -95,6 +95,7 @@ fn capture_into(
     let n = args.views as usize;
     let mut capture_s = 0.0;
     let mut files = Vec::new();
+    let mut seen = false;
     for k in 0..n {
         let angle = std::f64::consts::TAU * k as f64 / n as f64;
         let t0 = Instant::now();
@@ -108,6 +109,7 @@ fn capture_into(
             },
         )?;
         capture_s += t0.elapsed().as_secs_f64();
+        seen |= view.coverage() > 0.0;
         let base = dir.join(format!("view{k:03}"));
         let colour = base.with_extension("color.png");
         view.shade(&Light::default()).write_png(&colour)?;
@@ -121,6 +123,12 @@ fn capture_into(
             "view": k, "angle_rad": angle, "coverage": view.coverage(),
             "color": colour, "albedo": albedo, "normal": normal, "depth16": depth,
         }));
+    }
+    if !seen {
+        return Err(format!(
+            "the object is not visible in any of the {n} views (every ray missed it): nothing to capture"
+        )
+        .into());
     }
     let rays = (n * size * size) as f64;
     let rps = rays / capture_s;

@@ -23,8 +23,8 @@ use std::path::PathBuf;
 
 use serde::{Deserialize, Serialize};
 
-pub use read::AssetReader;
-pub use write::{AssetWriter, STAGING_DIR, replace_dir, valid_name, write_atomic};
+pub use read::{AssetReader, PngDecode};
+pub use write::{AssetWriter, PngCode, STAGING_DIR, replace_dir, valid_name, write_atomic};
 
 /// Major version of the asset format. A reader refuses a file of a newer major version; minor
 /// versions only add optional fields.

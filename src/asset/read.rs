@@ -196,22 +196,17 @@ impl AssetReader {
         }
     }
 
-    /// Decodes the 8-bit PNG with `role`.
-    pub fn png8(&self, role: &str) -> Result<CodeImage<u8>, AssetError> {
-        let (e, bytes) = self.entry(role, FileFormat::Png8)?;
+    /// Decodes the PNG with `role` into codes of its depth (`u8` for `png8`, `u16` for
+    /// `png16`). Errors: another format or depth, a size or channel count that differs from
+    /// `asset.json`.
+    pub fn png<T: PngDecode>(&self, role: &str) -> Result<CodeImage<T>, AssetError> {
+        let (e, bytes) = self.entry(role, T::FORMAT)?;
         let img = self.decode_image(e, bytes)?;
-        let (channels, data) = match img {
-            DynamicImage::ImageLuma8(b) => (1, b.into_raw()),
-            DynamicImage::ImageLumaA8(b) => (2, b.into_raw()),
-            DynamicImage::ImageRgb8(b) => (3, b.into_raw()),
-            DynamicImage::ImageRgba8(b) => (4, b.into_raw()),
-            other => {
-                return Err(AssetError::Decode {
-                    path: self.dir.join(&e.path),
-                    reason: format!("{:?} is not an 8-bit image", other.color()),
-                });
-            }
-        };
+        let color = img.color();
+        let (channels, data) = T::raw(img).ok_or_else(|| AssetError::Decode {
+            path: self.dir.join(&e.path),
+            reason: format!("{color:?} is not a {:?} image", T::FORMAT),
+        })?;
         if channels != e.channels.len() {
             return Err(self.channel_mismatch(e, channels));
         }
@@ -223,31 +218,14 @@ impl AssetReader {
         })
     }
 
-    /// Decodes the 16-bit PNG with `role`.
+    /// Decodes the 8-bit PNG with `role` (see [`Self::png`]).
+    pub fn png8(&self, role: &str) -> Result<CodeImage<u8>, AssetError> {
+        self.png(role)
+    }
+
+    /// Decodes the 16-bit PNG with `role` (see [`Self::png`]).
     pub fn png16(&self, role: &str) -> Result<CodeImage<u16>, AssetError> {
-        let (e, bytes) = self.entry(role, FileFormat::Png16)?;
-        let img = self.decode_image(e, bytes)?;
-        let (channels, data) = match img {
-            DynamicImage::ImageLuma16(b) => (1, b.into_raw()),
-            DynamicImage::ImageLumaA16(b) => (2, b.into_raw()),
-            DynamicImage::ImageRgb16(b) => (3, b.into_raw()),
-            DynamicImage::ImageRgba16(b) => (4, b.into_raw()),
-            other => {
-                return Err(AssetError::Decode {
-                    path: self.dir.join(&e.path),
-                    reason: format!("{:?} is not a 16-bit image", other.color()),
-                });
-            }
-        };
-        if channels != e.channels.len() {
-            return Err(self.channel_mismatch(e, channels));
-        }
-        Ok(CodeImage {
-            width: e.width,
-            height: e.height,
-            channels,
-            data,
-        })
+        self.png(role)
     }
 
     /// Decodes the EXR with `role` as RGBA f32.
@@ -288,5 +266,39 @@ impl AssetReader {
             .file(role)
             .map(|e| e.channels.as_slice())
             .ok_or_else(|| self.content(format!("no file with role '{role}'")))
+    }
+}
+
+/// A code type a PNG decodes to: `u8` or `u16`.
+pub trait PngDecode: Sized {
+    /// The file format of this depth.
+    const FORMAT: FileFormat;
+    /// `(channels, codes)` of an image of this depth, `None` for another depth.
+    fn raw(img: DynamicImage) -> Option<(usize, Vec<Self>)>;
+}
+
+impl PngDecode for u8 {
+    const FORMAT: FileFormat = FileFormat::Png8;
+    fn raw(img: DynamicImage) -> Option<(usize, Vec<Self>)> {
+        match img {
+            DynamicImage::ImageLuma8(b) => Some((1, b.into_raw())),
+            DynamicImage::ImageLumaA8(b) => Some((2, b.into_raw())),
+            DynamicImage::ImageRgb8(b) => Some((3, b.into_raw())),
+            DynamicImage::ImageRgba8(b) => Some((4, b.into_raw())),
+            _ => None,
+        }
+    }
+}
+
+impl PngDecode for u16 {
+    const FORMAT: FileFormat = FileFormat::Png16;
+    fn raw(img: DynamicImage) -> Option<(usize, Vec<Self>)> {
+        match img {
+            DynamicImage::ImageLuma16(b) => Some((1, b.into_raw())),
+            DynamicImage::ImageLumaA16(b) => Some((2, b.into_raw())),
+            DynamicImage::ImageRgb16(b) => Some((3, b.into_raw())),
+            DynamicImage::ImageRgba16(b) => Some((4, b.into_raw())),
+            _ => None,
+        }
     }
 }

@@ -126,12 +126,13 @@ impl AssetWriter {
         Ok(())
     }
 
-    /// Adds an 8-bit PNG of `image.channels` (1–4) channels. Cost: PNG encoding.
-    pub fn png8(
+    /// Adds a PNG of `image.channels` (1–4) channels, 8 bits (`u8` codes) or 16 bits (`u16`).
+    /// Cost: PNG encoding.
+    pub fn png<T: PngCode>(
         &mut self,
         role: &str,
         file: &str,
-        image: &CodeImage<u8>,
+        image: &CodeImage<T>,
         channels: Vec<Channel>,
     ) -> Result<(), AssetError> {
         check_image(role, image, &channels)?;
@@ -142,7 +143,7 @@ impl AssetWriter {
         self.add(
             role,
             file,
-            FileFormat::Png8,
+            T::FORMAT,
             (image.width, image.height),
             channels,
             0,
@@ -150,7 +151,18 @@ impl AssetWriter {
         )
     }
 
-    /// Adds a 16-bit PNG of `image.channels` (1–4) channels. Cost: PNG encoding.
+    /// Adds an 8-bit PNG (see [`Self::png`]).
+    pub fn png8(
+        &mut self,
+        role: &str,
+        file: &str,
+        image: &CodeImage<u8>,
+        channels: Vec<Channel>,
+    ) -> Result<(), AssetError> {
+        self.png(role, file, image, channels)
+    }
+
+    /// Adds a 16-bit PNG (see [`Self::png`]).
     pub fn png16(
         &mut self,
         role: &str,
@@ -158,20 +170,7 @@ impl AssetWriter {
         image: &CodeImage<u16>,
         channels: Vec<Channel>,
     ) -> Result<(), AssetError> {
-        check_image(role, image, &channels)?;
-        let bytes = encode_png(image).map_err(|reason| AssetError::BadData {
-            role: role.into(),
-            reason,
-        })?;
-        self.add(
-            role,
-            file,
-            FileFormat::Png16,
-            (image.width, image.height),
-            channels,
-            0,
-            bytes,
-        )
+        self.png(role, file, image, channels)
     }
 
     /// Adds a 32-bit float RGBA EXR (lossless). Errors: a non-finite value, sizes.
@@ -355,6 +354,8 @@ fn check_image<T>(
 
 /// A code type a PNG can store: `u8` or `u16`.
 pub trait PngCode: Copy {
+    /// The file format of this depth.
+    const FORMAT: FileFormat;
     /// The PNG colour type of `channels` channels of this depth.
     fn color(channels: usize) -> Option<image::ExtendedColorType>;
     /// The codes as native-endian bytes (what `image`'s encoders take).
@@ -362,6 +363,7 @@ pub trait PngCode: Copy {
 }
 
 impl PngCode for u8 {
+    const FORMAT: FileFormat = FileFormat::Png8;
     fn color(channels: usize) -> Option<image::ExtendedColorType> {
         use image::ExtendedColorType as C;
         [C::L8, C::La8, C::Rgb8, C::Rgba8]
@@ -374,6 +376,7 @@ impl PngCode for u8 {
 }
 
 impl PngCode for u16 {
+    const FORMAT: FileFormat = FileFormat::Png16;
     fn color(channels: usize) -> Option<image::ExtendedColorType> {
         use image::ExtendedColorType as C;
         [C::L16, C::La16, C::Rgb16, C::Rgba16]

@@ -6,7 +6,7 @@
 
 use std::path::PathBuf;
 
-use crate::slices::{MeasureParams, MeasureReport, MergeRule, TestTile, measure};
+use crate::slices::{MeasureParams, MeasureReport, MergeRule, Reconstruction, TestTile, measure};
 
 use super::CliResult;
 
@@ -46,6 +46,10 @@ pub struct SlicesArgs {
     /// Only views from above (skip the opposite side).
     #[arg(long)]
     pub one_side: bool,
+    /// Reconstruction of voxels (truth) and texels (slices): linear (GPU linear filtering) or
+    /// nearest (box voxels, which compositing commutes with).
+    #[arg(long, value_enum, default_value_t = FilterArg::Linear)]
+    pub filter: FilterArg,
     /// Ground-truth march samples per voxel.
     #[arg(long, default_value_t = 8)]
     pub truth_steps: usize,
@@ -55,6 +59,15 @@ pub struct SlicesArgs {
     /// Print every row of the sweep (default: the rows at the first distance).
     #[arg(long)]
     pub all_rows: bool,
+}
+
+/// Reconstruction on the command line.
+#[derive(clap::ValueEnum, Clone, Copy, Debug)]
+pub enum FilterArg {
+    /// Trilinear volume, bilinear slices.
+    Linear,
+    /// Box voxels and texels.
+    Nearest,
 }
 
 /// A test tile on the command line.
@@ -85,9 +98,9 @@ fn print_report(r: &MeasureReport, all_rows: bool) {
     let rules: Vec<&str> = MergeRule::ALL.iter().map(|m| m.name()).collect();
     let def = r.default_rule.name();
     println!(
-        "PSNR (dB) against the ray-marched volume; y stack at the criterion's level (d = {} px), \
-         merged = {def}; three = direction by argmin (1/c²−1)h² at its level",
-        r.params.d_pixels
+        "PSNR (dB) against the ray-marched volume ({:?} reconstruction); y stack at the criterion's \
+         level (d = {} px), merged = {def}; three = direction by argmin (1/c²−1)h² at its level",
+        r.params.filter, r.params.d_pixels
     );
     println!(
         "\n| tile | px/voxel | side | angle | need | y slices | all y | {} | three (axis:slices) | three | three, all | three, 1 spp + 2D mip |",
@@ -211,6 +224,10 @@ pub fn run(args: SlicesArgs) -> CliResult {
         d_pixels: args.d_pixels,
         both_sides: !args.one_side,
         truth_steps: args.truth_steps,
+        filter: match args.filter {
+            FilterArg::Linear => Reconstruction::Linear,
+            FilterArg::Nearest => Reconstruction::Nearest,
+        },
         seed: args.seed,
         ..MeasureParams::default()
     };

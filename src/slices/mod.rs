@@ -74,13 +74,14 @@ pub use build::{
 };
 pub use curved::{CurvedParams, render_curved_slices, render_curved_truth};
 pub use measure::{
-    CurvedRow, LevelRow, MeasureParams, MeasureReport, RuleSummary, SweepRow, TileSummary, measure,
+    CurvedRow, LevelRow, MeasureParams, MeasureReport, RuleSummary, SweepRow, TileSummary,
+    ViewError, measure, view_errors,
 };
 pub use merge::{MergeRule, Side, SliceData, SliceParams, SliceReport, Stack, build_slices};
 pub use render::{RenderParams, View, render_slices};
 pub use stack::{Axis, ViewChoice, choose, choose_direction, level_for_slices, slices_needed};
 pub use truth::{TruthParams, render_truth};
-pub use volume::TexelVolume;
+pub use volume::{Reconstruction, TexelVolume};
 
 use altrep_data_gen::DataGenError;
 

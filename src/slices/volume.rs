@@ -178,6 +178,29 @@ impl TexelVolume {
     }
 }
 
+impl TexelVolume {
+    /// The voxel containing `p` (world units; box reconstruction), wrapped in `x` and `z`,
+    /// clamped in `y`. Cost: one voxel read.
+    pub fn sample_nearest(&self, p: DVec3) -> [f64; 4] {
+        let g = p / self.voxel;
+        let [nx, ny, nz] = self.dims;
+        let wrap = |i: f64, n: usize| (i.floor() as i64).rem_euclid(n as i64) as usize;
+        let y = (g.y.floor().max(0.0) as usize).min(ny - 1);
+        self.get(wrap(g.x, nx), y, wrap(g.z, nz)).map(f64::from)
+    }
+}
+
+/// How the voxels (and the slice texels) are reconstructed between their centres.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+pub enum Reconstruction {
+    /// Trilinear in the volume, bilinear within a slice (as a GPU's linear filtering).
+    #[default]
+    Linear,
+    /// Box: each voxel (texel) constant over its cell (a GPU's nearest filtering). Compositing
+    /// commutes with it, so merged slices are exact straight on.
+    Nearest,
+}
+
 /// Opacity of a path of `ratio` times the reference thickness through material of opacity `a`
 /// (for the reference thickness): `1 − (1 − a)^ratio`, with `a` capped at [`MAX_ALPHA`].
 #[inline]

@@ -732,6 +732,49 @@ fn bad_input_gives_typed_errors() {
     assert!(slices_needed(1.0, 0.1, 0.0).is_err());
 }
 
+/// Only what the views select is built: directions and levels (SPEC §9, "skip what a view does
+/// not need").
+#[test]
+fn for_views_builds_only_the_selected_axes_and_levels() {
+    let vol = uniform(16, [0.1, 0.1, 0.1, 0.2]);
+    let views = [View::degrees(0.0, 0.0), View::degrees(80.0, 0.0)];
+    let params =
+        SliceParams::for_views(&vol, &views, vol.voxel_size(), &SliceParams::default()).unwrap();
+    assert_eq!(params.axes, [true, true, false]);
+    // 0°: y, one slice (level 4). 80° at azimuth 0: x is 10° off, 16·tan 10° = 2.8 → 4 slices.
+    assert_eq!(params.levels, Some(vec![2, 4]));
+    let (data, report) = build_slices(&vol, &params).unwrap();
+    let built: Vec<(Axis, usize, usize)> = report.stacks.clone();
+    assert_eq!(
+        built,
+        vec![
+            (Axis::X, 2, 4),
+            (Axis::X, 4, 1),
+            (Axis::Y, 2, 4),
+            (Axis::Y, 4, 1)
+        ]
+    );
+    assert!(matches!(
+        data.stack(Axis::Y, 0),
+        Err(SliceError::MissingStack {
+            axis: Axis::Y,
+            level: 0
+        })
+    ));
+    let (full, full_report) = build_slices(&vol, &SliceParams::default()).unwrap();
+    assert!(report.bytes < full_report.bytes);
+    assert_eq!(full.stacks().len(), 15);
+    assert!(SliceParams::for_views(&vol, &[], 0.1, &SliceParams::default()).is_err());
+    let beyond = SliceParams {
+        levels: Some(vec![5]),
+        ..SliceParams::default()
+    };
+    assert!(matches!(
+        build_slices(&vol, &beyond),
+        Err(SliceError::InvalidParameter { name: "level", .. })
+    ));
+}
+
 #[test]
 fn slice_params_round_trip_and_reject_unknown_fields() {
     let p = SliceParams::default();

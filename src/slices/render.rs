@@ -101,7 +101,8 @@ impl Default for RenderParams {
 }
 
 impl RenderParams {
-    /// Errors: zero sizes or sub-samples, a non-positive or non-finite pixel size or offset.
+    /// Errors: zero sizes, more than 64 sub-samples per side, a pixel size outside
+    /// `[1e-6, 1e6]` voxels, an offset that is not finite or beyond `1e9`.
     pub fn validate(&self) -> Result<(), SliceError> {
         for (n, what) in [
             (self.width, "image width"),

@@ -33,7 +33,7 @@ impl Default for TruthParams {
 /// Renders the ground truth of `volume` seen from `view`. Cost: per sub-sample
 /// `steps_per_voxel · path/s` trilinear samples (8 voxel reads each), rows in parallel.
 ///
-/// Errors: invalid view or parameters, zero steps.
+/// Errors: invalid view or parameters, zero or more than 4096 steps.
 pub fn render_truth(
     volume: &TexelVolume,
     view: &View,
@@ -45,6 +45,13 @@ pub fn render_truth(
     if truth.steps_per_voxel == 0 {
         return Err(SliceError::ZeroSize {
             what: "march steps per voxel",
+        });
+    }
+    if truth.steps_per_voxel > 4096 {
+        return Err(SliceError::InvalidParameter {
+            name: "march steps per voxel",
+            value: format!("{}", truth.steps_per_voxel),
+            reason: "at most 4096",
         });
     }
     let s = volume.voxel_size();

@@ -8,7 +8,7 @@
 //! a level per view ([`stack`]: the seed's criterion `h·tan a / d ≤ 1` and its direction rule
 //! `argmin (1/c_i² − 1)·h_i²`), draws them on the CPU over a flat patch ([`render_slices`]) or
 //! a curved one ([`curved`]: shells over a cylinder) and measures them against a ray-marched
-//! ground truth of the same volume ([`render_truth`], [`measure`]).
+//! ground truth of the same volume ([`render_truth`], [`measure()`]).
 //!
 //! ## Conventions (written once here)
 //!

@@ -285,16 +285,18 @@ pub fn from_height_field(
         })
         .collect();
     let mut rgba = vec![[0.0f32; 4]; nx * ny * nz];
-    for z in 0..nz {
-        for y in 0..ny {
-            for x in 0..nx {
-                let c = z * nx + x;
-                let a = (heights[c] * ny as f64 - y as f64).clamp(0.0, 1.0) as f32;
-                let col = colours[c];
-                rgba[x + nx * (y + ny * z)] = [col[0] * a, col[1] * a, col[2] * a, a];
+    rgba.par_chunks_mut(nx * ny)
+        .enumerate()
+        .for_each(|(z, slab)| {
+            for y in 0..ny {
+                for x in 0..nx {
+                    let c = z * nx + x;
+                    let a = (heights[c] * ny as f64 - y as f64).clamp(0.0, 1.0) as f32;
+                    let col = colours[c];
+                    slab[x + nx * y] = [col[0] * a, col[1] * a, col[2] * a, a];
+                }
             }
-        }
-    }
+        });
     TexelVolume::new(params.dims, params.voxel, rgba)
 }
 

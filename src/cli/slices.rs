@@ -1,8 +1,9 @@
 //! `altrep slices`: volumetric textures as slices (SPEC §9, issue 13). Builds the four test
 //! tiles, cuts them into three stacks with mipmapped merges under every rule, and prints PSNR
 //! against the ray-marched volume per view angle, distance and side (all slices, dropped slices
-//! and every merge rule at the criterion's level, one direction against three), error against
-//! level, a summary per rule and per tile (merge gain, slices drawn, bytes, build time).
+//! and every merge rule at the criterion's level, one direction against three, one sample per
+//! pixel with 2D mip-maps), error against level, shells over a cylindrical patch per level and
+//! rule, a summary per rule and per tile (merge gain, slices drawn, bytes, build time).
 
 use std::path::PathBuf;
 

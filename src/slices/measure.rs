@@ -237,7 +237,8 @@ pub struct TileSummary {
     pub three_gain_grazing_db: f64,
     /// The same with all slices of each direction.
     pub three_gain_grazing_all_db: f64,
-    /// Mean slices drawn per tile (three directions, criterion), and with all `y` slices.
+    /// Mean slices drawn per tile over the sweep (three directions, criterion's level; all
+    /// slices would be `N`).
     pub slices_drawn_mean: f64,
     /// Bytes of the default rule's stacks (RGBA8, all levels and axes, 2D mips).
     pub bytes: usize,

@@ -3,10 +3,10 @@
 
 use altrep::metrics::psnr;
 use altrep::slices::{
-    Axis, HeightField, HeightFieldParams, ImplicitParams, MergeRule, RenderParams, Side,
-    SliceError, SliceParams, TestTile, TexelVolume, TruthParams, View, build_slices, choose,
+    Axis, HeightField, HeightFieldParams, ImplicitParams, MergeRule, Reconstruction, RenderParams,
+    Side, SliceError, SliceParams, TestTile, TexelVolume, TruthParams, View, build_slices, choose,
     choose_direction, from_height_field, from_implicit, level_for_slices, render_slices,
-    render_truth, slices_needed, test_tile,
+    render_truth, slices_needed, test_tile, view_errors,
 };
 use altrep::slices::{
     CurvedParams, ShapeParams, from_shape, render_curved_slices, render_curved_truth,
@@ -233,13 +233,23 @@ fn truth_has_converged_at_eight_steps_per_voxel() {
     let rp = small_render(24);
     for polar in [0.0, 60.0] {
         let view = View::degrees(polar, 30.0);
-        let t8 = render_truth(&vol, &view, &rp, &TruthParams { steps_per_voxel: 8 }).unwrap();
+        let t8 = render_truth(
+            &vol,
+            &view,
+            &rp,
+            &TruthParams {
+                steps_per_voxel: 8,
+                ..TruthParams::default()
+            },
+        )
+        .unwrap();
         let t32 = render_truth(
             &vol,
             &view,
             &rp,
             &TruthParams {
                 steps_per_voxel: 32,
+                ..TruthParams::default()
             },
         )
         .unwrap();
@@ -332,6 +342,36 @@ fn merged_levels_are_exact_at_texel_centres_seen_straight_on() {
     }
 }
 
+/// With nearest (box) reconstruction in the truth and in the slices, compositing commutes with
+/// the filter: straight on, every merged level equals the truth at any sub-sample position
+/// (up to f32 rounding and the truth's quadrature of a box medium, exact at 8 steps per voxel).
+#[test]
+fn nearest_reconstruction_makes_merges_exact_straight_on() {
+    let vol = test_tile(TestTile::Grass, 16, 6).unwrap();
+    let (data, _) = build_slices(&vol, &SliceParams::default()).unwrap();
+    let rp = RenderParams {
+        filter: Reconstruction::Nearest,
+        supersample: 3,
+        ..small_render(16)
+    };
+    let truth_params = TruthParams {
+        filter: Reconstruction::Nearest,
+        ..TruthParams::default()
+    };
+    for polar in [0.0, 180.0] {
+        let view = View::degrees(polar, 17.0);
+        let truth = render_truth(&vol, &view, &rp, &truth_params).unwrap();
+        for level in 0..5 {
+            let img = render_slices(&data, Axis::Y, level, &view, &rp).unwrap();
+            for (p, q) in img.pixels.iter().zip(&truth.pixels) {
+                for c in 0..4 {
+                    assert_abs_diff_eq!(p[c], q[c], epsilon = 1e-4);
+                }
+            }
+        }
+    }
+}
+
 /// Far away (4 voxels per pixel), one sample per pixel: 2D mip-mapped slices are closer to the
 /// supersampled truth than the finest level read alone (aliasing), by at least 2 dB.
 #[test]
@@ -366,6 +406,33 @@ fn slice_mipmaps_reduce_aliasing_at_a_distance() {
         with >= without + 2.0,
         "mip {with:.1} dB, no mip {without:.1} dB"
     );
+}
+
+#[test]
+fn view_errors_pick_the_criterion_level_and_measure_it() {
+    let vol = test_tile(TestTile::Perlin, 16, 4).unwrap();
+    let (data, _) = build_slices(&vol, &SliceParams::default()).unwrap();
+    let views = [View::degrees(0.0, 30.0), View::degrees(75.0, 30.0)];
+    let rp = small_render(16);
+    let rows = view_errors(
+        &vol,
+        &data,
+        &views,
+        vol.voxel_size(),
+        &rp,
+        &TruthParams::default(),
+    )
+    .unwrap();
+    assert_eq!(rows[0].choice.axis, Axis::Y);
+    assert_eq!(rows[0].choice.slices, 1);
+    assert_ne!(rows[1].choice.axis, Axis::Y);
+    for r in &rows {
+        assert!(r.psnr_db.is_finite() && r.psnr_db > 15.0, "{r:?}");
+        let expect = -20.0 * r.rmse.log10();
+        assert_relative_eq!(r.psnr_db, expect.min(99.0), max_relative = 1e-9);
+    }
+    let other = uniform(8, [0.0; 4]);
+    assert!(view_errors(&other, &data, &views, 0.1, &rp, &TruthParams::default()).is_err());
 }
 
 #[test]
@@ -665,6 +732,49 @@ fn bad_input_gives_typed_errors() {
     assert!(slices_needed(1.0, 0.1, 0.0).is_err());
 }
 
+/// Only what the views select is built: directions and levels (SPEC §9, "skip what a view does
+/// not need").
+#[test]
+fn for_views_builds_only_the_selected_axes_and_levels() {
+    let vol = uniform(16, [0.1, 0.1, 0.1, 0.2]);
+    let views = [View::degrees(0.0, 0.0), View::degrees(80.0, 0.0)];
+    let params =
+        SliceParams::for_views(&vol, &views, vol.voxel_size(), &SliceParams::default()).unwrap();
+    assert_eq!(params.axes, [true, true, false]);
+    // 0°: y, one slice (level 4). 80° at azimuth 0: x is 10° off, 16·tan 10° = 2.8 → 4 slices.
+    assert_eq!(params.levels, Some(vec![2, 4]));
+    let (data, report) = build_slices(&vol, &params).unwrap();
+    let built: Vec<(Axis, usize, usize)> = report.stacks.clone();
+    assert_eq!(
+        built,
+        vec![
+            (Axis::X, 2, 4),
+            (Axis::X, 4, 1),
+            (Axis::Y, 2, 4),
+            (Axis::Y, 4, 1)
+        ]
+    );
+    assert!(matches!(
+        data.stack(Axis::Y, 0),
+        Err(SliceError::MissingStack {
+            axis: Axis::Y,
+            level: 0
+        })
+    ));
+    let (full, full_report) = build_slices(&vol, &SliceParams::default()).unwrap();
+    assert!(report.bytes < full_report.bytes);
+    assert_eq!(full.stacks().len(), 15);
+    assert!(SliceParams::for_views(&vol, &[], 0.1, &SliceParams::default()).is_err());
+    let beyond = SliceParams {
+        levels: Some(vec![5]),
+        ..SliceParams::default()
+    };
+    assert!(matches!(
+        build_slices(&vol, &beyond),
+        Err(SliceError::InvalidParameter { name: "level", .. })
+    ));
+}
+
 #[test]
 fn slice_params_round_trip_and_reject_unknown_fields() {
     let p = SliceParams::default();
@@ -693,7 +803,7 @@ proptest! {
         let rp = RenderParams { width: 4, height: 4, supersample: 1, ..RenderParams::default() };
         let images = [
             render_slices(&data, Axis::ALL[axis], level, &view, &rp),
-            render_truth(&vol, &view, &rp, &TruthParams { steps_per_voxel: 2 }),
+            render_truth(&vol, &view, &rp, &TruthParams { steps_per_voxel: 2, ..TruthParams::default() }),
         ];
         for img in images {
             match img {

@@ -1,12 +1,13 @@
 //! `altrep slices`: volumetric textures as slices (SPEC §9, issue 13). Builds the four test
 //! tiles, cuts them into three stacks with mipmapped merges under every rule, and prints PSNR
 //! against the ray-marched volume per view angle, distance and side (all slices, dropped slices
-//! and every merge rule at the criterion's level, one direction against three), error against
-//! level, a summary per rule and per tile (merge gain, slices drawn, bytes, build time).
+//! and every merge rule at the criterion's level, one direction against three, one sample per
+//! pixel with 2D mip-maps), error against level, shells over a cylindrical patch per level and
+//! rule, a summary per rule and per tile (merge gain, slices drawn, bytes, build time).
 
 use std::path::PathBuf;
 
-use crate::slices::{MeasureParams, MeasureReport, MergeRule, TestTile, measure};
+use crate::slices::{MeasureParams, MeasureReport, MergeRule, Reconstruction, TestTile, measure};
 
 use super::CliResult;
 
@@ -46,6 +47,10 @@ pub struct SlicesArgs {
     /// Only views from above (skip the opposite side).
     #[arg(long)]
     pub one_side: bool,
+    /// Reconstruction of voxels (truth) and texels (slices): linear (GPU linear filtering) or
+    /// nearest (box voxels, which compositing commutes with).
+    #[arg(long, value_enum, default_value_t = FilterArg::Linear)]
+    pub filter: FilterArg,
     /// Ground-truth march samples per voxel.
     #[arg(long, default_value_t = 8)]
     pub truth_steps: usize,
@@ -55,6 +60,19 @@ pub struct SlicesArgs {
     /// Print every row of the sweep (default: the rows at the first distance).
     #[arg(long)]
     pub all_rows: bool,
+    /// Write images to this folder: per tile, slices (criterion's choice, default rule) beside
+    /// the truth at 0°, 60° and 85°, and the tile over a cylinder (all shells, 8 shells, truth).
+    #[arg(long)]
+    pub images: Option<PathBuf>,
+}
+
+/// Reconstruction on the command line.
+#[derive(clap::ValueEnum, Clone, Copy, Debug)]
+pub enum FilterArg {
+    /// Trilinear volume, bilinear slices.
+    Linear,
+    /// Box voxels and texels.
+    Nearest,
 }
 
 /// A test tile on the command line.
@@ -85,9 +103,9 @@ fn print_report(r: &MeasureReport, all_rows: bool) {
     let rules: Vec<&str> = MergeRule::ALL.iter().map(|m| m.name()).collect();
     let def = r.default_rule.name();
     println!(
-        "PSNR (dB) against the ray-marched volume; y stack at the criterion's level (d = {} px), \
-         merged = {def}; three = direction by argmin (1/c²−1)h² at its level",
-        r.params.d_pixels
+        "PSNR (dB) against the ray-marched volume ({:?} reconstruction); y stack at the criterion's \
+         level (d = {} px), merged = {def}; three = direction by argmin (1/c²−1)h² at its level",
+        r.params.filter, r.params.d_pixels
     );
     println!(
         "\n| tile | px/voxel | side | angle | need | y slices | all y | {} | three (axis:slices) | three | three, all | three, 1 spp + 2D mip |",
@@ -200,6 +218,72 @@ fn print_report(r: &MeasureReport, all_rows: bool) {
     println!("\nmeasured in {:.1} s", r.seconds);
 }
 
+/// Writes the comparison images (on a grey background, sRGB PNG).
+fn write_images(dir: &std::path::Path, params: &MeasureParams) -> CliResult {
+    use crate::slices::{
+        CurvedParams, RenderParams, SliceParams, TruthParams, View, build_slices, choose,
+        render_curved_slices, render_curved_truth, render_slices, render_truth, test_tile,
+    };
+    use altrep_data_gen::RgbaImage;
+    std::fs::create_dir_all(dir).map_err(|e| format!("cannot create {}: {e}", dir.display()))?;
+    let grey = [0.5f32; 3];
+    let save = |name: String, images: &[&RgbaImage]| -> CliResult {
+        let path = dir.join(name);
+        let row: Vec<RgbaImage> = images.iter().map(|i| i.over(grey)).collect();
+        let refs: Vec<&RgbaImage> = row.iter().collect();
+        RgbaImage::side_by_side(&refs).write_png(&path)?;
+        println!("wrote {}", path.display());
+        Ok(())
+    };
+    for &tile in &params.tiles {
+        let volume = test_tile(tile, params.size, params.seed)?;
+        let (data, _) = build_slices(&volume, &SliceParams::default())?;
+        let rp = RenderParams {
+            width: 96,
+            height: 96,
+            filter: params.filter,
+            ..RenderParams::default()
+        };
+        let truth_params = TruthParams {
+            filter: params.filter,
+            ..TruthParams::default()
+        };
+        for polar in [0.0, 60.0, 85.0] {
+            let view = View::degrees(polar, params.azimuth_deg);
+            let c = choose(
+                &volume,
+                view.vector(),
+                params.d_pixels * volume.voxel_size(),
+                [true; 3],
+            )?;
+            let slices = render_slices(&data, c.axis, c.level, &view, &rp)?;
+            let truth = render_truth(&volume, &view, &rp, &truth_params)?;
+            save(
+                format!(
+                    "{}-{polar}deg-{}{}-vs-truth.png",
+                    tile.name(),
+                    c.axis.name(),
+                    c.slices
+                ),
+                &[&slices, &truth],
+            )?;
+        }
+        let cp = CurvedParams {
+            tilt_deg: 30.0,
+            width: 192,
+            ..CurvedParams::default()
+        };
+        let all = render_curved_slices(&data, 0, &cp)?;
+        let merged = render_curved_slices(&data, 2, &cp)?;
+        let truth = render_curved_truth(&volume, &cp)?;
+        save(
+            format!("{}-cylinder-all-8shells-truth.png", tile.name()),
+            &[&all, &merged, &truth],
+        )?;
+    }
+    Ok(())
+}
+
 /// Runs `altrep slices`.
 pub fn run(args: SlicesArgs) -> CliResult {
     // Output paths are checked before the work, not after it.
@@ -215,11 +299,18 @@ pub fn run(args: SlicesArgs) -> CliResult {
         d_pixels: args.d_pixels,
         both_sides: !args.one_side,
         truth_steps: args.truth_steps,
+        filter: match args.filter {
+            FilterArg::Linear => Reconstruction::Linear,
+            FilterArg::Nearest => Reconstruction::Nearest,
+        },
         seed: args.seed,
         ..MeasureParams::default()
     };
     let report = measure(&params)?;
     print_report(&report, args.all_rows);
+    if let Some(dir) = &args.images {
+        write_images(dir, &params)?;
+    }
     if let Some(path) = &args.json {
         std::fs::write(path, serde_json::to_string_pretty(&report)?)
             .map_err(|e| format!("cannot write {}: {e}", path.display()))?;

@@ -138,12 +138,18 @@ fn lattice_angle(seed: u64, o: usize, i: i64, j: i64) -> f64 {
 /// Cyclic 2D Perlin gradient noise at `(u, v)` (tile coordinates, period 1 in both): the sum of
 /// `octaves` octaves, octave `o` on a lattice of `cells·2^o` cells per tile with amplitude `2^−o`.
 /// Gradients are unit vectors of hashed angles; the quintic fade `6t⁵ − 15t⁴ + 10t³`. Values
-/// lie in about `[−0.7, 0.7]·(2 − 2^(1−octaves))`.
+/// lie in about `[−0.7, 0.7]·(2 − 2^(1−octaves))`. At most 24 octaves and `2^30` cells are
+/// used (larger values are clamped); zero cells give 0.
 pub fn perlin_periodic(u: f64, v: f64, cells: usize, octaves: usize, seed: u64) -> f64 {
     let fade = |t: f64| t * t * t * (t * (t * 6.0 - 15.0) + 10.0);
     let mut sum = 0.0;
-    for o in 0..octaves {
-        let p = (cells << o) as i64;
+    let cells = cells.min(1 << 30) as i64;
+    if cells == 0 || !u.is_finite() || !v.is_finite() {
+        return 0.0;
+    }
+    for o in 0..octaves.min(24) {
+        let p = cells << o;
+        let (u, v) = (u.rem_euclid(1.0), v.rem_euclid(1.0));
         let (x, y) = (u * p as f64, v * p as f64);
         let (x0, y0) = (x.floor(), y.floor());
         let (fx, fy) = (x - x0, y - y0);
@@ -279,16 +285,18 @@ pub fn from_height_field(
         })
         .collect();
     let mut rgba = vec![[0.0f32; 4]; nx * ny * nz];
-    for z in 0..nz {
-        for y in 0..ny {
-            for x in 0..nx {
-                let c = z * nx + x;
-                let a = (heights[c] * ny as f64 - y as f64).clamp(0.0, 1.0) as f32;
-                let col = colours[c];
-                rgba[x + nx * (y + ny * z)] = [col[0] * a, col[1] * a, col[2] * a, a];
+    rgba.par_chunks_mut(nx * ny)
+        .enumerate()
+        .for_each(|(z, slab)| {
+            for y in 0..ny {
+                for x in 0..nx {
+                    let c = z * nx + x;
+                    let a = (heights[c] * ny as f64 - y as f64).clamp(0.0, 1.0) as f32;
+                    let col = colours[c];
+                    slab[x + nx * y] = [col[0] * a, col[1] * a, col[2] * a, a];
+                }
             }
-        }
-    }
+        });
     TexelVolume::new(params.dims, params.voxel, rgba)
 }
 

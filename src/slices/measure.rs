@@ -17,6 +17,7 @@ use super::merge::{MergeRule, SliceData, SliceParams, build_slices};
 use super::render::{RenderParams, View, render_slices};
 use super::stack::{Axis, ViewChoice, choose};
 use super::truth::{TruthParams, render_truth};
+use super::volume::Reconstruction;
 use super::{SliceError, TexelVolume};
 use crate::metrics::psnr;
 
@@ -46,13 +47,16 @@ pub struct MeasureParams {
     pub both_sides: bool,
     /// Truth march samples per voxel.
     pub truth_steps: usize,
+    /// Reconstruction of the voxels in the truth and of the texels in the slices.
+    pub filter: Reconstruction,
     /// Seed of the tiles.
     pub seed: u64,
 }
 
 impl Default for MeasureParams {
     /// 32³ tiles, all four; angles 0–80° by 10° and 85°; azimuth 30°; distances 1, 2, 4 voxels
-    /// per pixel; `d` one pixel; 48-voxel images; both sides; 8 truth steps per voxel; seed 1.
+    /// per pixel; `d` one pixel; 48-voxel images; both sides; 8 truth steps per voxel; linear
+    /// reconstruction; seed 1.
     fn default() -> Self {
         Self {
             size: 32,
@@ -64,6 +68,7 @@ impl Default for MeasureParams {
             image_voxels: 48.0,
             both_sides: true,
             truth_steps: 8,
+            filter: Reconstruction::Linear,
             seed: 1,
         }
     }
@@ -150,7 +155,8 @@ pub struct LevelRow {
     pub psnr_rule: BTreeMap<&'static str, f64>,
 }
 
-/// Mean PSNR of the shells over a cylindrical patch ([`super::curved`]) per level and rule.
+/// PSNR of the shells over a cylindrical patch ([`super::curved`]) per level and rule (always
+/// linear reconstruction).
 #[derive(Clone, Debug, PartialEq, serde::Serialize)]
 pub struct CurvedRow {
     /// Tile.
@@ -163,6 +169,59 @@ pub struct CurvedRow {
     pub slices: usize,
     /// PSNR per rule.
     pub psnr_rule: BTreeMap<&'static str, f64>,
+}
+
+/// Error of one view of any volume ([`view_errors`]).
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct ViewError {
+    /// The view.
+    pub view: View,
+    /// Direction and level drawn.
+    pub choice: ViewChoice,
+    /// PSNR against the ray-marched truth (dB, capped at 99).
+    pub psnr_db: f64,
+    /// Root mean square error of the premultiplied channels.
+    pub rmse: f64,
+}
+
+/// For each view, the direction and level the criterion picks (visible depth `depth` world
+/// units, among the built axes of `data`) and the error of that stack against the ray-marched
+/// truth of `volume`: the measurement a pipeline stores beside the slices. Cost: one truth
+/// march and one slice render per view.
+///
+/// Errors: invalid views or parameters, `data` not cut from a volume of `volume`'s size.
+pub fn view_errors(
+    volume: &TexelVolume,
+    data: &SliceData,
+    views: &[View],
+    depth: f64,
+    render: &RenderParams,
+    truth: &TruthParams,
+) -> Result<Vec<ViewError>, SliceError> {
+    if data.dims() != volume.dims() {
+        return Err(SliceError::InvalidParameter {
+            name: "slice data",
+            value: format!("{:?} vs volume {:?}", data.dims(), volume.dims()),
+            reason: "must be cut from a volume of the same size",
+        });
+    }
+    let allowed = Axis::ALL.map(|a| data.stack(a, 0).is_ok());
+    views
+        .iter()
+        .map(|view| {
+            view.validate()?;
+            let choice = choose(volume, view.vector(), depth, allowed)?;
+            let reference = render_truth(volume, view, render, truth)?;
+            let img = render_slices(data, choice.axis, choice.level, view, render)?;
+            let e = crate::metrics::compare(&img, &reference, &Default::default())?;
+            Ok(ViewError {
+                view: *view,
+                choice,
+                psnr_db: capped(e.psnr_db),
+                rmse: e.rmse,
+            })
+        })
+        .collect()
 }
 
 /// Per-tile summary.
@@ -178,7 +237,8 @@ pub struct TileSummary {
     pub three_gain_grazing_db: f64,
     /// The same with all slices of each direction.
     pub three_gain_grazing_all_db: f64,
-    /// Mean slices drawn per tile (three directions, criterion), and with all `y` slices.
+    /// Mean slices drawn per tile over the sweep (three directions, criterion's level; all
+    /// slices would be `N`).
     pub slices_drawn_mean: f64,
     /// Bytes of the default rule's stacks (RGBA8, all levels and axes, 2D mips).
     pub bytes: usize,
@@ -407,6 +467,7 @@ fn render_params(params: &MeasureParams, p: f64) -> RenderParams {
         height: px,
         pixel_voxels: p,
         supersample: (2.0 * p).ceil().max(1.0) as usize,
+        filter: params.filter,
         ..RenderParams::default()
     }
 }
@@ -422,6 +483,7 @@ fn sweep_tile(
 ) -> Result<(Vec<SweepRow>, Vec<LevelRow>), SliceError> {
     let truth = TruthParams {
         steps_per_voxel: params.truth_steps,
+        filter: params.filter,
     };
     let s = volume.voxel_size();
     let n = volume.len(Axis::Y);
@@ -476,6 +538,7 @@ fn sweep_tile(
                     let gpu = RenderParams {
                         supersample: 1,
                         mip_2d: true,
+                        filter: Reconstruction::Linear,
                         ..rp.clone()
                     };
                     let img = render_slices(def, three.axis, three.level, &view, &gpu)?;

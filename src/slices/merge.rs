@@ -64,8 +64,10 @@ pub enum Side {
 pub struct SliceParams {
     /// Axes to build stacks for (`[x, y, z]`); a direction no view selects need not be built.
     pub axes: [bool; 3],
-    /// Levels per axis (`1` = level 0 only); `None` builds every level down to one slice.
-    pub levels: Option<usize>,
+    /// Merge levels to build on every built axis (`0` = all `N` slices, `k` = `N/2^k`); `None`
+    /// builds every level down to one slice. [`SliceParams::for_views`] fills it with the levels
+    /// the scene's views select.
+    pub levels: Option<Vec<usize>>,
     /// Merge rule of the levels above 0.
     pub rule: MergeRule,
     /// Count the 2D mip levels of each slice in the bytes (the pyramids are always built).
@@ -86,7 +88,7 @@ impl Default for SliceParams {
 }
 
 impl SliceParams {
-    /// Errors: no axis, `levels = Some(0)`.
+    /// Errors: no axis, an empty level list.
     pub fn validate(&self) -> Result<(), SliceError> {
         if !self.axes.iter().any(|a| *a) {
             return Err(SliceError::InvalidParameter {
@@ -95,10 +97,41 @@ impl SliceParams {
                 reason: "at least one axis must be built",
             });
         }
-        if self.levels == Some(0) {
+        if self.levels.as_ref().is_some_and(|l| l.is_empty()) {
             return Err(SliceError::ZeroSize { what: "levels" });
         }
         Ok(())
+    }
+
+    /// Parameters that build only the axes and levels `views` select (SPEC §9, "skip what a view
+    /// does not need"): the direction and level [`super::choose`] picks for each view with
+    /// visible depth `depth` (world units) among all three axes, every other field as given in
+    /// `base`. Errors: no view, invalid views or depth.
+    pub fn for_views(
+        volume: &TexelVolume,
+        views: &[super::View],
+        depth: f64,
+        base: &SliceParams,
+    ) -> Result<SliceParams, SliceError> {
+        if views.is_empty() {
+            return Err(SliceError::ZeroSize { what: "views" });
+        }
+        let mut axes = [false; 3];
+        let mut levels = Vec::new();
+        for view in views {
+            view.validate()?;
+            let c = super::choose(volume, view.vector(), depth, [true; 3])?;
+            axes[c.axis.index()] = true;
+            if !levels.contains(&c.level) {
+                levels.push(c.level);
+            }
+        }
+        levels.sort_unstable();
+        Ok(SliceParams {
+            axes,
+            levels: Some(levels),
+            ..base.clone()
+        })
     }
 }
 
@@ -327,11 +360,11 @@ fn build_stack_side(
 }
 
 /// Cuts `volume` into stacks along the axes asked for, every level merged by `params.rule`.
-/// Cost: `levels` passes over the volume per axis (a level-`k` texel composites `2^k` layers),
+/// Cost: one pass over the volume per level and axis (a level-`k` texel composites `2^k` layers),
 /// plus a 2D pyramid per slice; slices in parallel.
 ///
-/// Errors: invalid parameters, a dimension of a built axis or of a slice plane that is not a
-/// power of two.
+/// Errors: invalid parameters, a level beyond one slice, a dimension that is not a power of
+/// two.
 pub fn build_slices(
     volume: &TexelVolume,
     params: &SliceParams,
@@ -352,9 +385,16 @@ pub fn build_slices(
             continue;
         }
         let n = dims[axis.index()];
-        let all = n.trailing_zeros() as usize + 1;
-        let levels = params.levels.map_or(all, |l| l.min(all));
-        for level in 0..levels {
+        let all: Vec<usize> = (0..=n.trailing_zeros() as usize).collect();
+        let levels = params.levels.as_ref().unwrap_or(&all);
+        if let Some(&k) = levels.iter().find(|k| **k >= all.len()) {
+            return Err(SliceError::InvalidParameter {
+                name: "level",
+                value: format!("{k} on axis {}", axis.name()),
+                reason: "beyond the coarsest level log2(N) of one slice",
+            });
+        }
+        for &level in levels {
             let two_sides = level > 0 && params.rule == MergeRule::PerSide;
             let (plus, e1) = build_stack_side(volume, axis, level, params.rule, Side::Plus)?;
             let minus = if two_sides {

@@ -8,7 +8,7 @@
 //! a level per view ([`stack`]: the seed's criterion `h·tan a / d ≤ 1` and its direction rule
 //! `argmin (1/c_i² − 1)·h_i²`), draws them on the CPU over a flat patch ([`render_slices`]) or
 //! a curved one ([`curved`]: shells over a cylinder) and measures them against a ray-marched
-//! ground truth of the same volume ([`render_truth`], [`measure`]).
+//! ground truth of the same volume ([`render_truth`], [`measure()`]).
 //!
 //! ## Conventions (written once here)
 //!
@@ -74,13 +74,14 @@ pub use build::{
 };
 pub use curved::{CurvedParams, render_curved_slices, render_curved_truth};
 pub use measure::{
-    CurvedRow, LevelRow, MeasureParams, MeasureReport, RuleSummary, SweepRow, TileSummary, measure,
+    CurvedRow, LevelRow, MeasureParams, MeasureReport, RuleSummary, SweepRow, TileSummary,
+    ViewError, measure, view_errors,
 };
 pub use merge::{MergeRule, Side, SliceData, SliceParams, SliceReport, Stack, build_slices};
 pub use render::{RenderParams, View, render_slices};
 pub use stack::{Axis, ViewChoice, choose, choose_direction, level_for_slices, slices_needed};
 pub use truth::{TruthParams, render_truth};
-pub use volume::TexelVolume;
+pub use volume::{Reconstruction, TexelVolume};
 
 use altrep_data_gen::DataGenError;
 

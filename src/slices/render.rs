@@ -8,7 +8,7 @@ use glam::DVec3;
 use rayon::prelude::*;
 
 use super::merge::{Side, SliceData, Stack};
-use super::volume::rescale_thickness;
+use super::volume::{Reconstruction, rescale_thickness};
 use super::{Axis, SliceError};
 
 /// An orthographic view of the patch (see the module conventions).
@@ -76,13 +76,16 @@ pub struct RenderParams {
     pub mip_2d: bool,
     /// Raise each slice's opacity to the path length at the view's angle (module conventions).
     pub opacity_correction: bool,
+    /// Texel reconstruction within a slice: bilinear (with [`RenderParams::mip_2d`] trilinear)
+    /// or nearest (finest level only).
+    pub filter: Reconstruction,
     /// Shift of the image centre from the tile centre, `(x, z)` world units.
     pub offset: [f64; 2],
 }
 
 impl Default for RenderParams {
     /// 64 × 64 pixels of one voxel, 2 × 2 sub-samples, 2D mip off, opacity correction on,
-    /// centred on the tile.
+    /// bilinear texels, centred on the tile.
     fn default() -> Self {
         Self {
             width: 64,
@@ -91,13 +94,15 @@ impl Default for RenderParams {
             supersample: 2,
             mip_2d: false,
             opacity_correction: true,
+            filter: Reconstruction::Linear,
             offset: [0.0; 2],
         }
     }
 }
 
 impl RenderParams {
-    /// Errors: zero sizes or sub-samples, a non-positive or non-finite pixel size or offset.
+    /// Errors: zero sizes, more than 64 sub-samples per side, a pixel size outside
+    /// `[1e-6, 1e6]` voxels, an offset that is not finite or beyond `1e9`.
     pub fn validate(&self) -> Result<(), SliceError> {
         for (n, what) in [
             (self.width, "image width"),
@@ -282,7 +287,18 @@ fn shade_stack(
         let hit = ray.o + t * ray.dir;
         let (u, v) = (hit[ua] / extent[ua], hit[va] / extent[va]);
         let pyr = &slices[m.rem_euclid(n) as usize];
-        if p.mip_2d {
+        if p.filter == Reconstruction::Nearest {
+            let t = &pyr.levels()[0];
+            let index = |x: f64, len: usize, axis: usize| {
+                let i = (x * len as f64).floor() as i64;
+                if axis == 1 {
+                    i.clamp(0, len as i64 - 1) as usize
+                } else {
+                    i.rem_euclid(len as i64) as usize
+                }
+            };
+            out.copy_from_slice(t.texel(index(u, t.width, ua), index(v, t.height, va)));
+        } else if p.mip_2d {
             let lod = pyr.lod(
                 dx[ua] / extent[ua],
                 dx[va] / extent[va],

@@ -1,12 +1,12 @@
 //! Ray-marched ground truth of a texel volume: the emission–absorption integral through the
-//! continuous (trilinear) medium of the module conventions, by the midpoint rule with
+//! continuous medium of the module conventions (trilinear, or box with [`Reconstruction::Nearest`]), by the midpoint rule with
 //! `steps_per_voxel` samples per voxel edge of path, over the same pixels and sub-samples as
 //! [`super::render_slices`].
 
 use altrep_data_gen::RgbaImage;
 
 use super::render::{Camera, RenderParams, View, accumulate};
-use super::volume::alpha_for_thickness;
+use super::volume::{Reconstruction, alpha_for_thickness};
 use super::{SliceError, TexelVolume};
 
 /// Parameters of [`render_truth`].
@@ -15,19 +15,25 @@ use super::{SliceError, TexelVolume};
 pub struct TruthParams {
     /// March samples per voxel edge of path length.
     pub steps_per_voxel: usize,
+    /// Reconstruction of the medium between voxel centres.
+    pub filter: Reconstruction,
 }
 
 impl Default for TruthParams {
-    /// 8 samples per voxel edge (the midpoint rule's error is then far below the slices').
+    /// 8 samples per voxel edge (the midpoint rule's error is then far below the slices'),
+    /// trilinear medium.
     fn default() -> Self {
-        Self { steps_per_voxel: 8 }
+        Self {
+            steps_per_voxel: 8,
+            filter: Reconstruction::Linear,
+        }
     }
 }
 
 /// Renders the ground truth of `volume` seen from `view`. Cost: per sub-sample
 /// `steps_per_voxel · path/s` trilinear samples (8 voxel reads each), rows in parallel.
 ///
-/// Errors: invalid view or parameters, zero steps.
+/// Errors: invalid view or parameters, zero or more than 4096 steps.
 pub fn render_truth(
     volume: &TexelVolume,
     view: &View,
@@ -41,6 +47,13 @@ pub fn render_truth(
             what: "march steps per voxel",
         });
     }
+    if truth.steps_per_voxel > 4096 {
+        return Err(SliceError::InvalidParameter {
+            name: "march steps per voxel",
+            value: format!("{}", truth.steps_per_voxel),
+            reason: "at most 4096",
+        });
+    }
     let s = volume.voxel_size();
     let cam = Camera::new(volume.extent(), s, view, params);
     Ok(cam.image(|ray| {
@@ -51,7 +64,10 @@ pub fn render_truth(
         let ratio = dt / s;
         for k in 0..n {
             let p = ray.o + (ray.t0 + (k as f64 + 0.5) * dt) * ray.dir;
-            let v = volume.sample(p);
+            let v = match truth.filter {
+                Reconstruction::Linear => volume.sample(p),
+                Reconstruction::Nearest => volume.sample_nearest(p),
+            };
             let a = v[3];
             if a <= 0.0 {
                 continue;

@@ -575,7 +575,12 @@ impl Representation for Parallax {
         let mut pictures = Vec::new();
         let mut steps = 0u64;
         let mut fragments = 0u64;
-        let bounded = data.bounds.iter().find(|b| b.kind != BoundKind::Cylinder);
+        // Steps are counted with the tightest stored bound (the kinds are ordered (a)–(e)).
+        let bounded = data
+            .bounds
+            .iter()
+            .filter(|b| b.kind != BoundKind::Cylinder)
+            .max_by_key(|b| BoundKind::ALL.iter().position(|&k| k == b.kind));
         for (i, &angle) in super::repr::measure_angles(needs, 4).iter().enumerate() {
             let reference = truth(source, angle, size, 3)?;
             let screen = RenderParams {

@@ -487,9 +487,7 @@ fn run_one<R: Representation>(
     let mut written = Vec::new();
     for p in pictures {
         let rel = format!("pictures/{}", p.file);
-        p.image
-            .over([1.0, 1.0, 1.0])
-            .write_png(&options.out.join(&rel))?;
+        magnify(&p.image.over([1.0, 1.0, 1.0]), 192).write_png(&options.out.join(&rel))?;
         written.push((rel, p.caption));
     }
     report["measurement"] = serde_json::to_value(&measurement).unwrap_or_default();
@@ -510,6 +508,18 @@ fn run_one<R: Representation>(
         measurement: Some(measurement),
         pictures: written,
     })
+}
+
+/// `image` with every pixel repeated so that it is at least `min_height` pixels high (nearest
+/// neighbour: the pixels stay visible as they are).
+fn magnify(image: &altrep_data_gen::RgbaImage, min_height: usize) -> altrep_data_gen::RgbaImage {
+    let k = min_height.div_ceil(image.height.max(1)).max(1);
+    let (w, h) = (image.width * k, image.height * k);
+    let mut out = altrep_data_gen::RgbaImage::new(w, h);
+    for (n, px) in out.pixels.iter_mut().enumerate() {
+        *px = image.get((n % w) / k, (n / w) / k);
+    }
+    out
 }
 
 /// Writes `report.json` and `report.md` (atomically).
@@ -546,7 +556,7 @@ fn write_report(summary: &RunSummary, options: &RunOptions) -> Result<(), Pipeli
             }
         }
         for (file, caption) in &o.pictures {
-            md += &format!("\n![{caption}]({file})\n\n_{caption}_\n");
+            md += &format!("\n![{caption}]({file})\n\n_{caption} (pixels magnified)_\n");
         }
     }
     if !summary.other_shards.is_empty() {

@@ -38,9 +38,9 @@ use crate::pyramid::truth::{PlaneView, footprints, supersampled_truth};
 use crate::pyramid::{Pyramid, PyramidData, PyramidKind, PyramidParams, RipMap, Texture};
 
 /// Side of the measured images (pixels).
-const MEASURE_PIXELS: usize = 24;
+const MEASURE_PIXELS: usize = 16;
 /// Cap on truth samples per pixel.
-const MEASURE_SAMPLES: usize = 2048;
+const MEASURE_SAMPLES: usize = 1024;
 /// Azimuth of the measured views from the texture's `u` axis (degrees): skewed, so neither
 /// axis-aligned case flatters the ripmap.
 const MEASURE_AZIMUTH_DEG: f64 = 30.0;

@@ -19,6 +19,16 @@
 //! columns = 256
 //! [asset.octree]
 //! resolution = 64
+//!
+//! [[asset]]
+//! name = "bark"
+//! texture = "bark.png"         # a texture (PNG/EXR, relative to the manifest), or:
+//!                              # test_texture = { size = 256, seed = 1 } (procedural, no file)
+//! [asset.needs]
+//! screen_px = [8, 64]
+//! grazing_deg = 75
+//! [asset.pyramid]              # texture assets ask for pyramids only; shapes may not
+//! wrap = ["Repeat", "Repeat"]
 //! ```
 //!
 //! Unknown keys, wrong types, duplicate asset names and impossible ranges are errors that name the
@@ -34,6 +44,7 @@ use super::PipelineError;
 use super::cylinder::CylinderSpec;
 use super::octree::OctreeSpec as OctreeParams;
 use super::parallax::ParallaxSpec as ParallaxParams;
+use crate::pyramid::PyramidParams;
 
 /// Scene-wide settings.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -117,13 +128,31 @@ struct RawAsset {
     #[serde(default)]
     mesh: Option<PathBuf>,
     #[serde(default)]
+    texture: Option<PathBuf>,
+    #[serde(default)]
+    test_texture: Option<TestTexture>,
+    #[serde(default)]
     needs: Option<Spanned<Needs>>,
     #[serde(default)]
-    parallax: Option<ParallaxParams>,
+    parallax: Option<Spanned<ParallaxParams>>,
     #[serde(default)]
-    cylinder: Option<CylinderSpec>,
+    cylinder: Option<Spanned<CylinderSpec>>,
     #[serde(default)]
-    octree: Option<OctreeParams>,
+    octree: Option<Spanned<OctreeParams>>,
+    #[serde(default)]
+    pyramid: Option<Spanned<PyramidParams>>,
+}
+
+/// A procedural test texture ([`crate::pyramid::truth::test_texture`]): periodic grey
+/// checkerboard, sinusoid and noise, one channel.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TestTexture {
+    /// Texels per side (4 to 4096).
+    pub size: usize,
+    /// Noise seed.
+    #[serde(default)]
+    pub seed: u64,
 }
 
 #[derive(Clone, Debug, Deserialize)]
@@ -142,6 +171,18 @@ pub enum SourceSpec {
     Shape(String),
     /// An OBJ mesh (path resolved against the manifest's folder).
     Mesh(PathBuf),
+    /// A texture image, PNG or EXR (path resolved against the manifest's folder), loaded as
+    /// RGBA f32 (8- and 16-bit codes divided by 255 or 65535, values as stored: sRGB stays sRGB).
+    Texture(PathBuf),
+    /// The procedural test texture.
+    TestTexture(TestTexture),
+}
+
+impl SourceSpec {
+    /// Whether the asset is a texture (pyramids) rather than geometry.
+    pub fn is_texture(&self) -> bool {
+        matches!(self, Self::Texture(_) | Self::TestTexture(_))
+    }
 }
 
 /// One asset: its source, needs and the representations wanted.
@@ -159,6 +200,8 @@ pub struct AssetSpec {
     pub cylinder: Option<CylinderSpec>,
     /// Ellipsoid octree, if wanted.
     pub octree: Option<OctreeParams>,
+    /// Texture pyramid, if wanted (texture assets only).
+    pub pyramid: Option<PyramidParams>,
 }
 
 /// A parsed, checked manifest.
@@ -252,20 +295,34 @@ impl Manifest {
                     format!("duplicate asset name '{name}'"),
                 ));
             }
-            let source = match (a.shape, a.mesh) {
-                (Some(s), None) => {
+            let source = match (a.shape, a.mesh, a.texture, a.test_texture) {
+                (Some(s), None, None, None) => {
                     altrep_data_gen::scene_shape(&s).map_err(|e| {
                         err(path, text, name_span.clone(), format!("asset.shape: {e}"))
                     })?;
                     SourceSpec::Shape(s)
                 }
-                (None, Some(m)) => SourceSpec::Mesh(base.join(m)),
+                (None, Some(m), None, None) => SourceSpec::Mesh(base.join(m)),
+                (None, None, Some(t), None) => SourceSpec::Texture(base.join(t)),
+                (None, None, None, Some(t)) => {
+                    if !(4..=4096).contains(&t.size) {
+                        return Err(err(
+                            path,
+                            text,
+                            name_span,
+                            format!("asset.test_texture.size = {} must be in 4..=4096", t.size),
+                        ));
+                    }
+                    SourceSpec::TestTexture(t)
+                }
                 _ => {
                     return Err(err(
                         path,
                         text,
                         name_span,
-                        format!("asset '{name}': give exactly one of `shape` or `mesh`"),
+                        format!(
+                            "asset '{name}': give exactly one of `shape`, `mesh`, `texture` or `test_texture`"
+                        ),
                     ));
                 }
             };
@@ -274,7 +331,34 @@ impl Manifest {
                 None => (name_span.clone(), Needs::default()),
             };
             check_needs(&needs).map_err(|m| err(path, text, needs_span, m))?;
-            if a.parallax.is_none() && a.cylinder.is_none() && a.octree.is_none() {
+            let geometry_only = [
+                ("parallax", a.parallax.as_ref().map(|p| p.span())),
+                ("cylinder", a.cylinder.as_ref().map(|p| p.span())),
+                ("octree", a.octree.as_ref().map(|p| p.span())),
+            ];
+            if source.is_texture() {
+                if let Some((key, Some(span))) = geometry_only.iter().find(|(_, s)| s.is_some()) {
+                    return Err(err(
+                        path,
+                        text,
+                        span.clone(),
+                        format!(
+                            "asset '{name}' is a texture: it may only ask for [asset.pyramid]; \
+                             [asset.{key}] needs a `shape` or `mesh`"
+                        ),
+                    ));
+                }
+            } else if let Some(p) = &a.pyramid {
+                return Err(err(
+                    path,
+                    text,
+                    p.span(),
+                    format!(
+                        "asset '{name}' is a shape or mesh: [asset.pyramid] needs a `texture` or `test_texture`"
+                    ),
+                ));
+            }
+            if geometry_only.iter().all(|(_, s)| s.is_none()) && a.pyramid.is_none() {
                 return Err(err(
                     path,
                     text,
@@ -282,10 +366,18 @@ impl Manifest {
                     format!("asset '{name}' asks for no representation"),
                 ));
             }
+            let parallax = a.parallax.map(Spanned::into_inner);
+            let cylinder = a.cylinder.map(Spanned::into_inner);
+            let octree = a.octree.map(Spanned::into_inner);
+            let pyramid = a.pyramid.map(Spanned::into_inner);
             for check in [
-                a.parallax.as_ref().map(|p| p.validate()),
-                a.cylinder.as_ref().map(|p| p.validate()),
-                a.octree.as_ref().map(|p| p.validate()),
+                parallax.as_ref().map(|p| p.validate()),
+                cylinder.as_ref().map(|p| p.validate()),
+                octree.as_ref().map(|p| p.validate()),
+                // Channels are known once the texture is read; RGBA is checked here.
+                pyramid
+                    .as_ref()
+                    .map(|p| p.validate(4).map_err(|e| format!("pyramid: {e}"))),
             ]
             .into_iter()
             .flatten()
@@ -296,9 +388,10 @@ impl Manifest {
                 name,
                 source,
                 needs,
-                parallax: a.parallax,
-                cylinder: a.cylinder,
-                octree: a.octree,
+                parallax,
+                cylinder,
+                octree,
+                pyramid,
             });
         }
         if assets.is_empty() {

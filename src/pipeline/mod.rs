@@ -15,6 +15,7 @@ pub mod cylinder;
 pub mod manifest;
 pub mod octree;
 pub mod parallax;
+pub mod pyramid;
 pub mod repr;
 mod run;
 
@@ -22,7 +23,7 @@ use std::path::PathBuf;
 
 use serde::Serialize;
 
-pub use manifest::{AssetSpec, Lighting, Manifest, Needs, SceneSettings, SourceSpec};
+pub use manifest::{AssetSpec, Lighting, Manifest, Needs, SceneSettings, SourceSpec, TestTexture};
 pub use repr::{Measurement, Representation, Source};
 pub use run::{
     AssetOutcome, LOCK_FILE, Outcome, RunOptions, RunSummary, Shard, plan_scene, run_scene,
@@ -92,6 +93,17 @@ pub enum PipelineError {
     /// An image comparison failed.
     #[error(transparent)]
     Metrics(#[from] crate::metrics::MetricsError),
+    /// A pyramid could not be built or loaded.
+    #[error(transparent)]
+    Pyramid(#[from] crate::pyramid::MipError),
+    /// A texture file could not be read or decoded.
+    #[error("{}: cannot read the texture: {reason}", path.display())]
+    TextureFile {
+        /// The texture file.
+        path: PathBuf,
+        /// The decoder's message.
+        reason: String,
+    },
 }
 
 /// One decision of the planner.

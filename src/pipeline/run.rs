@@ -14,6 +14,7 @@ use super::cylinder::Cylinder;
 use super::manifest::{AssetSpec, Lighting, Manifest, Needs, SourceSpec};
 use super::octree::OctreeRepr;
 use super::parallax::Parallax;
+use super::pyramid::PyramidRepr;
 use super::repr::{Measurement, Representation, Source};
 use super::{PipelineError, Plan};
 use crate::asset::{
@@ -203,18 +204,70 @@ fn prepare_output(out: &Path) -> Result<OutputLock, PipelineError> {
     Ok(OutputLock { _file: file })
 }
 
-/// The geometry of an asset and the hash of its input bytes.
-fn load_source(spec: &AssetSpec) -> Result<(Box<dyn Shape + Send + Sync>, String), PipelineError> {
+/// What an asset is made of, once loaded.
+enum Loaded {
+    /// A shape or mesh.
+    Geometry(Box<dyn Shape + Send + Sync>),
+    /// A texture.
+    Texture(crate::pyramid::Texture),
+}
+
+impl Loaded {
+    /// The [`Source`] of asset `name` lit by `light`.
+    fn source<'a>(&'a self, name: &'a str, light: Light) -> Source<'a> {
+        let (geometry, texture) = match self {
+            Self::Geometry(g) => (Some(g.as_ref() as &(dyn Shape + Sync)), None),
+            Self::Texture(t) => (None, Some(t)),
+        };
+        Source {
+            name,
+            geometry,
+            texture,
+            light,
+        }
+    }
+}
+
+/// Reads a texture file (PNG or EXR) as RGBA f32: 8- and 16-bit codes scaled to `[0, 1]`,
+/// values as stored (no colour conversion).
+fn load_texture(path: &Path) -> Result<(crate::pyramid::Texture, Vec<u8>), PipelineError> {
+    let bytes = std::fs::read(path).map_err(io(path))?;
+    let bad = |reason: String| PipelineError::TextureFile {
+        path: path.to_path_buf(),
+        reason,
+    };
+    let img = image::load_from_memory(&bytes)
+        .map_err(|e| bad(e.to_string()))?
+        .into_rgba32f();
+    let (w, h) = (img.width() as usize, img.height() as usize);
+    let tex =
+        crate::pyramid::Texture::new(w, h, 4, img.into_raw()).map_err(|e| bad(e.to_string()))?;
+    Ok((tex, bytes))
+}
+
+/// The geometry or texture of an asset and the hash of its input bytes.
+fn load_source(spec: &AssetSpec) -> Result<(Loaded, String), PipelineError> {
     match &spec.source {
         SourceSpec::Shape(name) => Ok((
-            Box::new(scene_shape(name)?),
+            Loaded::Geometry(Box::new(scene_shape(name)?)),
             crate::asset::hash_hex(format!("shape:{name}").as_bytes()),
         )),
         SourceSpec::Mesh(path) => {
             let bytes = std::fs::read(path).map_err(io(path))?;
             let mesh = Mesh::load_obj(path, &MeshLoadOptions::default())?;
-            Ok((Box::new(mesh), crate::asset::hash_hex(&bytes)))
+            Ok((
+                Loaded::Geometry(Box::new(mesh)),
+                crate::asset::hash_hex(&bytes),
+            ))
         }
+        SourceSpec::Texture(path) => {
+            let (tex, bytes) = load_texture(path)?;
+            Ok((Loaded::Texture(tex), crate::asset::hash_hex(&bytes)))
+        }
+        SourceSpec::TestTexture(t) => Ok((
+            Loaded::Texture(crate::pyramid::truth::test_texture(t.size, t.seed)),
+            crate::asset::hash_hex(format!("test_texture:{}:{}", t.size, t.seed).as_bytes()),
+        )),
     }
 }
 
@@ -252,13 +305,8 @@ pub fn plan_scene(
         if options.shard.is_some_and(|s| !s.owns(&spec.name)) {
             continue;
         }
-        let (shape, _) = load_source(spec)?;
-        let source = Source {
-            name: &spec.name,
-            geometry: Some(shape.as_ref()),
-            texture: None,
-            light,
-        };
+        let (loaded, _) = load_source(spec)?;
+        let source = loaded.source(&spec.name, light);
         let needs = effective_needs(spec, options.everything);
         if let Some(p) = &spec.parallax {
             out.push((
@@ -267,11 +315,25 @@ pub fn plan_scene(
                 Parallax::plan(p, &needs, &source)?.0,
             ));
         }
+        if let Some(p) = &spec.cylinder {
+            out.push((
+                spec.name.clone(),
+                Cylinder::NAME.into(),
+                Cylinder::plan(p, &needs, &source)?.0,
+            ));
+        }
         if let Some(p) = &spec.octree {
             out.push((
                 spec.name.clone(),
                 OctreeRepr::NAME.into(),
                 OctreeRepr::plan(p, &needs, &source)?.0,
+            ));
+        }
+        if let Some(p) = &spec.pyramid {
+            out.push((
+                spec.name.clone(),
+                PyramidRepr::NAME.into(),
+                PyramidRepr::plan(p, &needs, &source)?.0,
             ));
         }
     }
@@ -326,13 +388,8 @@ pub fn run_scene(manifest: &Manifest, options: &RunOptions) -> Result<RunSummary
                         v.push(fail(repr, &e));
                     }
                 }
-                Ok((shape, input_hash)) => {
-                    let source = Source {
-                        name: &spec.name,
-                        geometry: Some(shape.as_ref()),
-                        texture: None,
-                        light,
-                    };
+                Ok((loaded, input_hash)) => {
+                    let source = loaded.source(&spec.name, light);
                     let mut go = |repr: &str, r: Result<AssetOutcome, PipelineError>| {
                         v.push(r.unwrap_or_else(|e| fail(repr, &e)));
                         bar.inc(1);
@@ -354,6 +411,12 @@ pub fn run_scene(manifest: &Manifest, options: &RunOptions) -> Result<RunSummary
                         go(
                             OctreeRepr::NAME,
                             run_one::<OctreeRepr>(p, &needs, &source, &input_hash, options),
+                        );
+                    }
+                    if let Some(p) = &spec.pyramid {
+                        go(
+                            PyramidRepr::NAME,
+                            run_one::<PyramidRepr>(p, &needs, &source, &input_hash, options),
                         );
                     }
                 }
@@ -382,6 +445,9 @@ fn wanted(spec: &AssetSpec) -> Vec<&'static str> {
     }
     if spec.octree.is_some() {
         v.push(OctreeRepr::NAME);
+    }
+    if spec.pyramid.is_some() {
+        v.push(PyramidRepr::NAME);
     }
     v
 }

@@ -63,6 +63,22 @@ pub enum MipError {
     /// A combination this implementation does not build.
     #[error("unsupported: {0}")]
     Unsupported(&'static str),
+    /// Stored levels handed to a `from_levels` constructor do not form a pyramid: level
+    /// `level` (counted from the first one given) has the wrong size or channel count.
+    #[error(
+        "level {level} is {got:?} (width, height, channels), expected {expected:?}: each level must halve the previous one (max(1, ⌊n/2⌋) per axis)"
+    )]
+    LevelSize {
+        /// Index of the offending level among those given (for a ripmap: `l_v·n_u + l_u`).
+        level: usize,
+        /// Its `(width, height, channels)`.
+        got: (usize, usize, usize),
+        /// What the halvings of the first level require.
+        expected: (usize, usize, usize),
+    },
+    /// A `from_levels` constructor got no level.
+    #[error("no level given")]
+    NoLevels,
 }
 
 /// How coordinates outside `[0, 1]` are treated along one axis (see
@@ -365,6 +381,41 @@ impl Pyramid {
             ));
         }
         Ok(Self { levels, params })
+    }
+
+    /// A pyramid from stored levels, finest first (e.g. read back from files). The first level
+    /// need not be the original level 0 and the last need not be `1 × 1` (a planner may keep
+    /// only the levels a scene uses): lookups treat the first level given as level 0 and clamp
+    /// to the last. Errors: no level, a texture of zero size or with a non-finite value
+    /// ([`Texture::new`]), a level that is not the halving (`max(1, ⌊n/2⌋)` per axis) of the
+    /// previous one or has another channel count ([`MipError::LevelSize`]), invalid parameters.
+    /// Cost: one pass over the data (the finiteness check).
+    pub fn from_levels(levels: Vec<Texture>, params: PyramidParams) -> Result<Self, MipError> {
+        let first = levels.first().ok_or(MipError::NoLevels)?;
+        params.validate(first.channels)?;
+        let mut expected = (first.width, first.height, first.channels);
+        let mut checked = Vec::with_capacity(levels.len());
+        for (level, t) in levels.into_iter().enumerate() {
+            let t = Texture::new(t.width, t.height, t.channels, t.data)?;
+            let got = (t.width, t.height, t.channels);
+            // After the 1 × 1 level the halving repeats itself: no further level.
+            let past_end = checked
+                .last()
+                .is_some_and(|p: &Texture| p.width == 1 && p.height == 1);
+            if got != expected || past_end {
+                return Err(MipError::LevelSize {
+                    level,
+                    got,
+                    expected,
+                });
+            }
+            expected = ((got.0 / 2).max(1), (got.1 / 2).max(1), got.2);
+            checked.push(t);
+        }
+        Ok(Self {
+            levels: checked,
+            params,
+        })
     }
 
     /// A pyramid holding only `level` (no coarser levels), for the ripmap and fipmap, which

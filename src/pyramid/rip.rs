@@ -68,6 +68,60 @@ impl RipMap {
         Ok(Self { levels, params })
     }
 
+    /// A ripmap from stored levels, `levels[l_v][l_u]` (e.g. read back from files). The first
+    /// level need not be the original `(0, 0)` and the last need not be 1 texel wide or high (a
+    /// planner may keep only the levels a scene uses): lookups treat `levels[0][0]` as level
+    /// `(0, 0)` and clamp to the last on each axis. Errors: no level, rows of unequal length, a
+    /// texture of zero size or with a non-finite value, a level whose width is not the
+    /// `l_u`-th halving (`max(1, ⌊n/2⌋)`) of `levels[0][0]`'s or whose height is not the
+    /// `l_v`-th halving, another channel count ([`MipError::LevelSize`]), invalid parameters.
+    /// Cost: one pass over the data.
+    pub fn from_levels(levels: Vec<Vec<Texture>>, params: PyramidParams) -> Result<Self, MipError> {
+        let first = levels
+            .first()
+            .and_then(|r| r.first())
+            .ok_or(MipError::NoLevels)?;
+        params.validate(first.channels)?;
+        let nu = levels[0].len();
+        let (ws, hs) = (halvings(first.width), halvings(first.height));
+        let channels = first.channels;
+        let mut rows = Vec::with_capacity(levels.len());
+        for (lv, row) in levels.into_iter().enumerate() {
+            let mut out = Vec::with_capacity(nu);
+            if row.len() != nu {
+                let t = row.first();
+                return Err(MipError::LevelSize {
+                    level: lv * nu,
+                    got: t.map_or((0, 0, 0), |t| (t.width, t.height, t.channels)),
+                    expected: (ws[0], hs.get(lv).copied().unwrap_or(1), channels),
+                });
+            }
+            for (lu, t) in row.into_iter().enumerate() {
+                let t = Texture::new(t.width, t.height, t.channels, t.data)?;
+                let expected = (
+                    ws.get(lu).copied().unwrap_or(1),
+                    hs.get(lv).copied().unwrap_or(1),
+                    channels,
+                );
+                let got = (t.width, t.height, t.channels);
+                // Beyond the 1-texel level a halving would repeat 1: only one such level.
+                if got != expected || lu >= ws.len() || lv >= hs.len() {
+                    return Err(MipError::LevelSize {
+                        level: lv * nu + lu,
+                        got,
+                        expected,
+                    });
+                }
+                out.push(Pyramid::single_level(t, params));
+            }
+            rows.push(out);
+        }
+        Ok(Self {
+            levels: rows,
+            params,
+        })
+    }
+
     /// Level `(l_u, l_v)` (clamped to the last level on each axis).
     pub fn level(&self, lu: usize, lv: usize) -> &Texture {
         let row = &self.levels[lv.min(self.levels.len() - 1)];

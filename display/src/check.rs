@@ -78,3 +78,45 @@ pub fn write_artefacts(
     }
     Ok(dir.to_path_buf())
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use approx::assert_abs_diff_eq;
+
+    fn img(values: &[f32]) -> RgbaImage {
+        RgbaImage {
+            width: values.len(),
+            height: 1,
+            pixels: values.iter().map(|&v| [v, 0.0, 0.0, 1.0]).collect(),
+        }
+    }
+
+    #[test]
+    fn errors_and_quantiles() {
+        let a = img(&[0.0, 0.5, 1.0, 0.25]);
+        let b = img(&[0.0, 0.25, 0.0, 0.25]);
+        let e = pixel_errors(&a, &b).unwrap();
+        assert_eq!(e, vec![0.0, 0.25, 1.0, 0.0]);
+        assert_abs_diff_eq!(quantile(&e, 1.0), 1.0);
+        assert_abs_diff_eq!(quantile(&e, 0.0), 0.0);
+        assert_abs_diff_eq!(quantile(&e, 0.67), 0.25);
+        assert_abs_diff_eq!(quantile(&[], 0.5), 0.0);
+        let d = difference_image(&a, &b, 10.0).unwrap();
+        assert_eq!(d.pixels[1], [1.0, 1.0, 1.0, 1.0]);
+        assert!(matches!(
+            pixel_errors(&a, &img(&[0.0])),
+            Err(DisplayError::InvalidParameter { .. })
+        ));
+    }
+
+    #[test]
+    fn artefacts_are_three_pngs() {
+        let dir = tempfile::tempdir().unwrap();
+        let a = img(&[0.0, 0.5]);
+        write_artefacts(dir.path(), "x", &a, &a).unwrap();
+        for s in ["actual", "expected", "difference"] {
+            assert!(dir.path().join(format!("x-{s}.png")).is_file());
+        }
+    }
+}

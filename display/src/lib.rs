@@ -22,6 +22,8 @@
 //!   `WGPU_POWER_PREF`. On a machine without a GPU, Mesa's lavapipe (`mesa-vulkan-drivers`) is a
 //!   software Vulkan adapter; timings there are CPU emulation, not GPU time.
 
+#![warn(missing_docs)]
+
 pub mod check;
 pub mod parallax;
 

@@ -1,0 +1,214 @@
+//! # altrep-display: the thin wgpu display (SPEC §11)
+//!
+//! Draws what the precompute pipeline wrote, on the GPU, headless by default: an asset folder is
+//! loaded **only** through the library's loader ([`load_parallax`]: `AssetReader::open` then
+//! `Parallax::read`), uploaded, drawn into an offscreen texture and read back. The module fits
+//! nothing and reads no mesh. Each shader is the GPU twin of a CPU renderer of the library and
+//! can write its per-fragment march steps to a storage buffer, read back by the tests.
+//!
+//! Representations drawn so far: images with parallax ([`parallax::ParallaxDisplay`], the twin
+//! of `altrep::parallax::{render, render_bounded}`). A further representation is one more module
+//! with its own WGSL file, taking the same [`Gpu`] and returning the same [`Frame`].
+//!
+//! ## Conventions
+//!
+//! * Images are `altrep_data_gen::RgbaImage`: premultiplied **linear** RGBA `f32`, row 0 at the
+//!   top — the CPU renderers' format, so GPU and CPU images compare directly. The offscreen
+//!   target is `Rgba32Float` (no sRGB rounding on the GPU side); PNGs are written in sRGB by
+//!   [`RgbaImage::write_png`](altrep_data_gen::RgbaImage::write_png).
+//! * Angles and geometry follow `altrep::parallax` (y up, `α` the azimuth, orthographic views).
+//! * Depth is written: orthographic, `0` at the front of the march cylinder, `1` at its back.
+//! * Adapters: wgpu's defaults, overridable by `WGPU_BACKEND`, `WGPU_ADAPTER_NAME`,
+//!   `WGPU_POWER_PREF`. On a machine without a GPU, Mesa's lavapipe (`mesa-vulkan-drivers`) is a
+//!   software Vulkan adapter; timings there are CPU emulation, not GPU time.
+
+#![warn(missing_docs)]
+
+pub mod check;
+pub mod parallax;
+
+use std::path::Path;
+
+use altrep::asset::AssetReader;
+use altrep::pipeline::Representation;
+use altrep::pipeline::parallax::{Parallax, ParallaxData};
+pub use altrep_data_gen::RgbaImage;
+pub use wgpu;
+
+/// What went wrong while loading, uploading or drawing.
+#[derive(Debug, thiserror::Error)]
+pub enum DisplayError {
+    /// No adapter could be requested (no GPU and no software driver).
+    #[error("no GPU adapter: {0} (install mesa-vulkan-drivers for a software adapter)")]
+    NoAdapter(String),
+    /// The adapter refused to create a device.
+    #[error("device request failed: {0}")]
+    Device(String),
+    /// The asset folder could not be read by the library's loader.
+    #[error("asset {path}: {reason}")]
+    Asset {
+        /// The folder.
+        path: String,
+        /// The loader's message.
+        reason: String,
+    },
+    /// A drawing parameter is out of range.
+    #[error("invalid {name} = {value}: {reason}")]
+    InvalidParameter {
+        /// The parameter.
+        name: &'static str,
+        /// Its value.
+        value: String,
+        /// What it must satisfy.
+        reason: &'static str,
+    },
+    /// A file could not be written.
+    #[error("file {path}: {reason}")]
+    File {
+        /// The file or folder.
+        path: String,
+        /// The system's message.
+        reason: String,
+    },
+    /// The GPU reported an error (validation, out of memory, mapping).
+    #[error("GPU error: {0}")]
+    Gpu(String),
+}
+
+/// A headless wgpu device and queue.
+pub struct Gpu {
+    /// The device.
+    pub device: wgpu::Device,
+    /// Its queue.
+    pub queue: wgpu::Queue,
+    /// Name, backend and type of the adapter (e.g. `llvmpipe`, Vulkan, Cpu).
+    pub info: wgpu::AdapterInfo,
+    /// Whether the device has `SHADER_F64` (the exact `f64` twin of the CPU march).
+    pub has_f64: bool,
+}
+
+impl Gpu {
+    /// Requests an adapter without a display and creates a device (with `SHADER_F64` when the
+    /// adapter has it). Honours wgpu's environment variables. Cost: 30–100 ms on lavapipe.
+    /// Errors: [`DisplayError::NoAdapter`] when none exists, [`DisplayError::Device`].
+    pub fn headless() -> Result<Gpu, DisplayError> {
+        pollster::block_on(Self::headless_async())
+    }
+
+    async fn headless_async() -> Result<Gpu, DisplayError> {
+        let instance =
+            wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle_from_env());
+        let adapter = instance
+            .request_adapter(&wgpu::RequestAdapterOptions {
+                power_preference: wgpu::PowerPreference::from_env()
+                    .unwrap_or(wgpu::PowerPreference::HighPerformance),
+                force_fallback_adapter: false,
+                compatible_surface: None,
+                apply_limit_buckets: false,
+            })
+            .await
+            .map_err(|e| DisplayError::NoAdapter(e.to_string()))?;
+        let has_f64 = adapter.features().contains(wgpu::Features::SHADER_F64);
+        let required_features = if has_f64 {
+            wgpu::Features::SHADER_F64
+        } else {
+            wgpu::Features::empty()
+        };
+        let (device, queue) = adapter
+            .request_device(&wgpu::DeviceDescriptor {
+                label: Some("altrep-display"),
+                required_features,
+                // Seven storage buffers in the fragment stage: above the downlevel defaults.
+                required_limits: adapter.limits(),
+                experimental_features: wgpu::ExperimentalFeatures::disabled(),
+                memory_hints: wgpu::MemoryHints::Performance,
+                trace: wgpu::Trace::Off,
+            })
+            .await
+            .map_err(|e| DisplayError::Device(e.to_string()))?;
+        Ok(Gpu {
+            device,
+            queue,
+            info: adapter.get_info(),
+            has_f64,
+        })
+    }
+
+    /// One line naming the adapter, e.g. `llvmpipe (LLVM 15.0.6, 256 bits) Vulkan Cpu`.
+    pub fn describe(&self) -> String {
+        format!(
+            "{} {:?} {:?}",
+            self.info.name, self.info.backend, self.info.device_type
+        )
+    }
+}
+
+/// Loads an images-with-parallax asset folder (e.g. `out/truck/parallax`) through the library's
+/// loader: `AssetReader::open` (checks the description and every file's hash) then
+/// `Parallax::read`. Errors: [`DisplayError::Asset`] with the loader's message.
+pub fn load_parallax(dir: &Path) -> Result<ParallaxData, DisplayError> {
+    let err = |e: &dyn std::fmt::Display| DisplayError::Asset {
+        path: dir.display().to_string(),
+        reason: e.to_string(),
+    };
+    let reader = AssetReader::open(dir).map_err(|e| err(&e))?;
+    Parallax::read(&reader).map_err(|e| err(&e))
+}
+
+/// One drawn frame read back from the GPU.
+#[derive(Clone, Debug)]
+pub struct Frame {
+    /// The image (premultiplied linear RGBA, alpha 1 where drawn, 0 elsewhere).
+    pub image: RgbaImage,
+    /// Per fragment (row-major), the march steps of the two warped views (0 where a view's
+    /// range was empty).
+    pub steps: Vec<[u32; 2]>,
+    /// Per fragment, the depth written (1 where nothing was drawn).
+    pub depth: Vec<f32>,
+    /// Wall time of the draw and read-back (milliseconds; on lavapipe this is CPU emulation).
+    pub millis: f64,
+}
+
+/// Reads a mapped-after-copy buffer back as bytes, rows de-padded.
+pub(crate) fn read_buffer(
+    gpu: &Gpu,
+    buffer: &wgpu::Buffer,
+    row_bytes: usize,
+    padded: usize,
+    rows: usize,
+) -> Result<Vec<u8>, DisplayError> {
+    let slice = buffer.slice(..);
+    let (tx, rx) = std::sync::mpsc::channel();
+    slice.map_async(wgpu::MapMode::Read, move |r| {
+        let _ = tx.send(r);
+    });
+    gpu.device
+        .poll(wgpu::PollType::wait_indefinitely())
+        .map_err(|e| DisplayError::Gpu(e.to_string()))?;
+    rx.recv()
+        .map_err(|e| DisplayError::Gpu(e.to_string()))?
+        .map_err(|e| DisplayError::Gpu(e.to_string()))?;
+    let mut out = Vec::with_capacity(row_bytes * rows);
+    {
+        let data = slice
+            .get_mapped_range()
+            .map_err(|e| DisplayError::Gpu(e.to_string()))?;
+        for r in 0..rows {
+            out.extend_from_slice(&data[r * padded..r * padded + row_bytes]);
+        }
+    }
+    buffer.unmap();
+    Ok(out)
+}
+
+/// `img` composited over the opaque linear `background`, as 8-bit sRGB, each pixel repeated
+/// `scale × scale` times (nearest, so texels stay visible). For PNG and GIF frames.
+pub fn to_srgb8(img: &RgbaImage, background: [f32; 3], scale: u32) -> image::RgbaImage {
+    let s = scale.max(1);
+    let flat = img.over(background);
+    image::RgbaImage::from_fn(img.width as u32 * s, img.height as u32 * s, |x, y| {
+        let p = flat.get((x / s) as usize, (y / s) as usize);
+        let q = |c: f32| (altrep_data_gen::linear_to_srgb(c.clamp(0.0, 1.0)) * 255.0).round() as u8;
+        image::Rgba([q(p[0]), q(p[1]), q(p[2]), 255])
+    })
+}

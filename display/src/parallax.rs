@@ -1,0 +1,488 @@
+//! Images with parallax on the GPU: the fragment-shader twin of `altrep::parallax::render`
+//! (inverse warping bounded by the cylinder, any screen size, one ray per pixel, no mip) and of
+//! `altrep::parallax::render_bounded` (stored per-pixel bounds of every kind, at the views' own
+//! size). Two bracketing views are marched per fragment, combined by angular proportion, relit
+//! from the stored normals with a diffuse light, and the depth of the nearer crossing is written.
+//!
+//! The shader (`parallax.wgsl`) repeats the CPU's formulas in the same order; it runs in `f32`
+//! ([`Precision::F32`], what an engine ships) or, where the adapter has `SHADER_F64`, in `f64`
+//! ([`Precision::F64`]), in which it is the CPU's computation operation for operation (per-draw
+//! constants `cos θ`, `sin θ` and the blend weights come from the host, in `f64`, as the CPU
+//! computes them). Per-fragment march steps go to a storage buffer that [`Frame::steps`] returns.
+
+use std::time::Instant;
+
+use altrep::parallax::{BoundKind, ParallaxImages};
+use altrep::pipeline::parallax::ParallaxData;
+use altrep_data_gen::{Light, RgbaImage};
+use wgpu::util::DeviceExt;
+
+use crate::{DisplayError, Frame, Gpu, read_buffer};
+
+const SHADER: &str = include_str!("parallax.wgsl");
+
+/// Arithmetic of the march in the shader.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Precision {
+    /// `f32` throughout: the production shader.
+    F32,
+    /// Geometry and march in `f64` (needs `SHADER_F64`): the exact twin of the CPU's march.
+    F64,
+}
+
+/// What to draw.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct DrawParams {
+    /// Display azimuth `α` (radians, any finite value).
+    pub alpha: f64,
+    /// Which march bounds: [`BoundKind::Cylinder`] (always available, any screen size) or a kind
+    /// stored in the asset (screen size must equal the views' size, where stored bounds hold).
+    pub kind: BoundKind,
+    /// Screen columns (the impostor quad `[−R, R]` fills them).
+    pub width: usize,
+    /// Screen rows (the quad `[0, H]`).
+    pub height: usize,
+    /// The light (direction toward it, ambient share).
+    pub light: Light,
+}
+
+/// An images-with-parallax asset uploaded to the GPU, with the pipeline that draws it.
+pub struct ParallaxDisplay {
+    precision: Precision,
+    pipeline: wgpu::RenderPipeline,
+    lx: usize,
+    ly: usize,
+    images: ParallaxImages,
+    attr: wgpu::Buffer,
+    code: wgpu::Buffer,
+    /// Bound buffers per stored kind; the cylinder uses `dummy`.
+    bounds: Vec<(BoundKind, wgpu::Buffer)>,
+    dummy: wgpu::Buffer,
+    fixed: [f64; 5],
+}
+
+fn invalid(
+    name: &'static str,
+    value: impl std::fmt::Display,
+    reason: &'static str,
+) -> DisplayError {
+    DisplayError::InvalidParameter {
+        name,
+        value: value.to_string(),
+        reason,
+    }
+}
+
+/// Bytes of `values` in the shader's `real` type.
+fn reals(values: &[f64], precision: Precision) -> Vec<u8> {
+    match precision {
+        Precision::F32 => values
+            .iter()
+            .flat_map(|&v| (v as f32).to_le_bytes())
+            .collect(),
+        Precision::F64 => values.iter().flat_map(|&v| v.to_le_bytes()).collect(),
+    }
+}
+
+impl ParallaxDisplay {
+    /// Uploads `data` (views as decoded albedo/normal and depth codes, every stored bound kind)
+    /// and builds the pipeline in `precision`. Cost: one pass over the texels; GPU memory
+    /// `N·Lx·Ly·(36 + 8·size(real)·kinds)` bytes.
+    ///
+    /// Errors: [`Precision::F64`] on a device without `SHADER_F64`; a shader or pipeline the
+    /// device rejects ([`DisplayError::Gpu`]).
+    pub fn new(gpu: &Gpu, data: &ParallaxData, precision: Precision) -> Result<Self, DisplayError> {
+        if precision == Precision::F64 && !gpu.has_f64 {
+            return Err(invalid(
+                "precision",
+                "f64",
+                "needs an adapter with SHADER_F64",
+            ));
+        }
+        let images = &data.images;
+        let p = &images.params;
+        let (lx, ly, n) = (p.width, p.height, p.views);
+        let codes = images.codes();
+        let mut attr = Vec::with_capacity(n * lx * ly * 8);
+        let mut code = Vec::with_capacity(n * lx * ly);
+        for (v, c) in images.views.iter().zip(&codes) {
+            for j in 0..ly {
+                for i in 0..lx {
+                    let idx = j * lx + i;
+                    let (a, nm) = v
+                        .attributes(i, j)
+                        .unwrap_or((glam::Vec3::ZERO, glam::Vec3::ZERO));
+                    attr.extend_from_slice(&[a.x, a.y, a.z, 0.0, nm.x, nm.y, nm.z, 0.0]);
+                    code.push(u32::from(c.depth[idx]) | (u32::from(c.defined[idx]) << 16));
+                }
+            }
+        }
+        let dev = &gpu.device;
+        let storage = |label: &str, bytes: &[u8]| {
+            dev.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some(label),
+                contents: bytes,
+                usage: wgpu::BufferUsages::STORAGE,
+            })
+        };
+        let attr = storage("parallax attributes", bytemuck::cast_slice(&attr));
+        let code = storage("parallax depth codes", bytemuck::cast_slice(&code));
+        let mut bounds = Vec::new();
+        for b in &data.bounds {
+            if b.kind == BoundKind::Cylinder {
+                continue;
+            }
+            let mut vals = Vec::with_capacity(n * lx * ly * 8);
+            for k in 0..n {
+                let slots = b.view_slots(k);
+                if slots.len() != lx * ly {
+                    return Err(invalid(
+                        "stored bounds",
+                        b.kind.name(),
+                        "do not cover every pixel of every view",
+                    ));
+                }
+                for s in slots {
+                    for slot in s {
+                        match slot {
+                            Some(pb) => vals.extend_from_slice(&[pb.c, pb.v_min, pb.v_max, 1.0]),
+                            None => vals.extend_from_slice(&[0.0; 4]),
+                        }
+                    }
+                }
+            }
+            bounds.push((b.kind, storage(b.kind.slug(), &reals(&vals, precision))));
+        }
+        let dummy = storage("no bounds", &reals(&[0.0; 8], precision));
+
+        let src = match precision {
+            Precision::F32 => SHADER.to_string(),
+            Precision::F64 => SHADER.replacen("alias real = f32;", "alias real = f64;", 1),
+        };
+        let scope = dev.push_error_scope(wgpu::ErrorFilter::Validation);
+        let module = dev.create_shader_module(wgpu::ShaderModuleDescriptor {
+            label: Some("parallax.wgsl"),
+            source: wgpu::ShaderSource::Wgsl(src.into()),
+        });
+        let pipeline = dev.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+            label: Some("parallax impostor"),
+            layout: None,
+            vertex: wgpu::VertexState {
+                module: &module,
+                entry_point: Some("vs_main"),
+                compilation_options: Default::default(),
+                buffers: &[],
+            },
+            primitive: wgpu::PrimitiveState::default(),
+            depth_stencil: Some(wgpu::DepthStencilState {
+                format: wgpu::TextureFormat::Depth32Float,
+                depth_write_enabled: Some(true),
+                depth_compare: Some(wgpu::CompareFunction::LessEqual),
+                stencil: Default::default(),
+                bias: Default::default(),
+            }),
+            multisample: Default::default(),
+            fragment: Some(wgpu::FragmentState {
+                module: &module,
+                entry_point: Some("fs_main"),
+                compilation_options: Default::default(),
+                targets: &[Some(wgpu::ColorTargetState {
+                    format: wgpu::TextureFormat::Rgba32Float,
+                    blend: None,
+                    write_mask: wgpu::ColorWrites::ALL,
+                })],
+            }),
+            multiview_mask: None,
+            cache: None,
+        });
+        if let Some(e) = pollster::block_on(scope.pop()) {
+            return Err(DisplayError::Gpu(e.to_string()));
+        }
+        let grid = images.pixel_grid();
+        Ok(Self {
+            precision,
+            pipeline,
+            lx,
+            ly,
+            images: images.clone(),
+            attr,
+            code,
+            bounds,
+            dummy,
+            fixed: [
+                p.cylinder.radius,
+                grid.pitch_x(),
+                images.march_radius(),
+                p.continuity_texels * grid.pitch_x(),
+                ((1u64 << p.depth_bits) - 1) as f64,
+            ],
+        })
+    }
+
+    /// How far the march ends are widened so that an end lying on a cell boundary (a texel
+    /// centre, e.g. every pixel at θ = 0) also visits the cell before it: the CPU's `1e-9·δx`
+    /// in `f64`; in `f32` that is below rounding, so 16 ulps of the march radius (about
+    /// `2e-6·R`) stand in for it. Ends closer than this to a boundary but farther than
+    /// `1e-9·δx` then visit one cell more than on the CPU (rare; measured by the tests).
+    fn eps(&self) -> f64 {
+        match self.precision {
+            Precision::F64 => 1e-9 * self.fixed[1],
+            Precision::F32 => 16.0 * f64::from(f32::EPSILON) * self.fixed[2],
+        }
+    }
+
+    /// The precision the shader runs in.
+    pub fn precision(&self) -> Precision {
+        self.precision
+    }
+
+    /// Bound kinds this asset can be drawn with: the cylinder and every stored kind.
+    pub fn kinds(&self) -> Vec<BoundKind> {
+        std::iter::once(BoundKind::Cylinder)
+            .chain(self.bounds.iter().map(|b| b.0))
+            .collect()
+    }
+
+    /// Draws one frame and reads back the image, the steps and the depth. Cost: one draw of
+    /// `width × height` fragments, two bounded marches each, plus the read-back.
+    ///
+    /// Errors: a non-finite angle, a zero or huge screen, a kind not stored in the asset, stored
+    /// bounds at a screen size other than the views', a GPU error.
+    pub fn render(&self, gpu: &Gpu, d: &DrawParams) -> Result<Frame, DisplayError> {
+        if !d.alpha.is_finite() {
+            return Err(invalid("alpha", d.alpha, "must be finite"));
+        }
+        if d.width == 0 || d.height == 0 || d.width > 8192 || d.height > 8192 {
+            return Err(invalid(
+                "screen size",
+                format!("{}×{}", d.width, d.height),
+                "must be in 1..=8192",
+            ));
+        }
+        let dir = d.light.direction;
+        if !(dir.is_finite() && d.light.ambient.is_finite()) {
+            return Err(invalid("light", format!("{:?}", d.light), "must be finite"));
+        }
+        let (kind_id, bounds) = match d.kind {
+            BoundKind::Cylinder => (0u32, &self.dummy),
+            k => {
+                let b =
+                    self.bounds.iter().find(|b| b.0 == k).ok_or_else(|| {
+                        invalid("bound kind", k.name(), "is not stored in the asset")
+                    })?;
+                if (d.width, d.height) != (self.lx, self.ly) {
+                    return Err(invalid(
+                        "screen size",
+                        format!("{}×{}", d.width, d.height),
+                        "must equal the views' size with stored bounds (they hold at texel centres)",
+                    ));
+                }
+                let id = match k {
+                    BoundKind::ZMinMax => 1,
+                    BoundKind::FPair => 2,
+                    BoundKind::BestC => 3,
+                    _ => 4,
+                };
+                (id, &b.1)
+            }
+        };
+        let t0 = Instant::now();
+        let [(k1, t1, w1), (k2, t2, w2)] = self
+            .images
+            .bracketing(d.alpha)
+            .map_err(|_| invalid("alpha", d.alpha, "must be finite"))?;
+        let r = self.images.params.cylinder.radius;
+        let mut pv = self.fixed.to_vec();
+        pv.extend_from_slice(&[
+            t1.cos(),
+            t1.sin(),
+            t2.cos(),
+            t2.sin(),
+            2.0 * r / d.width as f64,
+            self.eps(),
+        ]);
+        let dev = &gpu.device;
+        let init = |label: &str, bytes: &[u8], usage| {
+            dev.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some(label),
+                contents: bytes,
+                usage,
+            })
+        };
+        let st = wgpu::BufferUsages::STORAGE;
+        let pbuf = init("P", &reals(&pv, self.precision), st);
+        let u = [
+            self.lx as u32,
+            self.ly as u32,
+            k1 as u32,
+            k2 as u32,
+            kind_id,
+            d.width as u32,
+            d.height as u32,
+        ];
+        let ubuf = init("U", bytemuck::cast_slice(&u), st);
+        let l = [dir.x, dir.y, dir.z, d.light.ambient, w1 as f32, w2 as f32];
+        let lbuf = init("L", bytemuck::cast_slice(&l), st);
+        let frags = d.width * d.height;
+        let steps_bytes = (frags * 8) as u64;
+        let steps = dev.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("steps"),
+            size: steps_bytes,
+            usage: st | wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let layout = self.pipeline.get_bind_group_layout(0);
+        let entries: Vec<wgpu::BindGroupEntry> =
+            [&pbuf, &ubuf, &lbuf, &self.attr, &self.code, bounds, &steps]
+                .iter()
+                .enumerate()
+                .map(|(i, b)| wgpu::BindGroupEntry {
+                    binding: i as u32,
+                    resource: b.as_entire_binding(),
+                })
+                .collect();
+        let scope = dev.push_error_scope(wgpu::ErrorFilter::Validation);
+        let bind = dev.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("parallax"),
+            layout: &layout,
+            entries: &entries,
+        });
+        let size = wgpu::Extent3d {
+            width: d.width as u32,
+            height: d.height as u32,
+            depth_or_array_layers: 1,
+        };
+        let target = |format, label| {
+            dev.create_texture(&wgpu::TextureDescriptor {
+                label: Some(label),
+                size,
+                mip_level_count: 1,
+                sample_count: 1,
+                dimension: wgpu::TextureDimension::D2,
+                format,
+                usage: wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC,
+                view_formats: &[],
+            })
+        };
+        let color = target(wgpu::TextureFormat::Rgba32Float, "colour");
+        let depth = target(wgpu::TextureFormat::Depth32Float, "depth");
+        let cview = color.create_view(&Default::default());
+        let dview = depth.create_view(&Default::default());
+        let pad = |b: usize| b.div_ceil(256) * 256;
+        let (crow, drow) = (d.width * 16, d.width * 4);
+        let readback = |bytes: usize, label| {
+            dev.create_buffer(&wgpu::BufferDescriptor {
+                label: Some(label),
+                size: bytes as u64,
+                usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
+                mapped_at_creation: false,
+            })
+        };
+        let cbuf = readback(pad(crow) * d.height, "colour read-back");
+        let dbuf = readback(pad(drow) * d.height, "depth read-back");
+        let sbuf = readback(steps_bytes as usize, "steps read-back");
+        let mut enc = dev.create_command_encoder(&Default::default());
+        enc.clear_buffer(&steps, 0, None);
+        {
+            let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
+                label: Some("impostor"),
+                color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+                    view: &cview,
+                    depth_slice: None,
+                    resolve_target: None,
+                    ops: wgpu::Operations {
+                        load: wgpu::LoadOp::Clear(wgpu::Color::TRANSPARENT),
+                        store: wgpu::StoreOp::Store,
+                    },
+                })],
+                depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+                    view: &dview,
+                    depth_ops: Some(wgpu::Operations {
+                        load: wgpu::LoadOp::Clear(1.0),
+                        store: wgpu::StoreOp::Store,
+                    }),
+                    stencil_ops: None,
+                }),
+                timestamp_writes: None,
+                occlusion_query_set: None,
+                multiview_mask: None,
+            });
+            pass.set_pipeline(&self.pipeline);
+            pass.set_bind_group(0, &bind, &[]);
+            pass.draw(0..6, 0..1);
+        }
+        let copy = |enc: &mut wgpu::CommandEncoder,
+                    tex: &wgpu::Texture,
+                    aspect: wgpu::TextureAspect,
+                    buf: &wgpu::Buffer,
+                    row: usize| {
+            enc.copy_texture_to_buffer(
+                wgpu::TexelCopyTextureInfo {
+                    texture: tex,
+                    mip_level: 0,
+                    origin: wgpu::Origin3d::ZERO,
+                    aspect,
+                },
+                wgpu::TexelCopyBufferInfo {
+                    buffer: buf,
+                    layout: wgpu::TexelCopyBufferLayout {
+                        offset: 0,
+                        bytes_per_row: Some(pad(row) as u32),
+                        rows_per_image: Some(d.height as u32),
+                    },
+                },
+                size,
+            );
+        };
+        copy(&mut enc, &color, wgpu::TextureAspect::All, &cbuf, crow);
+        copy(
+            &mut enc,
+            &depth,
+            wgpu::TextureAspect::DepthOnly,
+            &dbuf,
+            drow,
+        );
+        enc.copy_buffer_to_buffer(&steps, 0, &sbuf, 0, steps_bytes);
+        gpu.queue.submit([enc.finish()]);
+        if let Some(e) = pollster::block_on(scope.pop()) {
+            return Err(DisplayError::Gpu(e.to_string()));
+        }
+        let cbytes = read_buffer(gpu, &cbuf, crow, pad(crow), d.height)?;
+        let dbytes = read_buffer(gpu, &dbuf, drow, pad(drow), d.height)?;
+        let sbytes = read_buffer(gpu, &sbuf, steps_bytes as usize, steps_bytes as usize, 1)?;
+        let millis = t0.elapsed().as_secs_f64() * 1e3;
+        let image = RgbaImage {
+            width: d.width,
+            height: d.height,
+            pixels: f32s(&cbytes)
+                .chunks_exact(4)
+                .map(|c| [c[0], c[1], c[2], c[3]])
+                .collect(),
+        };
+        let depth = f32s(&dbytes);
+        let steps = u32s(&sbytes)
+            .chunks_exact(2)
+            .map(|c| [c[0], c[1]])
+            .collect();
+        Ok(Frame {
+            image,
+            steps,
+            depth,
+            millis,
+        })
+    }
+}
+
+fn f32s(bytes: &[u8]) -> Vec<f32> {
+    bytes
+        .chunks_exact(4)
+        .map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]]))
+        .collect()
+}
+
+fn u32s(bytes: &[u8]) -> Vec<u32> {
+    bytes
+        .chunks_exact(4)
+        .map(|c| u32::from_le_bytes([c[0], c[1], c[2], c[3]]))
+        .collect()
+}

@@ -1,0 +1,378 @@
+// Parallax impostor: the GPU twin of `altrep::parallax::{render, render_bounded, march}`
+// (src/parallax/warp.rs). Every formula below is the CPU's, in the same order of operations; the
+// conventions (θ = display angle − view angle, x_e = x_t cos θ + z_t sin θ, the march toward +x_t
+// for θ ≥ 0, cells between texel centres, half-open piece test) are those of src/parallax/mod.rs.
+//
+// `real` is f32 (the production shader) or f64 (the exact twin used by the step-count tests when
+// the adapter has SHADER_F64); the host replaces the alias line.
+alias real = f32;
+
+// Scalars in `real`: see `ParallaxDisplay::render` for the layout.
+@group(0) @binding(0) var<storage, read> P: array<real>;
+// Integers: 0 Lx, 1 Ly, 2 k1, 3 k2, 4 bound kind (0 cylinder, 1 zmin/zmax, 2 pair, 3 best c,
+// 4 best c split), 5 screen width, 6 screen height.
+@group(0) @binding(1) var<storage, read> U: array<u32>;
+// Light: direction xyz (unit, object frame), ambient; then blend weights w1, w2 (f32, as the CPU).
+@group(0) @binding(2) var<storage, read> L: array<f32>;
+// Per texel of every view (index (k·Ly + j)·Lx + i): linear albedo (xyz) and decoded normal (xyz).
+@group(0) @binding(3) var<storage, read> ATTR: array<vec4<f32>>;
+// Per texel: depth code (bits 0..15), defined (bit 16).
+@group(0) @binding(4) var<storage, read> CODE: array<u32>;
+// Per pixel of every view, two slots of (c, v_min, v_max, present).
+@group(0) @binding(5) var<storage, read> B: array<real>;
+// Per fragment: march steps of the two warped views.
+@group(0) @binding(6) var<storage, read_write> STEPS: array<u32>;
+
+const R_CAP: u32 = 0u;      // capture cylinder radius R
+const PITCH: u32 = 1u;      // texel pitch δx = 2R/Lx
+const MARCH_R: u32 = 2u;    // march radius R'
+const THRESH: u32 = 3u;     // continuity threshold (world units)
+const LEVELS: u32 = 4u;     // 2^depth_bits − 1
+const CO1: u32 = 5u;
+const SI1: u32 = 6u;
+const CO2: u32 = 7u;
+const SI2: u32 = 8u;
+const SCREEN_PITCH: u32 = 9u; // 2R / screen width
+const EPS: u32 = 10u;         // widening of the march ends (warp.rs: 1e-9·δx; see the host)
+
+struct VsOut {
+    @builtin(position) pos: vec4<f32>,
+};
+
+@vertex
+fn vs_main(@builtin(vertex_index) vi: u32) -> VsOut {
+    // The impostor quad [−R, R] × [0, H] fills the viewport: two triangles.
+    var corners = array<vec2<f32>, 6>(
+        vec2<f32>(-1.0, -1.0), vec2<f32>(1.0, -1.0), vec2<f32>(1.0, 1.0),
+        vec2<f32>(-1.0, -1.0), vec2<f32>(1.0, 1.0), vec2<f32>(-1.0, 1.0),
+    );
+    var out: VsOut;
+    out.pos = vec4<f32>(corners[vi], 0.0, 1.0);
+    return out;
+}
+
+fn x_at(u: real) -> real {
+    return -P[R_CAP] + u * P[PITCH];
+}
+
+fn texel_index(k: u32, j: u32, i: u32) -> u32 {
+    return (k * U[1] + j) * U[0] + i;
+}
+
+fn defined_at(idx: u32) -> bool {
+    return (CODE[idx] & 0x10000u) != 0u;
+}
+
+fn depth_at(idx: u32) -> real {
+    // code_value(code, bits) · 2 − 1, times R (images.rs `from_codes`).
+    return (real(CODE[idx] & 0xffffu) / P[LEVELS] * 2.0 - 1.0) * P[R_CAP];
+}
+
+// Height field of one texel (images.rs `link_rows`).
+struct Geom {
+    defined: bool,
+    z: real,
+    zl: real,
+    zr: real,
+    link_l: bool,
+    link_r: bool,
+};
+
+fn linked(a: u32, b: u32) -> bool {
+    return defined_at(a) && defined_at(b) && abs(depth_at(a) - depth_at(b)) <= P[THRESH];
+}
+
+fn geom(k: u32, j: u32, i: u32) -> Geom {
+    let idx = texel_index(k, j, i);
+    var g: Geom;
+    g.defined = defined_at(idx);
+    g.z = depth_at(idx);
+    g.link_l = i > 0u && linked(idx - 1u, idx);
+    g.link_r = i + 1u < U[0] && linked(idx, idx + 1u);
+    g.zl = g.z;
+    g.zr = g.z;
+    if g.link_l {
+        g.zl = 0.5 * (depth_at(idx - 1u) + g.z);
+    }
+    if g.link_r {
+        g.zr = 0.5 * (g.z + depth_at(idx + 1u));
+    }
+    return g;
+}
+
+struct Hit {
+    ok: bool,
+    texel: u32,
+    right: bool,
+    t: real,
+    z_e: real,
+};
+
+fn no_hit() -> Hit {
+    var h: Hit;
+    h.ok = false;
+    return h;
+}
+
+// warp.rs `try_piece` + `piece` + `hit_piece`: the ray X under θ against a half piece of texel i.
+fn try_piece(k: u32, j: u32, i: u32, right: bool, x: real, co: real, si: real) -> Hit {
+    let g = geom(k, j, i);
+    if !g.defined {
+        return no_hit();
+    }
+    let xc = x_at(real(i) + 0.5);
+    var a = vec2<real>(x_at(real(i)), g.zl);
+    var b = vec2<real>(xc, g.z);
+    if right {
+        a = vec2<real>(xc, g.z);
+        b = vec2<real>(x_at(real(i) + 1.0), g.zr);
+    }
+    let ea = a.x * co + a.y * si;
+    let eb = b.x * co + b.y * si;
+    if ea <= x && x < eb {
+        let t = (x - ea) / (eb - ea);
+        let xt = a.x + t * (b.x - a.x);
+        let zt = a.y + t * (b.y - a.y);
+        var h: Hit;
+        h.ok = true;
+        h.texel = i;
+        h.right = right;
+        h.t = t;
+        h.z_e = zt * co - xt * si;
+        return h;
+    }
+    return no_hit();
+}
+
+// warp.rs `cell`: cell index c ∈ [−1, Lx − 1] of abscissa x.
+fn cell(x: real) -> i32 {
+    let u = (x + P[R_CAP]) / P[PITCH] - 0.5;
+    return i32(min(max(floor(u), -1.0), real(i32(U[0]) - 1)));
+}
+
+struct March {
+    hit: Hit,
+    steps: u32,
+};
+
+// warp.rs `march_row`.
+fn march_row(k: u32, j: u32, x: real, co: real, si: real, x1: real, x2: real) -> March {
+    let w = i32(U[0]);
+    let eps = P[EPS];
+    var m: March;
+    m.hit = no_hit();
+    m.steps = 0u;
+    if si >= 0.0 {
+        if x1 > x2 {
+            return m;
+        }
+        let c1 = cell(x1 - eps);
+        let c2 = cell(x2 + eps);
+        for (var c = c1; c <= c2; c++) {
+            m.steps += 1u;
+            if c >= 0 {
+                let h = try_piece(k, j, u32(c), true, x, co, si);
+                if h.ok {
+                    m.hit = h;
+                    return m;
+                }
+            }
+            if c + 1 < w {
+                let h = try_piece(k, j, u32(c + 1), false, x, co, si);
+                if h.ok {
+                    m.hit = h;
+                    return m;
+                }
+            }
+        }
+    } else {
+        if x1 < x2 {
+            return m;
+        }
+        let c1 = cell(x1 + eps);
+        let c2 = cell(x2 - eps);
+        for (var c = c1; c >= c2; c--) {
+            m.steps += 1u;
+            if c + 1 < w {
+                let h = try_piece(k, j, u32(c + 1), false, x, co, si);
+                if h.ok {
+                    m.hit = h;
+                    return m;
+                }
+            }
+            if c >= 0 {
+                let h = try_piece(k, j, u32(c), true, x, co, si);
+                if h.ok {
+                    m.hit = h;
+                    return m;
+                }
+            }
+        }
+    }
+    return m;
+}
+
+// A march range (x1, x2) and whether it is empty.
+struct Range {
+    ok: bool,
+    x1: real,
+    x2: real,
+};
+
+fn range_of(ok: bool, x1: real, x2: real) -> Range {
+    var r: Range;
+    r.ok = ok;
+    r.x1 = x1;
+    r.x2 = x2;
+    return r;
+}
+
+// warp.rs `cylinder_range`.
+fn cylinder_range(x: real, co: real, si: real) -> Range {
+    let r = P[MARCH_R];
+    let h = sqrt(max(r * r - x * x, 0.0));
+    return range_of(true, x * co - h * si, x * co + h * si);
+}
+
+// bounds.rs `clip`.
+fn clip(a: Range, cyl: Range, forward: bool) -> Range {
+    if !a.ok {
+        return a;
+    }
+    if forward {
+        let lo = max(a.x1, cyl.x1);
+        let hi = min(a.x2, cyl.x2);
+        return range_of(lo <= hi, lo, hi);
+    }
+    let lo = min(a.x1, cyl.x1);
+    let hi = max(a.x2, cyl.x2);
+    return range_of(lo >= hi, lo, hi);
+}
+
+// `PixelBound::range` of slot s of pixel idx (present flag in the fourth value).
+fn slot_range(idx: u32, s: u32, x: real, co: real, si: real) -> Range {
+    let o = idx * 8u + s * 4u;
+    let c = B[o];
+    let base = (1.0 + c * (1.0 - co)) * x;
+    return range_of(B[o + 3u] > 0.5, base - B[o + 2u] * si, base - B[o + 1u] * si);
+}
+
+// bounds.rs `Bounds::range_cs` for the selected kind.
+fn march_range(k: u32, idx: u32, x: real, co: real, si: real) -> Range {
+    let cyl = cylinder_range(x, co, si);
+    let fw = si >= 0.0;
+    let kind = U[4];
+    let pix = k * U[0] * U[1] + idx;
+    if kind == 0u {
+        return clip(cyl, cyl, fw);
+    }
+    if kind == 1u || kind == 3u {
+        return clip(slot_range(pix, 0u, x, co, si), cyl, fw);
+    }
+    if kind == 4u {
+        return clip(slot_range(pix, select(0u, 1u, fw), x, co, si), cyl, fw);
+    }
+    // The pair: the shorter clipped interval.
+    let a = clip(slot_range(pix, 0u, x, co, si), cyl, fw);
+    let b = clip(slot_range(pix, 1u, x, co, si), cyl, fw);
+    if a.ok && b.ok {
+        if abs(a.x2 - a.x1) <= abs(b.x2 - b.x1) {
+            return a;
+        }
+        return b;
+    }
+    if a.ok {
+        return a;
+    }
+    return b;
+}
+
+// warp.rs `crossing_attributes` + `shade_crossing`.
+fn shade(k: u32, j: u32, h: Hit) -> vec3<f32> {
+    let idx = texel_index(k, j, h.texel);
+    let g = geom(k, j, h.texel);
+    let t = f32(h.t);
+    var a = ATTR[2u * idx].xyz;
+    var n = ATTR[2u * idx + 1u].xyz;
+    if h.right {
+        if g.link_r {
+            let s = 0.5 * t;
+            a = a + s * (ATTR[2u * idx + 2u].xyz - a);
+            n = n + s * (ATTR[2u * idx + 3u].xyz - n);
+        }
+    } else if g.link_l {
+        let ma = 0.5 * (ATTR[2u * idx - 2u].xyz + a);
+        let mn = 0.5 * (ATTR[2u * idx - 1u].xyz + n);
+        a = ma + t * (a - ma);
+        n = mn + t * (n - mn);
+    }
+    // glam's normalize_or_zero.
+    let rcp = 1.0 / sqrt(dot(n, n));
+    var nn = vec3<f32>(0.0);
+    if rcp > 0.0 && rcp < 3.0e38 {
+        nn = n * rcp;
+    }
+    let dir = vec3<f32>(L[0], L[1], L[2]);
+    let amb = L[3];
+    return a * (amb + (1.0 - amb) * max(dot(nn, dir), 0.0));
+}
+
+struct FsOut {
+    @location(0) color: vec4<f32>,
+    @builtin(frag_depth) depth: f32,
+};
+
+@fragment
+fn fs_main(@builtin(position) pos: vec4<f32>) -> FsOut {
+    let px = u32(pos.x);
+    let py = u32(pos.y);
+    let sw = U[5];
+    let sh = U[6];
+    let lx = U[0];
+    let ly = U[1];
+    // RenderParams::sample_xs (one ray per pixel) and view_row.
+    let x = -P[R_CAP] + (real(px) + 0.5) * P[SCREEN_PITCH];
+    let j = min(u32(floor((real(py) + 0.5) * real(ly) / real(sh))), ly - 1u);
+    // Stored bounds are per texel: the host only selects them at the views' own size.
+    let idx = j * lx + min(px, lx - 1u);
+
+    let k1 = U[2];
+    let k2 = U[3];
+    var m1: March;
+    m1.hit = no_hit();
+    m1.steps = 0u;
+    var m2 = m1;
+    let r1 = march_range(k1, idx, x, P[CO1], P[SI1]);
+    if r1.ok {
+        m1 = march_row(k1, j, x, P[CO1], P[SI1], r1.x1, r1.x2);
+    }
+    let r2 = march_range(k2, idx, x, P[CO2], P[SI2]);
+    if r2.ok {
+        m2 = march_row(k2, j, x, P[CO2], P[SI2], r2.x1, r2.x2);
+    }
+    let f = 2u * (py * sw + px);
+    STEPS[f] = m1.steps;
+    STEPS[f + 1u] = m2.steps;
+
+    if !m1.hit.ok && !m2.hit.ok {
+        discard;
+    }
+    var col: vec3<f32>;
+    var z_e: real;
+    if m1.hit.ok && m2.hit.ok {
+        col = L[4] * shade(k1, j, m1.hit) + L[5] * shade(k2, j, m2.hit);
+        z_e = max(m1.hit.z_e, m2.hit.z_e);
+    } else if m1.hit.ok {
+        col = shade(k1, j, m1.hit);
+        z_e = m1.hit.z_e;
+    } else {
+        col = shade(k2, j, m2.hit);
+        z_e = m2.hit.z_e;
+    }
+    var out: FsOut;
+    out.color = vec4<f32>(col, 1.0);
+    // Orthographic depth: z_e = R' (nearest) → 0, z_e = −R' → 1.
+    let r = P[MARCH_R];
+    out.depth = clamp(f32((r - z_e) / (2.0 * r)), 0.0, 1.0);
+    return out;
+}

@@ -740,3 +740,51 @@ fn the_improved_reconstruction_beats_the_original_and_more_views_never_look_wors
 const FLOOR_TRUCK: f64 = 30.3;
 const FLOOR_CHAIR: f64 = 27.0;
 const FLOOR_TREE: f64 = 28.0;
+
+#[test]
+fn tangent_brims_on_random_codes_stay_conservative_and_finite() {
+    use altrep::parallax::ViewCodes;
+    use proptest::prelude::*;
+    let config = ProptestConfig {
+        cases: 24,
+        failure_persistence: None,
+        ..ProptestConfig::default()
+    };
+    proptest!(config, |(
+        texels in proptest::collection::vec(
+            prop_oneof![Just(None), (any::<u8>(), any::<[u8; 3]>()).prop_map(Some)], 4 * 12 * 3),
+        slope in prop_oneof![Just(0.0), Just(1e6), 0.0f64..20.0],
+        alpha in -7.0f64..7.0,
+    )| {
+        let p = ParallaxParams { views: 4, width: 12, height: 3, ..ParallaxParams::default() };
+        let codes: Vec<ViewCodes> = (0..4)
+            .map(|k| {
+                let mut c = ViewCodes::empty(12, 3);
+                for idx in 0..36 {
+                    if let Some((d, n)) = texels[k * 36 + idx] {
+                        c.defined[idx] = true;
+                        c.depth[idx] = u16::from(d);
+                        c.normal[idx] = n; // any code, including zero and facing away
+                        c.albedo[idx] = [200, 100, 50];
+                    }
+                }
+                c
+            })
+            .collect();
+        let images = ParallaxImages::from_codes(&p, &codes)
+            .unwrap()
+            .with_brim(Brim::Tangent { max_slope: slope })
+            .unwrap();
+        prop_assert!(images.march_radius().is_finite());
+        let bounds: Vec<Bounds> = BoundKind::ALL
+            .iter()
+            .map(|&k| build_bounds(&images, k, &BoundParams { subdivisions: 4, ..BoundParams::default() }).unwrap())
+            .collect();
+        let refs: Vec<&Bounds> = bounds.iter().collect();
+        let violations = dense_sweep(&images, &refs, 4).unwrap();
+        prop_assert!(violations.iter().all(|&v| v == 0), "violations {:?}", violations);
+        let screen = RenderParams { supersample: 3, ..RenderParams::native(&images) };
+        let img = render_with(&images, alpha, WarpMethod::Inverse, &screen, &Variant::best().rec).unwrap();
+        prop_assert!(img.pixels.iter().flatten().all(|c| c.is_finite() && *c <= 1.0 + 1e-5));
+    });
+}

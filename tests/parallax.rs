@@ -694,8 +694,8 @@ fn the_error_split_adds_up_to_the_mse() {
 /// edges) against the original and the 64-view blend, 64², 3×3-ray truth, 16 angles.
 #[test]
 fn the_improved_reconstruction_beats_the_original_and_more_views_never_look_worse() {
-    // Floors: the measured PSNR less 0.5 dB (see the constants). Smooth convex shapes (pear,
-    // capsule, torus) still score up to 0.9 dB lower at N = 16 than at N = 8 (issue 11 note).
+    // Floors: the measured PSNR less 0.5 dB (see the constants). Torus, fandisk and capsule
+    // still score 0.5, 0.4 and 0.2 dB lower at N = 16 than at N = 8 (README, issue 11).
     let floors = [
         ("truck", FLOOR_TRUCK),
         ("chair", FLOOR_CHAIR),
@@ -736,9 +736,9 @@ fn the_improved_reconstruction_beats_the_original_and_more_views_never_look_wors
 
 // Improved reconstruction, N = 8, 64², 16 angles (`altrep parallax --shape NAME --quality-sweep`):
 // measured PSNR minus 0.5 dB.
-// Measured 30.82 (truck), 27.48 (chair), 28.54 (tree); the original path: 25.87, 21.09, 26.27.
+// Measured 30.81 (truck), 27.65 (chair), 28.49 (tree); the original path: 25.87, 21.09, 26.27.
 const FLOOR_TRUCK: f64 = 30.3;
-const FLOOR_CHAIR: f64 = 27.0;
+const FLOOR_CHAIR: f64 = 27.1;
 const FLOOR_TREE: f64 = 28.0;
 
 #[test]

@@ -4,9 +4,10 @@
 use std::path::PathBuf;
 
 use crate::parallax::{
-    BoundKind, BoundParams, Bounds, ParallaxError, ParallaxImages, ParallaxParams, QualityParams,
-    QualityRow, RenderParams, StepsReport, WarpMethod, build_bounds, measure_quality,
-    measure_steps, render, render_blend_baseline, render_offset_baseline,
+    BoundKind, BoundParams, Bounds, Brim, ParallaxError, ParallaxImages, ParallaxParams,
+    QualityParams, QualityRow, RenderParams, StepsReport, SweepRow, Variant, WarpMethod,
+    build_bounds, measure_quality, measure_quality_sweep, measure_steps, render,
+    render_blend_baseline, render_offset_baseline,
 };
 use altrep_data_gen::{RgbaImage, scene_shape, srgb_to_linear};
 use serde_json::json;
@@ -55,6 +56,18 @@ pub struct ParallaxArgs {
     /// Display angles of the quality table.
     #[arg(long, default_value_t = 16, value_parser = clap::value_parser!(u32).range(1..=4096))]
     pub quality_angles: u32,
+    /// Instead of the steps and quality tables: the reconstruction sweep of issue 11 (each option
+    /// of the reconstruction alone and all together, the one-step offset, the 64-view blend with
+    /// and without the row filter; PSNR, IoU and the error split by distance to the outline),
+    /// then the steps and dense-sweep violations of the bounds for the flat and tangent brims.
+    #[arg(long)]
+    pub quality_sweep: bool,
+    /// View sizes of the quality sweep.
+    #[arg(long, value_delimiter = ',', default_value = "64")]
+    pub quality_sizes: Vec<usize>,
+    /// Numbers of views of the quality sweep.
+    #[arg(long, value_delimiter = ',', default_value = "4,8,16")]
+    pub quality_views: Vec<usize>,
     /// Write the tables as JSON here.
     #[arg(long)]
     pub json: Option<PathBuf>,
@@ -129,6 +142,96 @@ pub fn quality_markdown(rows: &[QualityRow]) -> String {
     md
 }
 
+/// The quality sweep in markdown (errors ×1e4, alpha bias in %).
+pub fn sweep_markdown(rows: &[SweepRow]) -> String {
+    let mut md = String::from(
+        "| method | views | size | PSNR dB | IoU | MSE×1e4 band ≤1 px | band 2 px | interior | outside | alpha bias % | bytes |\n|---|---|---|---|---|---|---|---|---|---|---|\n",
+    );
+    for r in rows {
+        let s = &r.split;
+        md += &format!(
+            "| {} | {} | {}² | {:.2} | {:.4} | {:.2} | {:.2} | {:.2} | {:.2} | {:+.2} | {} |\n",
+            r.method,
+            r.views,
+            r.size,
+            r.psnr_db,
+            r.iou,
+            s.band1_mse * 1e4,
+            s.band2_mse * 1e4,
+            s.interior_mse * 1e4,
+            s.outside_mse * 1e4,
+            s.alpha_bias * 100.0,
+            r.bytes
+        );
+    }
+    md
+}
+
+/// `altrep parallax --quality-sweep`.
+fn run_sweep(
+    args: &ParallaxArgs,
+    shape: &dyn altrep_data_gen::Shape,
+    base: ParallaxParams,
+) -> CliResult {
+    let qp = QualityParams {
+        angles: args.quality_angles as usize,
+        sizes: args.quality_sizes.clone(),
+        views: args.quality_views.clone(),
+        base,
+        ..QualityParams::default()
+    };
+    if qp.sizes.iter().chain(&qp.views).any(|&v| v == 0) {
+        return Err("--quality-sizes and --quality-views must be positive".into());
+    }
+    let rows = measure_quality_sweep(shape, &qp, &Variant::standard())?;
+    println!(
+        "{}: reconstruction sweep against the ground truth ({} angles, {}×{} rays per pixel, the warp {} rays across × rows as filtered)\n\n{}",
+        shape.name(),
+        qp.angles,
+        qp.supersample,
+        qp.supersample,
+        qp.supersample,
+        sweep_markdown(&rows)
+    );
+    let images = ParallaxImages::capture(shape, &base)?;
+    let bp = BoundParams {
+        subdivisions: args.subdivisions as usize,
+        bits: args.bound_bits,
+        ..BoundParams::default()
+    };
+    let mut steps = Vec::new();
+    for (label, brim) in [
+        ("flat brim", Brim::Flat),
+        ("tangent brim", Variant::best().brim),
+    ] {
+        let t = steps_table(
+            images.with_brim(brim)?,
+            &bp,
+            args.angles as usize,
+            args.sweep_factor as usize,
+        )?;
+        println!(
+            "\nMarch steps per fragment and warped view, {label} (N = {}, {}², {} angles; dense sweep {} angles per view)\n\n{}",
+            base.views,
+            base.width,
+            t.report.angles,
+            t.report.sweep_angles,
+            steps_markdown(&t)
+        );
+        steps.push(json!({ "surface": label, "steps": t.report }));
+    }
+    if let Some(path) = &args.json {
+        let doc = json!({
+            "shape": shape.name(), "angles": qp.angles, "supersample": qp.supersample,
+            "variants": Variant::standard(), "quality": rows, "steps": steps,
+        });
+        std::fs::write(path, serde_json::to_string_pretty(&doc)?)
+            .map_err(|e| format!("cannot write {}: {e}", path.display()))?;
+        println!("wrote {}", path.display());
+    }
+    Ok(())
+}
+
 /// Runs `altrep parallax`.
 pub fn run(args: ParallaxArgs) -> CliResult {
     // Output paths are checked before the work, not after it.
@@ -144,6 +247,9 @@ pub fn run(args: ParallaxArgs) -> CliResult {
         continuity_texels: args.continuity,
         ..ParallaxParams::default()
     };
+    if args.quality_sweep {
+        return run_sweep(&args, shape.as_ref(), base);
+    }
     let images = ParallaxImages::capture(shape.as_ref(), &base)?;
     if images.views.iter().all(|v| v.coverage() == 0.0) {
         return Err(ParallaxError::NothingVisible { views: base.views }.into());

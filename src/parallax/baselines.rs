@@ -10,7 +10,7 @@ use glam::Vec4;
 use rayon::prelude::*;
 
 use super::images::{ParallaxImages, View};
-use super::warp::RenderParams;
+use super::warp::{RenderParams, RowFilter};
 use super::{ParallaxError, invalid};
 
 /// Shaded premultiplied texel `(i, j)`; transparent when undefined or outside the view.
@@ -39,6 +39,7 @@ fn render_with(
     images: &ParallaxImages,
     alpha: f64,
     screen: &RenderParams,
+    rows: RowFilter,
     offset: impl Fn(&View, usize, f64, f64) -> f64 + Sync,
 ) -> Result<RgbaImage, ParallaxError> {
     if screen.width == 0 || screen.height == 0 || screen.supersample == 0 {
@@ -57,13 +58,15 @@ fn render_with(
         .par_chunks_mut(screen.width)
         .enumerate()
         .for_each(|(js, px)| {
+            let weights = screen.row_weights(js, images.params.height, rows);
             for (s, &x) in xs.iter().enumerate() {
                 let mut acc = Vec4::ZERO;
-                for (k, theta, w) in [(k1, t1, w1), (k2, t2, w2)] {
-                    let v = &images.views[k];
-                    let j = screen.view_row(js, v.height);
-                    let xt = offset(v, j, x, theta);
-                    acc += fetch(v, &grid, xt, j, &screen.light) * w as f32;
+                for &(j, wr) in &weights {
+                    for (k, theta, w) in [(k1, t1, w1), (k2, t2, w2)] {
+                        let v = &images.views[k];
+                        let xt = offset(v, j, x, theta);
+                        acc += fetch(v, &grid, xt, j, &screen.light) * (w as f32 * wr);
+                    }
                 }
                 let p = &mut px[s / screen.supersample];
                 for c in 0..4 {
@@ -82,7 +85,19 @@ pub fn render_blend_baseline(
     alpha: f64,
     screen: &RenderParams,
 ) -> Result<RgbaImage, ParallaxError> {
-    render_with(images, alpha, screen, |_, _, x, _| x)
+    render_with(images, alpha, screen, RowFilter::Nearest, |_, _, x, _| x)
+}
+
+/// [`render_blend_baseline`] with a vertical filter ([`RowFilter::Linear`]: bilinear fetches, the
+/// same vertical reconstruction as the warp's option), so that the comparison with a filtered warp
+/// is fair. Errors: a zero screen size.
+pub fn render_blend_baseline_with(
+    images: &ParallaxImages,
+    alpha: f64,
+    screen: &RenderParams,
+    rows: RowFilter,
+) -> Result<RgbaImage, ParallaxError> {
+    render_with(images, alpha, screen, rows, |_, _, x, _| x)
 }
 
 /// One-step parallax offset per view: fetch the depth `z` of the nearest texel at the fragment's
@@ -96,10 +111,16 @@ pub fn render_offset_baseline(
     screen: &RenderParams,
 ) -> Result<RgbaImage, ParallaxError> {
     let grid = images.pixel_grid();
-    render_with(images, alpha, screen, |v, j, x, theta| {
-        let i = (grid.u_of(x).floor() as i64).clamp(0, v.width as i64 - 1) as usize;
-        let z = v.depth(i, j).unwrap_or(0.0);
-        let (si, co) = theta.sin_cos();
-        (x - z * si) / co.max(1e-6)
-    })
+    render_with(
+        images,
+        alpha,
+        screen,
+        RowFilter::Nearest,
+        |v, j, x, theta| {
+            let i = (grid.u_of(x).floor() as i64).clamp(0, v.width as i64 - 1) as usize;
+            let z = v.depth(i, j).unwrap_or(0.0);
+            let (si, co) = theta.sin_cos();
+            (x - z * si) / co.max(1e-6)
+        },
+    )
 }

@@ -92,6 +92,30 @@ impl ParallaxParams {
     }
 }
 
+/// How the surface ends on a side of a texel that is not joined to its neighbour (a silhouette or
+/// a depth jump): the half piece from the texel centre to the cell boundary. A representation
+/// option ([`ParallaxImages::with_brim`]); it adds no stored data (it is derived from the stored
+/// depth and normal) and changes the march, the direct warp and the bounds together, since all of
+/// them read the same pieces.
+#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
+pub enum Brim {
+    /// Flat at the texel's depth (`z_l = z_r = z`): the original model. Under a turn `θ` the
+    /// outer corner of a silhouette brim moves by `z·sin θ` while the true outline barely moves,
+    /// so brims stick out up to half a texel on the side the view turns toward.
+    #[default]
+    Flat,
+    /// Along the tangent of the stored normal, never rising toward the camera: the end depth is
+    /// `z − (δx/2)·min(max_slope, max(0, ∓n_x/n_z))` (view-frame normal, `−` for the left end and
+    /// `+` for the right one, so that the end drops away from the camera toward the outside). A tangent segment leaves a smooth outline
+    /// only to second order, so silhouettes stay put when the view turns; a brim steeper than
+    /// `1/tan θ` is seen from behind and skipped. At θ = 0 the piece still starts at the texel
+    /// centre, so a view seen head-on still reproduces its capture.
+    Tangent {
+        /// Largest `|dz/dx|` of a brim (≥ 0; 0 is [`Brim::Flat`]).
+        max_slope: f64,
+    },
+}
+
 /// Geometry of one texel of a view's height field (world units).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub(crate) struct TexelGeom {
@@ -190,6 +214,8 @@ pub struct ParallaxImages {
     march_radius: f64,
     /// See [`Self::pyramids`].
     pyramids: Vec<Pyramid>,
+    /// See [`Self::brim`].
+    brim: Brim,
 }
 
 /// Joins neighbouring defined texels of every row whose depths differ by at most `threshold`
@@ -218,6 +244,38 @@ fn link_rows(geom: &mut [TexelGeom], width: usize, threshold: f64) {
             } else {
                 z
             };
+        }
+    }
+}
+
+/// Sets the depths of the unjoined ends of every texel of `view` by `brim` (the joined ends keep
+/// the mean with their neighbour); `pitch` is `δx`.
+fn apply_brim(view: &mut View, pitch: f64, brim: Brim) {
+    let max_slope = match brim {
+        Brim::Flat => 0.0,
+        Brim::Tangent { max_slope } => max_slope,
+    };
+    let (sa, ca) = view.angle.sin_cos();
+    for (g, n) in view.geom.iter_mut().zip(&view.normal) {
+        if !g.defined {
+            continue;
+        }
+        // View-frame normal: n·right(α) and n·d(α), right = (sin α, 0, −cos α), d = (cos α, 0, sin α).
+        let nx = f64::from(n.x) * sa - f64::from(n.z) * ca;
+        let nz = f64::from(n.x) * ca + f64::from(n.z) * sa;
+        // Height-field slope dz/dx = −n_x/n_z. Going right the surface drops by −slope per unit,
+        // going left by +slope; a normal facing away or edge-on drops both ends the most.
+        let (down_l, down_r) = if nz > 1e-6 && nx.is_finite() {
+            (-nx / nz, nx / nz)
+        } else {
+            (max_slope, max_slope)
+        };
+        let drop = |s: f64| 0.5 * pitch * s.clamp(0.0, max_slope);
+        if !g.link_l {
+            g.zl = g.z - drop(down_l);
+        }
+        if !g.link_r {
+            g.zr = g.z - drop(down_r);
         }
     }
 }
@@ -489,6 +547,7 @@ impl ParallaxImages {
             capture_time: Duration::ZERO,
             march_radius: r,
             pyramids,
+            brim: Brim::Flat,
         };
         images.march_radius = images.compute_march_radius();
         Ok(images)
@@ -569,7 +628,41 @@ impl ParallaxImages {
                 }
             })
             .collect();
-        Self::assemble(params, views)
+        Self::assemble(params, views)?.with_brim(self.brim)
+    }
+
+    /// The same stored views with another surface model at unjoined texel ends (see [`Brim`]);
+    /// the stored data, their codes and the mip pyramids are unchanged, the march radius is
+    /// recomputed. Bounds must be built for the result ([`super::build_bounds`]) since they bound
+    /// the crossings of its surface. Cost: linear in the texels.
+    ///
+    /// Errors: a negative or non-finite `max_slope`.
+    pub fn with_brim(&self, brim: Brim) -> Result<ParallaxImages, ParallaxError> {
+        if let Brim::Tangent { max_slope } = brim
+            && !(max_slope.is_finite() && max_slope >= 0.0)
+        {
+            return Err(invalid(
+                "brim max_slope",
+                max_slope,
+                "must be finite and non-negative",
+            ));
+        }
+        let mut out = self.clone();
+        let pitch = out.pixel_grid().pitch_x();
+        let threshold = out.params.continuity_texels * pitch;
+        for v in &mut out.views {
+            link_rows(&mut v.geom, v.width, threshold);
+            apply_brim(v, pitch, brim);
+        }
+        out.brim = brim;
+        out.march_radius = out.compute_march_radius();
+        Ok(out)
+    }
+
+    /// The surface model at unjoined texel ends ([`Brim::Flat`] unless set by
+    /// [`Self::with_brim`]).
+    pub fn brim(&self) -> Brim {
+        self.brim
     }
 
     /// Bytes of the stored views with their mip pyramids: every level at the bytes per texel of

@@ -12,10 +12,13 @@ use altrep_data_gen::{Light, RgbaImage, Shape, TruthParams, render_truth};
 use rayon::prelude::*;
 use serde::Serialize;
 
-use super::baselines::{render_blend_baseline, render_offset_baseline};
+use super::baselines::{render_blend_baseline, render_blend_baseline_with, render_offset_baseline};
 use super::bounds::{BoundKind, Bounds, dense_sweep};
-use super::images::{ParallaxImages, ParallaxParams};
-use super::warp::{RenderParams, WarpMethod, cylinder_range, march_row, render};
+use super::images::{Brim, ParallaxImages, ParallaxParams};
+use super::warp::{
+    Reconstruction, RenderParams, RowFilter, WarpMethod, cylinder_range, march_row, render,
+    render_with,
+};
 use super::{ParallaxError, invalid};
 use crate::metrics::{CompareOptions, compare, psnr_from_mse, silhouette_iou};
 
@@ -391,6 +394,282 @@ pub fn measure_quality(
             iou,
             bytes: images.bytes(),
         });
+    }
+    Ok(rows)
+}
+
+/// Where the error of an image lies, by the distance of each pixel to the true silhouette: the
+/// Chebyshev distance `d` to the nearest pixel on the other side of the ground truth's outline
+/// (alpha > ½), up to 2. Each `*_mse` is the squared error summed over that region's pixels and
+/// channels divided by all of them (`4 × pixels`), so the four parts add up to the image's MSE.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
+pub struct ErrorSplit {
+    /// Pixels with `d ≤ 1` (the silhouette band of one pixel either side).
+    pub band1_mse: f64,
+    /// Pixels with `d = 2`.
+    pub band2_mse: f64,
+    /// Covered pixels further in (`d > 2`).
+    pub interior_mse: f64,
+    /// Uncovered pixels further out (`d > 2`): false coverage far from the outline.
+    pub outside_mse: f64,
+    /// Mean alpha of the image minus that of the truth (positive: over-coverage).
+    pub alpha_bias: f64,
+}
+
+impl ErrorSplit {
+    /// The sum of the parts, the image's MSE.
+    pub fn mse(&self) -> f64 {
+        self.band1_mse + self.band2_mse + self.interior_mse + self.outside_mse
+    }
+
+    fn add(&mut self, o: &Self) {
+        self.band1_mse += o.band1_mse;
+        self.band2_mse += o.band2_mse;
+        self.interior_mse += o.interior_mse;
+        self.outside_mse += o.outside_mse;
+        self.alpha_bias += o.alpha_bias;
+    }
+
+    fn scale(&mut self, f: f64) {
+        self.band1_mse *= f;
+        self.band2_mse *= f;
+        self.interior_mse *= f;
+        self.outside_mse *= f;
+        self.alpha_bias *= f;
+    }
+}
+
+/// Splits the error of `image` against `truth` by distance to the true silhouette (see
+/// [`ErrorSplit`]). Cost: 25 look-ups per pixel. Errors: images of different sizes or empty.
+pub fn error_split(image: &RgbaImage, truth: &RgbaImage) -> Result<ErrorSplit, ParallaxError> {
+    let (w, h) = (truth.width, truth.height);
+    if (image.width, image.height) != (w, h) || w * h == 0 {
+        return Err(invalid(
+            "image size",
+            format!("{}×{} vs {w}×{h}", image.width, image.height),
+            "must be equal and non-empty",
+        ));
+    }
+    let inside = |i: i64, j: i64| {
+        let (i, j) = (i.clamp(0, w as i64 - 1), j.clamp(0, h as i64 - 1));
+        truth.pixels[j as usize * w + i as usize][3] > 0.5
+    };
+    let mut out = ErrorSplit::default();
+    let norm = 1.0 / (4 * w * h) as f64;
+    for j in 0..h as i64 {
+        for i in 0..w as i64 {
+            let me = inside(i, j);
+            let mut d = 3;
+            for dj in -2i64..=2 {
+                for di in -2i64..=2 {
+                    if inside(i + di, j + dj) != me {
+                        d = d.min(di.abs().max(dj.abs()));
+                    }
+                }
+            }
+            let k = j as usize * w + i as usize;
+            let (a, b) = (image.pixels[k], truth.pixels[k]);
+            let e2: f64 = (0..4).map(|c| f64::from(a[c] - b[c]).powi(2)).sum::<f64>() * norm;
+            match (d, me) {
+                (0..=1, _) => out.band1_mse += e2,
+                (2, _) => out.band2_mse += e2,
+                (_, true) => out.interior_mse += e2,
+                (_, false) => out.outside_mse += e2,
+            }
+            out.alpha_bias += f64::from(a[3] - b[3]) / (w * h) as f64;
+        }
+    }
+    Ok(out)
+}
+
+/// One reconstruction measured by [`measure_quality_sweep`]: a surface model at silhouettes and
+/// the options of [`render_with`].
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Variant {
+    /// Label in tables.
+    pub name: String,
+    /// Surface model at unjoined texel ends.
+    pub brim: Brim,
+    /// Reconstruction options.
+    pub rec: Reconstruction,
+}
+
+impl Variant {
+    /// The original path (flat brims, nearest row, angular blend).
+    pub fn original() -> Self {
+        Self {
+            name: "inverse warp".into(),
+            brim: Brim::Flat,
+            rec: Reconstruction::default(),
+        }
+    }
+
+    /// The best combination measured (issue 11): tangent brims (max slope 4), linear row filter,
+    /// fallback to the next views out, soft edges (the depth test, measured alone at ±0.05 dB,
+    /// is left out).
+    pub fn best() -> Self {
+        Self {
+            name: "inverse, all options".into(),
+            brim: Brim::Tangent { max_slope: 4.0 },
+            rec: Reconstruction {
+                rows: RowFilter::Linear,
+                depth_test: false,
+                fallback: true,
+                soft_edges: true,
+            },
+        }
+    }
+
+    /// The original path, each option alone, and all of them together.
+    pub fn standard() -> Vec<Self> {
+        let base = Self::original();
+        let with = |name: &str, f: &dyn Fn(&mut Self)| {
+            let mut v = Self {
+                name: name.into(),
+                ..base.clone()
+            };
+            f(&mut v);
+            v
+        };
+        vec![
+            base.clone(),
+            with("+ tangent brim", &|v| {
+                v.brim = Brim::Tangent { max_slope: 4.0 }
+            }),
+            with("+ row filter", &|v| v.rec.rows = RowFilter::Linear),
+            with("+ depth test", &|v| v.rec.depth_test = true),
+            with("+ fallback views", &|v| v.rec.fallback = true),
+            with("+ soft edges", &|v| v.rec.soft_edges = true),
+            Self::best(),
+        ]
+    }
+}
+
+/// One row of [`measure_quality_sweep`].
+#[derive(Clone, Debug, Serialize)]
+pub struct SweepRow {
+    /// Variant name, `"one-step offset"`, `"blend N views"` or `"blend N views, row filter"`.
+    pub method: String,
+    /// Views stored.
+    pub views: usize,
+    /// View (and screen) size.
+    pub size: usize,
+    /// PSNR (dB) of premultiplied RGBA against the ground truth over all angles.
+    pub psnr_db: f64,
+    /// Mean silhouette IoU (alpha > ½).
+    pub iou: f64,
+    /// Error split by distance to the true outline, averaged over the angles.
+    pub split: ErrorSplit,
+    /// Bytes of the stored views.
+    pub bytes: usize,
+}
+
+/// The quality table of issue 11: for every size and N of `params`, each of `variants` (inverse
+/// warping with a surface model and reconstruction options), the one-step offset at the same N,
+/// and the blend of `blend_views` views without and with the row filter, against the
+/// supersampled ground truth, with the error split by distance to the outline. Cost: as
+/// [`measure_quality`] times the variants.
+///
+/// Errors: invalid parameters, capture or comparison errors.
+pub fn measure_quality_sweep(
+    shape: &dyn Shape,
+    params: &QualityParams,
+    variants: &[Variant],
+) -> Result<Vec<SweepRow>, ParallaxError> {
+    if params.angles == 0 || params.supersample == 0 {
+        return Err(invalid(
+            "quality sweep",
+            format!("{} angles ×{}", params.angles, params.supersample),
+            "must be positive",
+        ));
+    }
+    let alphas: Vec<f64> = (0..params.angles)
+        .map(|a| TAU * (a as f64 + 0.5) / params.angles as f64 + 0.05)
+        .collect();
+    let mut rows = Vec::new();
+    for &size in &params.sizes {
+        let truth = alphas
+            .iter()
+            .map(|&angle| {
+                render_truth(
+                    shape,
+                    &TruthParams {
+                        angle,
+                        width: size,
+                        height: size,
+                        supersample: params.supersample,
+                        light: params.light,
+                        cylinder: params.base.cylinder,
+                    },
+                )
+            })
+            .collect::<Result<Vec<_>, _>>()?;
+        let screen = RenderParams {
+            width: size,
+            height: size,
+            supersample: params.supersample,
+            light: params.light,
+            mip: true,
+        };
+        let run = |method: String,
+                   images: &ParallaxImages,
+                   f: &dyn Fn(&ParallaxImages, f64) -> Result<RgbaImage, ParallaxError>|
+         -> Result<SweepRow, ParallaxError> {
+            let imgs = alphas
+                .iter()
+                .map(|&a| f(images, a))
+                .collect::<Result<Vec<_>, _>>()?;
+            let (psnr_db, iou) = score(&imgs, &truth)?;
+            let mut split = ErrorSplit::default();
+            for (img, t) in imgs.iter().zip(&truth) {
+                split.add(&error_split(img, t)?);
+            }
+            split.scale(1.0 / imgs.len().max(1) as f64);
+            Ok(SweepRow {
+                method,
+                views: images.params.views,
+                size,
+                psnr_db,
+                iou,
+                split,
+                bytes: images.bytes(),
+            })
+        };
+        for &views in &params.views {
+            let p = ParallaxParams {
+                views,
+                width: size,
+                height: size,
+                ..params.base
+            };
+            let images = ParallaxImages::capture(shape, &p)?;
+            for v in variants {
+                let im = images.with_brim(v.brim)?;
+                rows.push(run(v.name.clone(), &im, &|im, a| {
+                    render_with(im, a, WarpMethod::Inverse, &screen, &v.rec)
+                })?);
+            }
+            rows.push(run("one-step offset".into(), &images, &|im, a| {
+                render_offset_baseline(im, a, &screen)
+            })?);
+        }
+        let p = ParallaxParams {
+            views: params.blend_views,
+            width: size,
+            height: size,
+            ..params.base
+        };
+        let images = ParallaxImages::capture(shape, &p)?;
+        rows.push(run(
+            format!("blend {} views", params.blend_views),
+            &images,
+            &|im, a| render_blend_baseline(im, a, &screen),
+        )?);
+        rows.push(run(
+            format!("blend {} views, row filter", params.blend_views),
+            &images,
+            &|im, a| render_blend_baseline_with(im, a, &screen, RowFilter::Linear),
+        )?);
     }
     Ok(rows)
 }

@@ -17,6 +17,13 @@
 //! (pair), 1.04 (best c), 0.67 (best c, split θ); zero violations on the dense sweep. See the
 //! closing note of issue 5 for all six shapes and the report's ÷5 / ÷12.
 //!
+//! **Reconstruction options** (issue 11; defaults are the original path above): the surface at
+//! unjoined texel ends ([`Brim`], [`ParallaxImages::with_brim`]: flat, or along the stored
+//! normal's tangent), and in [`render_with`] a linear filter between view rows, a depth test
+//! between the two views, a fallback to the next views out where both miss, and soft coverage at
+//! silhouette brims ([`Reconstruction`]). [`measure_quality_sweep`] measures each alone and all
+//! together, with the error split by distance to the true outline ([`error_split`]).
+//!
 //! ## Sign conventions (derived once from data-gen's; SPEC §14 says the report slips)
 //!
 //! data-gen's view at angle `α` has screen abscissa `x = p·right(α)`, `right(α) = (sin α, 0,
@@ -55,7 +62,8 @@
 //! `[x_i − δx/2, x_i + δx/2]`. On a side where its neighbour is defined and the depth jump is at
 //! most the continuity threshold, the surface is the straight segment between the two texel centres
 //! (split at the cell boundary, attributes interpolated linearly); on a side without such a
-//! neighbour it is flat at `z_i` (so isolated texels and silhouettes keep their half texel). Walls
+//! neighbour it is flat at `z_i` (so isolated texels and silhouettes keep their half texel; with
+//! [`Brim::Tangent`] that half piece drops along the normal's tangent instead). Walls
 //! between disconnected texels are **not** surface: a ray that passes under a front piece through
 //! a gap goes on to what lies behind, exactly as direct warping leaves the gap undrawn. A ray hits
 //! a piece `(a, b)` (`x_a < x_b`) iff `x_e(a) ≤ X < x_e(b)` — the same half-open test in both
@@ -79,17 +87,18 @@ mod images;
 mod measure;
 mod warp;
 
-pub use baselines::{render_blend_baseline, render_offset_baseline};
+pub use baselines::{render_blend_baseline, render_blend_baseline_with, render_offset_baseline};
 pub use bounds::{
     BoundKind, BoundParams, Bounds, PixelBound, ViewStorage, build_bounds, dense_sweep,
 };
-pub use images::{ParallaxImages, ParallaxParams, View, ViewCodes, normal_code};
+pub use images::{Brim, ParallaxImages, ParallaxParams, View, ViewCodes, normal_code};
 pub use measure::{
-    QualityParams, QualityRow, StepStats, StepsReport, measure_quality, measure_steps,
+    ErrorSplit, QualityParams, QualityRow, StepStats, StepsReport, SweepRow, Variant, error_split,
+    measure_quality, measure_quality_sweep, measure_steps,
 };
 pub use warp::{
-    Crossing, MarchResult, RenderParams, WarpMethod, cylinder_range, march, render, render_bounded,
-    warp_row_direct, warp_view,
+    Crossing, MarchResult, Reconstruction, RenderParams, RowFilter, WarpMethod, cylinder_range,
+    march, render, render_bounded, render_with, warp_row_direct, warp_view,
 };
 
 use altrep_data_gen::DataGenError;

@@ -10,7 +10,7 @@ use serde_json::json;
 
 use super::CliResult;
 use crate::fit::{
-    DEFAULT_LAMBDA, DENSE_MAX_NODES, DesignMatrix, FitParams, Fitter, SampleGrid, TrilinearGrid,
+    DEFAULT_LAMBDA, DENSE_MAX_NODES, DesignMatrix, FitParams, Fitter, FitSamples, TrilinearGrid,
     dense_min_norm, error_stats,
 };
 
@@ -140,7 +140,7 @@ pub fn run(args: FitBenchArgs) -> CliResult {
     let cells = args.grid;
     let t0 = Instant::now();
     let with_jump = args.function == "step";
-    let samples = SampleGrid::from_fn(args.samples, |p| test_function_with(p, with_jump))?;
+    let samples = FitSamples::from_fn(args.samples, |p| test_function_with(p, with_jump))?;
     let sampling_ms = t0.elapsed().as_secs_f64() * 1e3;
     let fitter = Fitter::new(&samples, cells, periodic)?;
     let assembly_ms = fitter.assembly_s() * 1e3;

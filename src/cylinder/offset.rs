@@ -207,8 +207,8 @@ pub struct OffsetTexture {
 #[derive(Clone, Debug)]
 pub struct OffsetSamples {
     /// `k` per fine sample (texels), `None` outside the silhouette; layout of
-    /// [`fit::SampleGrid`] (x fastest, then rows, then angles).
-    pub grid: fit::SampleGrid,
+    /// [`fit::FitSamples`] (x fastest, then rows, then angles).
+    pub grid: fit::FitSamples,
     /// The silhouette mask at the fine grid's rows and angles, when the abscissa was normalised
     /// within it.
     pub mask: Option<SilhouetteMask>,
@@ -324,7 +324,7 @@ pub fn sample_offsets(
         })
         .sum();
     Ok(OffsetSamples {
-        grid: fit::SampleGrid::new([nx, ny, na], values)?,
+        grid: fit::FitSamples::new([nx, ny, na], values)?,
         mask: mask.then_some(SilhouetteMask {
             rows: ny,
             angles: na,
@@ -337,7 +337,7 @@ pub fn sample_offsets(
 }
 
 /// Error (texels, wrapped) of the fitted offsets over the defined samples.
-fn offset_error(samples: &fit::SampleGrid, grid: &TrilinearGrid, columns: usize) -> ErrorStats {
+fn offset_error(samples: &fit::FitSamples, grid: &TrilinearGrid, columns: usize) -> ErrorStats {
     let [nx, ny, _] = samples.dims();
     let l = columns as f64;
     let mut errors: Vec<f64> = samples
@@ -373,7 +373,7 @@ fn offset_error(samples: &fit::SampleGrid, grid: &TrilinearGrid, columns: usize)
 }
 
 /// Keeps the samples where `k` is continuous (see [`FitSupport::Continuous`]).
-fn continuous_only(samples: &fit::SampleGrid, jump: f64, columns: usize) -> Vec<Option<f64>> {
+fn continuous_only(samples: &fit::FitSamples, jump: f64, columns: usize) -> Vec<Option<f64>> {
     let [nx, ny, na] = samples.dims();
     let l = columns as f64;
     let values = samples.values();
@@ -458,7 +458,7 @@ impl OffsetTexture {
             FitSupport::All => data.values().to_vec(),
             FitSupport::Continuous { jump } => continuous_only(data, jump, l),
         };
-        let fitted_grid = fit::SampleGrid::new(data.dims(), kept)?;
+        let fitted_grid = fit::FitSamples::new(data.dims(), kept)?;
         let support_s = t0.elapsed().as_secs_f64();
         let fitter = fit::Fitter::new(&fitted_grid, params.cells, [false, false, true])?;
         let mut fit_params = FitParams {

@@ -29,7 +29,7 @@
 //! - **Axes**: `x, y, z` = axis 0, 1, 2; arrays are stored x fastest (`i + N_x·(j + N_y·k)`).
 //! - **Samples**: sample `(i, j, k)` sits at `((i + ½)/Nx, (j + ½)/Ny, (k + ½)/Nz)`, the cell
 //!   centres, on periodic and non-periodic axes alike ([`grid::sample_coordinate`]); other
-//!   positions can be given with [`SampleGrid::with_coordinates`].
+//!   positions can be given with [`FitSamples::with_coordinates`].
 //! - **Nodes**: node `i` of an axis of `A` cells sits at `u = i/A`. A non-periodic axis has
 //!   `A + 1` nodes (`i = 0..=A`); a periodic axis has `A` nodes, node `A` being node 0, so `g`
 //!   has period 1 along it and no seam.
@@ -65,7 +65,7 @@ use thiserror::Error;
 
 pub use assemble::{DataStats, DesignMatrix, NodeLayout, NormalEquations};
 pub use dense::{DENSE_MAX_NODES, dense_min_norm};
-pub use grid::{SampleGrid, TrilinearGrid, axis_weight, node_count, sample_coordinate};
+pub use grid::{FitSamples, TrilinearGrid, axis_weight, node_count, sample_coordinate};
 pub use quantize::{Quantized, quantize};
 
 /// Default regularisation weight λ (dimensionless; see the module docs), chosen from the
@@ -203,7 +203,7 @@ pub struct ErrorStats {
 
 /// Fit error of `grid` against the defined samples of `samples` (in parallel over z-slices).
 /// Cost: one pass over the samples and a selection for the percentile.
-pub fn error_stats(samples: &SampleGrid, grid: &TrilinearGrid) -> ErrorStats {
+pub fn error_stats(samples: &FitSamples, grid: &TrilinearGrid) -> ErrorStats {
     let [nx, ny, _] = samples.dims();
     let w = grid::sample_weights(samples, grid.cells(), grid.periodic());
     // Per z-slice: the errors, their sum of squares and their maximum.
@@ -314,19 +314,19 @@ pub struct TrilinearFit {
 
 /// Fits a trilinear grid to samples (assembly, solve, report). Errors: see [`FitError`].
 /// Cost: see the module docs.
-pub fn fit(samples: &SampleGrid, params: &FitParams) -> Result<TrilinearFit, FitError> {
+pub fn fit(samples: &FitSamples, params: &FitParams) -> Result<TrilinearFit, FitError> {
     Fitter::new(samples, params.cells, params.periodic)?.fit(params)
 }
 
-/// Samples `f` on a `dims` grid ([`SampleGrid::from_fn`]) and fits it; the report's timing
+/// Samples `f` on a `dims` grid ([`FitSamples::from_fn`]) and fits it; the report's timing
 /// includes the sampling. Returns the samples too, for further evaluation.
 pub fn fit_fn(
     dims: [usize; 3],
     f: impl Fn([f64; 3]) -> Option<f64> + Sync,
     params: &FitParams,
-) -> Result<(SampleGrid, TrilinearFit), FitError> {
+) -> Result<(FitSamples, TrilinearFit), FitError> {
     let t0 = Instant::now();
-    let samples = SampleGrid::from_fn(dims, f)?;
+    let samples = FitSamples::from_fn(dims, f)?;
     let sampling_s = t0.elapsed().as_secs_f64();
     let mut fitted = fit(&samples, params)?;
     fitted.report.timing.sampling_s = sampling_s;
@@ -337,7 +337,7 @@ pub fn fit_fn(
 /// without re-assembly.
 #[derive(Debug, Clone)]
 pub struct Fitter<'a> {
-    samples: &'a SampleGrid,
+    samples: &'a FitSamples,
     normal: NormalEquations,
     assembly_s: f64,
 }
@@ -345,7 +345,7 @@ pub struct Fitter<'a> {
 impl<'a> Fitter<'a> {
     /// Assembles the normal equations. Errors: zero cells, no defined sample.
     pub fn new(
-        samples: &'a SampleGrid,
+        samples: &'a FitSamples,
         cells: [usize; 3],
         periodic: [bool; 3],
     ) -> Result<Self, FitError> {

@@ -52,7 +52,8 @@ use super::frame::{column_offset, offset_column, ray_sectors, row_coordinate, se
 use super::render::{CylinderRender, RenderParams, render_rows};
 use super::texture::CylindricalTexture;
 use super::warp::{Fragment, RadiusModel, SliceView};
-use crate::fit::{self, ErrorStats, FitParams, FitReport, TrilinearGrid};
+use crate::fit::{self, FitParams, FitReport, TrilinearGrid};
+use crate::stats::ErrorStats;
 
 /// Which fine samples enter the fit.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize)]
@@ -340,7 +341,7 @@ pub fn sample_offsets(
 fn offset_error(samples: &fit::FitSamples, grid: &TrilinearGrid, columns: usize) -> ErrorStats {
     let [nx, ny, _] = samples.dims();
     let l = columns as f64;
-    let mut errors: Vec<f64> = samples
+    let errors: Vec<f64> = samples
         .values()
         .par_iter()
         .enumerate()
@@ -351,25 +352,7 @@ fn offset_error(samples: &fit::FitSamples, grid: &TrilinearGrid, columns: usize)
             Some(d.min(l - d))
         })
         .collect();
-    let count = errors.len();
-    if count == 0 {
-        return ErrorStats {
-            rms: 0.0,
-            max: 0.0,
-            p99: 0.0,
-            count,
-        };
-    }
-    let rms = (errors.iter().map(|e| e * e).sum::<f64>() / count as f64).sqrt();
-    let max = errors.iter().copied().fold(0.0, f64::max);
-    let rank = ((0.99 * count as f64).ceil() as usize).clamp(1, count) - 1;
-    let (_, p99, _) = errors.select_nth_unstable_by(rank, f64::total_cmp);
-    ErrorStats {
-        rms,
-        max,
-        p99: *p99,
-        count,
-    }
+    ErrorStats::of(errors)
 }
 
 /// Keeps the samples where `k` is continuous (see [`FitSupport::Continuous`]).

@@ -63,6 +63,9 @@ use rayon::prelude::*;
 use serde::Serialize;
 use thiserror::Error;
 
+/// The error statistics of a fit ([`error_stats`]), kept at their old path `fit::ErrorStats`;
+/// they live in [`crate::stats`].
+pub use crate::stats::ErrorStats;
 pub use assemble::{DataStats, DesignMatrix, NodeLayout, NormalEquations};
 pub use dense::{DENSE_MAX_NODES, dense_min_norm};
 pub use grid::{FitSamples, TrilinearGrid, axis_weight, node_count, sample_coordinate};
@@ -188,68 +191,30 @@ impl Default for FitParams {
     }
 }
 
-/// Error of a fit over the defined samples, `|d − g|`.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
-pub struct ErrorStats {
-    /// Root mean square error.
-    pub rms: f64,
-    /// Largest error.
-    pub max: f64,
-    /// 99th percentile (nearest rank).
-    pub p99: f64,
-    /// Number of defined samples.
-    pub count: usize,
-}
-
-/// Fit error of `grid` against the defined samples of `samples` (in parallel over z-slices).
+/// Fit error `|d − g|` of `grid` against the defined samples of `samples` (in parallel over
+/// z-slices; statistics as [`ErrorStats`]).
 /// Cost: one pass over the samples and a selection for the percentile.
 pub fn error_stats(samples: &FitSamples, grid: &TrilinearGrid) -> ErrorStats {
     let [nx, ny, _] = samples.dims();
     let w = grid::sample_weights(samples, grid.cells(), grid.periodic());
-    // Per z-slice: the errors, their sum of squares and their maximum.
-    let slices: Vec<(Vec<f64>, f64, f64)> = samples
+    // Per z-slice: the errors ([`ErrorStats::of_chunks`] sums them slice by slice).
+    let slices: Vec<Vec<f64>> = samples
         .values()
         .par_chunks(nx * ny)
         .enumerate()
         .map(|(k, slice)| {
             let mut errs = Vec::with_capacity(slice.len());
-            let (mut ss, mut mx) = (0.0f64, 0.0f64);
             for (j, row) in slice.chunks_exact(nx).enumerate() {
                 for (i, v) in row.iter().enumerate() {
                     if let Some(d) = v {
-                        let e = (d - grid.blend([w[0][i], w[1][j], w[2][k]])).abs();
-                        ss += e * e;
-                        mx = mx.max(e);
-                        errs.push(e);
+                        errs.push((d - grid.blend([w[0][i], w[1][j], w[2][k]])).abs());
                     }
                 }
             }
-            (errs, ss, mx)
+            errs
         })
         .collect();
-    let count: usize = slices.iter().map(|s| s.0.len()).sum();
-    if count == 0 {
-        return ErrorStats {
-            rms: 0.0,
-            max: 0.0,
-            p99: 0.0,
-            count,
-        };
-    }
-    let sum_sq: f64 = slices.iter().map(|s| s.1).sum();
-    let max = slices.iter().map(|s| s.2).fold(0.0, f64::max);
-    let mut errors = Vec::with_capacity(count);
-    for s in &slices {
-        errors.extend_from_slice(&s.0);
-    }
-    let rank = ((0.99 * count as f64).ceil() as usize).clamp(1, count) - 1;
-    let (_, p99, _) = errors.select_nth_unstable_by(rank, f64::total_cmp);
-    ErrorStats {
-        rms: (sum_sq / count as f64).sqrt(),
-        max,
-        p99: *p99,
-        count,
-    }
+    ErrorStats::of_chunks(slices)
 }
 
 /// Wall time of each stage, in seconds.

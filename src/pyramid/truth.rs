@@ -251,12 +251,9 @@ pub fn lookup_all(
     (out, times[1])
 }
 
-/// RMS difference of two equally long value lists.
+/// RMS difference of two equally long value lists ([`crate::stats::rms`] of `a − b`).
 pub fn rms(a: &[f64], b: &[f64]) -> f64 {
-    if a.is_empty() {
-        return 0.0;
-    }
-    (a.iter().zip(b).map(|(x, y)| (x - y) * (x - y)).sum::<f64>() / a.len() as f64).sqrt()
+    crate::stats::rms(a.iter().zip(b).map(|(x, y)| x - y))
 }
 
 /// Parameters of [`measure_sweep`].

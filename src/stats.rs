@@ -1,5 +1,5 @@
 //! Summary statistics of error lists, in one place: RMS, maximum, nearest-rank percentiles
-//! ([`ErrorStats`]).
+//! ([`ErrorStats`]) and medians ([`median`]).
 //!
 //! Conventions, written once here:
 //! - Errors are non-negative magnitudes (`|d − g|`, texels, …); the caller takes the absolute
@@ -8,6 +8,9 @@
 //!   "nothing measured" is visible and no NaN is produced).
 //! - Percentiles use the **nearest rank**: the value of rank `⌈q·n⌉` (1-based, clamped to
 //!   `[1, n]`) of the sorted list.
+//! - Medians ([`median`]) state how an even count is resolved ([`EvenMedian`]): timings take the
+//!   upper middle value, a time that was measured (`fit-bench`, `ellipsoid-bench`, pyramid
+//!   lookups); quad-tree fusion takes the mean of the two middle estimates.
 //! - Sums of squares are taken in list order (chunk by chunk for [`ErrorStats::of_chunks`]), so a
 //!   figure does not depend on the thread count.
 
@@ -68,7 +71,11 @@ pub fn rms(errors: impl IntoIterator<Item = f64>) -> f64 {
     let (sum_sq, n) = errors
         .into_iter()
         .fold((0.0, 0usize), |(s, n), e| (s + e * e, n + 1));
-    if n == 0 { 0.0 } else { (sum_sq / n as f64).sqrt() }
+    if n == 0 {
+        0.0
+    } else {
+        (sum_sq / n as f64).sqrt()
+    }
 }
 
 /// Nearest-rank `q`-quantile of `values` (`q ∈ [0, 1]`; reorders `values`); `0` for an empty
@@ -80,6 +87,30 @@ pub fn percentile(values: &mut [f64], q: f64) -> f64 {
     }
     let rank = ((q * n as f64).ceil() as usize).clamp(1, n) - 1;
     *values.select_nth_unstable_by(rank, f64::total_cmp).1
+}
+
+/// How a median of an even number of values is taken.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum EvenMedian {
+    /// The upper of the two middle values, `sorted[n/2]` (always one of the values: used for
+    /// timings, where it is a time that was measured).
+    Upper,
+    /// The mean of the two middle values.
+    Mean,
+}
+
+/// Median of `values` (reorders them; NaN sorts last by [`f64::total_cmp`]); `None` for an
+/// empty list. `even` chooses the convention for an even count. Cost: O(n log n) (a sort).
+pub fn median(values: &mut [f64], even: EvenMedian) -> Option<f64> {
+    let n = values.len();
+    if n == 0 {
+        return None;
+    }
+    values.sort_by(f64::total_cmp);
+    Some(match even {
+        EvenMedian::Mean if n.is_multiple_of(2) => 0.5 * (values[n / 2 - 1] + values[n / 2]),
+        _ => values[n / 2],
+    })
 }
 
 #[cfg(test)]
@@ -109,6 +140,7 @@ mod tests {
         assert_eq!(ErrorStats::of_chunks(vec![vec![], vec![]]).count, 0);
         assert_eq!(rms([]), 0.0);
         assert_eq!(percentile(&mut [], 0.5), 0.0);
+        assert_eq!(median(&mut [], EvenMedian::Upper), None);
     }
 
     #[test]
@@ -118,5 +150,20 @@ mod tests {
         assert_relative_eq!(percentile(&mut v, 0.0), 1.0);
         assert_relative_eq!(percentile(&mut v, 0.5), 3.0);
         assert_relative_eq!(percentile(&mut v, 1.0), 5.0);
+    }
+
+    #[test]
+    fn median_conventions() {
+        assert_eq!(median(&mut [3.0, 1.0, 2.0], EvenMedian::Upper), Some(2.0));
+        assert_eq!(median(&mut [3.0, 1.0, 2.0], EvenMedian::Mean), Some(2.0));
+        assert_eq!(
+            median(&mut [4.0, 1.0, 3.0, 2.0], EvenMedian::Upper),
+            Some(3.0)
+        );
+        assert_eq!(
+            median(&mut [4.0, 1.0, 3.0, 2.0], EvenMedian::Mean),
+            Some(2.5)
+        );
+        assert_eq!(median(&mut [7.0], EvenMedian::Mean), Some(7.0));
     }
 }

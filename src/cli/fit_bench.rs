@@ -9,6 +9,7 @@ use altrep_solvers::{Method, PreconditionerKind, SolveParams, io, solve};
 use serde_json::json;
 
 use super::CliResult;
+use crate::stats::{EvenMedian, median};
 use crate::fit::{
     DEFAULT_LAMBDA, DENSE_MAX_NODES, DesignMatrix, FitParams, Fitter, FitSamples, TrilinearGrid,
     dense_min_norm, error_stats,
@@ -129,11 +130,6 @@ fn configurations() -> Vec<(Method, PreconditionerKind)> {
     ]
 }
 
-fn median(mut v: Vec<f64>) -> f64 {
-    v.sort_by(f64::total_cmp);
-    v[v.len() / 2]
-}
-
 /// Runs `altrep fit-bench`.
 pub fn run(args: FitBenchArgs) -> CliResult {
     let periodic = parse_periodic(&args.periodic)?;
@@ -217,7 +213,7 @@ pub fn run(args: FitBenchArgs) -> CliResult {
             preconditioner: pc,
             ..SolveParams::default()
         };
-        let times: Vec<f64> = (0..args.repeat.max(1))
+        let mut times: Vec<f64> = (0..args.repeat.max(1))
             .map(|_| {
                 let s = if method.is_least_squares() {
                     solve(method, &design.matrix, &design.rhs, &sp)
@@ -227,7 +223,8 @@ pub fn run(args: FitBenchArgs) -> CliResult {
                 s.map(|s| s.report.time_s * 1e3)
             })
             .collect::<Result<_, _>>()?;
-        let solve_ms = median(times);
+        // Upper median: a time that was measured (`times` has `repeat.max(1)` entries).
+        let solve_ms = median(&mut times, EvenMedian::Upper).unwrap_or(0.0);
         let r = &fitted.report;
         let name = format!("{}+{}", method.name(), pc.name());
         println!(

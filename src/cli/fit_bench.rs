@@ -8,21 +8,21 @@ use std::time::Instant;
 use altrep_solvers::{Method, PreconditionerKind, SolveParams, io, solve};
 use serde_json::json;
 
-use super::CliResult;
-use crate::stats::{EvenMedian, median};
+use super::{CliResult, parse_sizes};
 use crate::fit::{
-    DEFAULT_LAMBDA, DENSE_MAX_NODES, DesignMatrix, FitParams, Fitter, FitSamples, TrilinearGrid,
+    DEFAULT_LAMBDA, DENSE_MAX_NODES, DesignMatrix, FitParams, FitSamples, Fitter, TrilinearGrid,
     dense_min_norm, error_stats,
 };
+use crate::stats::{EvenMedian, median};
 
 /// Arguments of `altrep fit-bench`.
 #[derive(clap::Args, Debug)]
 pub struct FitBenchArgs {
     /// Coarse grid cells `AxxAyxAz`.
-    #[arg(long, default_value = "15x8x16", value_parser = parse_dims)]
+    #[arg(long, default_value = "15x8x16", value_parser = parse_sizes)]
     pub grid: [usize; 3],
     /// Fine sample grid `NxxNyxNz` (the default is about 2 million samples).
-    #[arg(long, default_value = "128x64x256", value_parser = parse_dims)]
+    #[arg(long, default_value = "128x64x256", value_parser = parse_sizes)]
     pub samples: [usize; 3],
     /// Periodic axes, among the letters x, y, z (`none` for none). z is the angle axis.
     #[arg(long, default_value = "z")]
@@ -54,19 +54,6 @@ pub struct FitBenchArgs {
     /// normal.mtx, normal_rhs.mtx (normal equations), design.mtx, design_rhs.mtx (LSQR/LSMR).
     #[arg(long)]
     pub export_mm: Option<PathBuf>,
-}
-
-fn parse_dims(s: &str) -> Result<[usize; 3], String> {
-    let v: Vec<usize> = s
-        .split('x')
-        .map(|t| t.trim().parse::<usize>().map_err(|e| format!("{t:?}: {e}")))
-        .collect::<Result<_, _>>()?;
-    match v[..] {
-        [a, b, c] if a > 0 && b > 0 && c > 0 => Ok([a, b, c]),
-        _ => Err(format!(
-            "expected three positive sizes like 15x8x16, got {s:?}"
-        )),
-    }
 }
 
 fn parse_periodic(s: &str) -> Result<[bool; 3], String> {

@@ -138,3 +138,18 @@ impl VoxelSource for VoxelGrid {
         self.density[x + self.dims[0] * (y + self.dims[1] * z)]
     }
 }
+
+/// An analytic volume ([`altrep_data_gen::AnalyticVolume`], `n³` voxels) as an octree input.
+impl VoxelSource for altrep_data_gen::AnalyticVolume {
+    fn dims(&self) -> [usize; 3] {
+        [self.n; 3]
+    }
+
+    fn voxel(&self, x: usize, y: usize, z: usize) -> Voxel {
+        self.sample(x, y, z).map_or(Voxel::EMPTY, |v| Voxel {
+            density: v.density,
+            color: v.color,
+            normal: v.normal,
+        })
+    }
+}

@@ -9,7 +9,7 @@ use std::hint::black_box;
 use std::time::Duration;
 
 use altrep::cli::fit_bench::test_function;
-use altrep::fit::{DEFAULT_LAMBDA, DesignMatrix, NormalEquations, SampleGrid};
+use altrep::fit::{DEFAULT_LAMBDA, DesignMatrix, FitSamples, NormalEquations};
 use altrep::solvers::{Method, PreconditionerKind, SolveParams, par_mul_vec, solve};
 use criterion::{Criterion, criterion_group, criterion_main};
 
@@ -17,8 +17,8 @@ const CELLS: [usize; 3] = [15, 8, 16];
 const PERIODIC: [bool; 3] = [false, false, true];
 const SAMPLES: [usize; 3] = [128, 64, 256];
 
-fn samples() -> SampleGrid {
-    SampleGrid::from_fn(SAMPLES, test_function).expect("test function samples are finite")
+fn samples() -> FitSamples {
+    FitSamples::from_fn(SAMPLES, test_function).expect("test function samples are finite")
 }
 
 fn assembly(c: &mut Criterion) {

@@ -25,6 +25,7 @@ pub mod pyramid;
 /// The mip pyramid, kept at its old path (`crate::mip::…`); it lives in [`pyramid::mip`].
 pub use pyramid::mip;
 pub mod slices;
+pub mod stats;
 
 pub use altrep_data_gen as data_gen;
 pub use altrep_solvers as solvers;

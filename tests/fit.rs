@@ -2,7 +2,7 @@
 //! systems, periodic seams, quantisation, property tests and bad input.
 
 use altrep::fit::{
-    DesignMatrix, FitError, FitParams, Fitter, SampleGrid, TrilinearGrid, dense_min_norm, fit,
+    DesignMatrix, FitError, FitParams, FitSamples, Fitter, TrilinearGrid, dense_min_norm, fit,
     node_count, quantize,
 };
 use altrep::solvers::{Method, PreconditionerKind, StopReason};
@@ -47,10 +47,10 @@ fn trilinear_function_is_recovered_exactly_by_every_solver() {
     // both lie in the fit's function space, so λ = 0 recovers them to solver tolerance.
     let cells = [4, 3, 5];
     let f = |p: [f64; 3]| 1.0 + 2.0 * p[0] - p[1] + 0.5 * p[2] + 3.0 * p[0] * p[1] * p[2];
-    let samples = SampleGrid::from_fn([13, 9, 16], |p| Some(f(p))).unwrap();
+    let samples = FitSamples::from_fn([13, 9, 16], |p| Some(f(p))).unwrap();
     let per = [false, false, true];
     let g_true = random_grid(cells, per, 7);
-    let samples_per = SampleGrid::from_fn([13, 9, 16], |p| Some(g_true.eval(p))).unwrap();
+    let samples_per = FitSamples::from_fn([13, 9, 16], |p| Some(g_true.eval(p))).unwrap();
     for m in Method::ALL {
         let r = fit(&samples, &params(cells, [false; 3], 0.0, m)).unwrap();
         assert!(r.report.solver.converged, "{m:?}");
@@ -77,7 +77,7 @@ fn trilinear_function_is_recovered_exactly_by_every_solver() {
 
 /// Samples of a piecewise-smooth function with undefined regions: a hole of whole cells
 /// (untouched nodes), a random mask and a jump.
-fn holey_samples(dims: [usize; 3], seed: u64) -> SampleGrid {
+fn holey_samples(dims: [usize; 3], seed: u64) -> FitSamples {
     let mut rng = Lcg(seed);
     let mask: Vec<bool> = (0..dims.iter().product::<usize>())
         .map(|_| rng.next() < 0.8)
@@ -97,13 +97,13 @@ fn holey_samples(dims: [usize; 3], seed: u64) -> SampleGrid {
             })
         })
         .collect();
-    SampleGrid::new(dims, values).unwrap()
+    FitSamples::new(dims, values).unwrap()
 }
 
 /// Minimum-norm least-squares solution and null-space projector diagonal, by SVD of the dense
 /// design matrix.
 fn dense_reference(
-    samples: &SampleGrid,
+    samples: &FitSamples,
     cells: [usize; 3],
     per: [bool; 3],
 ) -> (Vec<f64>, Vec<f64>) {
@@ -187,7 +187,7 @@ fn singular_systems_converge_or_say_they_did_not() {
             (i < 8 || k > 14).then_some((idx % 13) as f64 * 0.1)
         })
         .collect();
-    let samples = SampleGrid::new(dims, values).unwrap();
+    let samples = FitSamples::new(dims, values).unwrap();
     let cells = [6, 4, 5];
     let fitter = Fitter::new(&samples, cells, [false; 3]).unwrap();
     assert!(fitter.normal_equations().untouched_nodes() > 20);
@@ -222,7 +222,7 @@ fn singular_systems_converge_or_say_they_did_not() {
 fn periodic_axis_has_no_seam() {
     // Data with a seam-free angle axis z.
     let f = |p: [f64; 3]| Some((std::f64::consts::TAU * p[2]).cos() * (1.0 + p[0]) + p[1]);
-    let samples = SampleGrid::from_fn([20, 10, 32], f).unwrap();
+    let samples = FitSamples::from_fn([20, 10, 32], f).unwrap();
     let r = fit(
         &samples,
         &params([5, 3, 8], [false, false, true], 1e-3, Method::Pcg),
@@ -252,7 +252,7 @@ fn regularisation_keeps_coefficients_near_the_data_range() {
             (j < 3 || (i % 7 == 0 && j < 10)).then_some(if x > 0.5 { 1.0 } else { 0.0 } + x)
         })
         .collect();
-    let samples = SampleGrid::new(dims, values).unwrap();
+    let samples = FitSamples::new(dims, values).unwrap();
     let fitter = Fitter::new(&samples, [10, 4, 4], [false; 3]).unwrap();
     let p0 = fitter
         .fit(&params([10, 4, 4], [false; 3], 0.0, Method::Pcg))
@@ -295,11 +295,11 @@ fn quantisation_error_is_reported_and_refit_never_hurts() {
 #[test]
 fn bad_input_gives_typed_errors() {
     assert!(matches!(
-        SampleGrid::new([0, 2, 2], vec![]),
+        FitSamples::new([0, 2, 2], vec![]),
         Err(FitError::ZeroSize { axis: 0, .. })
     ));
     assert!(matches!(
-        SampleGrid::new([2, 2, 2], vec![Some(1.0); 7]),
+        FitSamples::new([2, 2, 2], vec![Some(1.0); 7]),
         Err(FitError::InconsistentSize {
             expected: 8,
             found: 7,
@@ -309,26 +309,26 @@ fn bad_input_gives_typed_errors() {
     let mut v = vec![Some(1.0); 8];
     v[5] = Some(f64::NAN);
     assert!(matches!(
-        SampleGrid::new([2, 2, 2], v),
+        FitSamples::new([2, 2, 2], v),
         Err(FitError::NonFiniteSample {
             index: [1, 0, 1],
             ..
         })
     ));
     assert!(matches!(
-        SampleGrid::from_fn([3, 3, 3], |_| Some(f64::INFINITY)),
+        FitSamples::from_fn([3, 3, 3], |_| Some(f64::INFINITY)),
         Err(FitError::NonFiniteSample { .. })
     ));
     assert!(matches!(
-        SampleGrid::with_coordinates([vec![0.5], vec![1.5], vec![0.5]], vec![Some(1.0)]),
+        FitSamples::with_coordinates([vec![0.5], vec![1.5], vec![0.5]], vec![Some(1.0)]),
         Err(FitError::CoordinateOutOfRange { axis: 1, .. })
     ));
-    let none = SampleGrid::new([2, 2, 2], vec![None; 8]).unwrap();
+    let none = FitSamples::new([2, 2, 2], vec![None; 8]).unwrap();
     assert!(matches!(
         fit(&none, &FitParams::default()),
         Err(FitError::NoDefinedSample)
     ));
-    let ok = SampleGrid::new([2, 2, 2], vec![Some(1.0); 8]).unwrap();
+    let ok = FitSamples::new([2, 2, 2], vec![Some(1.0); 8]).unwrap();
     assert!(matches!(
         fit(&ok, &params([2, 0, 2], [false; 3], 0.0, Method::Pcg)),
         Err(FitError::ZeroSize {
@@ -377,7 +377,7 @@ proptest! {
         let values: Vec<Option<f64>> = (0..n)
             .map(|_| (rng.next() < density).then(|| scale * (rng.next() - 0.5)))
             .collect();
-        let samples = SampleGrid::new(dims, values).unwrap();
+        let samples = FitSamples::new(dims, values).unwrap();
         match fit(&samples, &params(cells, periodic, lambda, solver)) {
             Err(FitError::NoDefinedSample) => prop_assert_eq!(samples.defined_count(), 0),
             Err(e) => prop_assert!(false, "unexpected error {e}"),

@@ -24,6 +24,7 @@
 //! * A sample whose ray misses is **undefined** (`None`), never a magic number.
 //! * Every random choice takes a seed ([`SplitMix64`]).
 
+mod analytic;
 mod capture;
 mod error;
 mod geometry;
@@ -35,6 +36,7 @@ mod shapes;
 mod truth;
 mod volume;
 
+pub use analytic::{AnalyticShape, AnalyticVolume, AnalyticVoxel};
 pub use capture::{
     CylinderParams, Projection, Sample, SampleGrid, ViewParams, capture_cylinder, capture_view,
 };

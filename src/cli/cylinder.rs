@@ -8,9 +8,9 @@ use std::path::PathBuf;
 use altrep_data_gen::{Mesh, MeshLoadOptions, RgbaImage, Shape, scene_shape};
 use serde_json::json;
 
-use super::CliResult;
 use super::capture::load_shape;
 use super::demo::{DemoContext, DemoSection, truth_image};
+use super::{CliResult, parse_sizes_upto};
 use crate::cylinder::{
     BoundsParams, CylinderError, CylindricalTexture, EvalParams, EvalReport, ExactMethod,
     LambdaRule, OffsetMode, OffsetParams, OffsetTexture, RadiusModel, RenderParams, SWEEP_GRIDS,
@@ -36,14 +36,14 @@ pub struct CylinderArgs {
     #[arg(long, default_value = "../shared/data/meshes")]
     pub meshes: PathBuf,
     /// Cells of the fitted offset grid, `AxxAyxAα` (x, rows, angles; the angle axis is periodic).
-    #[arg(long, default_value = "15x8x16", value_parser = parse_grid)]
+    #[arg(long, default_value = "15x8x16", value_parser = parse_sizes_upto::<256>)]
     pub grid: [usize; 3],
     /// Regularisation λ of the offset fit, fixed; by default it is chosen per fit (the smallest
     /// that keeps the coefficients within twice the data range).
     #[arg(long)]
     pub lambda: Option<f64>,
     /// Cells of the march bounds, `BxxGxBα` (abscissae, texture rows per cell, angles).
-    #[arg(long, default_value = "64x2x64", value_parser = parse_grid)]
+    #[arg(long, default_value = "64x2x64", value_parser = parse_sizes_upto::<256>)]
     pub bounds: [usize; 3],
     /// Camera angles measured.
     #[arg(long, default_value_t = 8, value_parser = clap::value_parser!(u32).range(1..=360))]
@@ -57,23 +57,6 @@ pub struct CylinderArgs {
     /// Write the results as JSON to this file.
     #[arg(long)]
     pub json: Option<PathBuf>,
-}
-
-/// Parses `15x8x16` (or `15×8×16`) into cell counts, each at least 1.
-pub fn parse_grid(s: &str) -> Result<[usize; 3], String> {
-    let parts: Vec<&str> = s.split(['x', 'X', '×']).collect();
-    let bad = || format!("expected AxxAyxAα with three positive integers, like 15x8x16; got '{s}'");
-    if parts.len() != 3 {
-        return Err(bad());
-    }
-    let mut cells = [0; 3];
-    for (c, p) in cells.iter_mut().zip(&parts) {
-        *c = p.trim().parse::<usize>().map_err(|_| bad())?;
-        if *c == 0 || *c > 256 {
-            return Err(format!("grid sizes must be in 1..=256; got '{s}'"));
-        }
-    }
-    Ok(cells)
 }
 
 /// Runs `altrep cylinder`.
@@ -352,18 +335,4 @@ pub fn demo_section(
         json: json!(results),
         markdown: md,
     })
-}
-
-#[cfg(test)]
-mod tests {
-    use super::parse_grid;
-
-    #[test]
-    fn grids_parse() {
-        assert_eq!(parse_grid("15x8x16"), Ok([15, 8, 16]));
-        assert_eq!(parse_grid("8×4×8"), Ok([8, 4, 8]));
-        assert!(parse_grid("15x8").is_err());
-        assert!(parse_grid("0x8x16").is_err());
-        assert!(parse_grid("ax8x16").is_err());
-    }
 }

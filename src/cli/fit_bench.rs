@@ -8,20 +8,21 @@ use std::time::Instant;
 use altrep_solvers::{Method, PreconditionerKind, SolveParams, io, solve};
 use serde_json::json;
 
-use super::CliResult;
+use super::{CliResult, parse_sizes};
 use crate::fit::{
-    DEFAULT_LAMBDA, DENSE_MAX_NODES, DesignMatrix, FitParams, Fitter, SampleGrid, TrilinearGrid,
+    DEFAULT_LAMBDA, DENSE_MAX_NODES, DesignMatrix, FitParams, FitSamples, Fitter, TrilinearGrid,
     dense_min_norm, error_stats,
 };
+use crate::stats::{EvenMedian, median};
 
 /// Arguments of `altrep fit-bench`.
 #[derive(clap::Args, Debug)]
 pub struct FitBenchArgs {
     /// Coarse grid cells `AxxAyxAz`.
-    #[arg(long, default_value = "15x8x16", value_parser = parse_dims)]
+    #[arg(long, default_value = "15x8x16", value_parser = parse_sizes)]
     pub grid: [usize; 3],
     /// Fine sample grid `NxxNyxNz` (the default is about 2 million samples).
-    #[arg(long, default_value = "128x64x256", value_parser = parse_dims)]
+    #[arg(long, default_value = "128x64x256", value_parser = parse_sizes)]
     pub samples: [usize; 3],
     /// Periodic axes, among the letters x, y, z (`none` for none). z is the angle axis.
     #[arg(long, default_value = "z")]
@@ -53,19 +54,6 @@ pub struct FitBenchArgs {
     /// normal.mtx, normal_rhs.mtx (normal equations), design.mtx, design_rhs.mtx (LSQR/LSMR).
     #[arg(long)]
     pub export_mm: Option<PathBuf>,
-}
-
-fn parse_dims(s: &str) -> Result<[usize; 3], String> {
-    let v: Vec<usize> = s
-        .split('x')
-        .map(|t| t.trim().parse::<usize>().map_err(|e| format!("{t:?}: {e}")))
-        .collect::<Result<_, _>>()?;
-    match v[..] {
-        [a, b, c] if a > 0 && b > 0 && c > 0 => Ok([a, b, c]),
-        _ => Err(format!(
-            "expected three positive sizes like 15x8x16, got {s:?}"
-        )),
-    }
 }
 
 fn parse_periodic(s: &str) -> Result<[bool; 3], String> {
@@ -129,11 +117,6 @@ fn configurations() -> Vec<(Method, PreconditionerKind)> {
     ]
 }
 
-fn median(mut v: Vec<f64>) -> f64 {
-    v.sort_by(f64::total_cmp);
-    v[v.len() / 2]
-}
-
 /// Runs `altrep fit-bench`.
 pub fn run(args: FitBenchArgs) -> CliResult {
     // Output paths are checked before the work, not after it.
@@ -144,7 +127,7 @@ pub fn run(args: FitBenchArgs) -> CliResult {
     let cells = args.grid;
     let t0 = Instant::now();
     let with_jump = args.function == "step";
-    let samples = SampleGrid::from_fn(args.samples, |p| test_function_with(p, with_jump))?;
+    let samples = FitSamples::from_fn(args.samples, |p| test_function_with(p, with_jump))?;
     let sampling_ms = t0.elapsed().as_secs_f64() * 1e3;
     let fitter = Fitter::new(&samples, cells, periodic)?;
     let assembly_ms = fitter.assembly_s() * 1e3;
@@ -221,7 +204,7 @@ pub fn run(args: FitBenchArgs) -> CliResult {
             preconditioner: pc,
             ..SolveParams::default()
         };
-        let times: Vec<f64> = (0..args.repeat.max(1))
+        let mut times: Vec<f64> = (0..args.repeat.max(1))
             .map(|_| {
                 let s = if method.is_least_squares() {
                     solve(method, &design.matrix, &design.rhs, &sp)
@@ -231,7 +214,8 @@ pub fn run(args: FitBenchArgs) -> CliResult {
                 s.map(|s| s.report.time_s * 1e3)
             })
             .collect::<Result<_, _>>()?;
-        let solve_ms = median(times);
+        // Upper median: a time that was measured (`times` has `repeat.max(1)` entries).
+        let solve_ms = median(&mut times, EvenMedian::Upper).unwrap_or(0.0);
         let r = &fitted.report;
         let name = format!("{}+{}", method.name(), pc.name());
         println!(

@@ -13,3 +13,70 @@ pub mod slices;
 
 /// Error type of the command-line layer: a message for the user, already formatted.
 pub type CliResult = Result<(), Box<dyn std::error::Error + Send + Sync>>;
+
+/// The one parser of three sizes written `AxBxC` (grid cells, sample counts), for every
+/// subcommand's `value_parser`. Rule: exactly three integers ≥ 1, separated by `x`, `X` or `×`,
+/// spaces around each integer allowed (`15x8x16`, `15×8×16`, `15 x 8 x 16`).
+pub fn parse_sizes(s: &str) -> Result<[usize; 3], String> {
+    let bad =
+        || format!("expected three positive integers separated by 'x', like 15x8x16; got '{s}'");
+    let parts: Vec<&str> = s.split(['x', 'X', '×']).collect();
+    if parts.len() != 3 {
+        return Err(bad());
+    }
+    let mut sizes = [0; 3];
+    for (n, p) in sizes.iter_mut().zip(&parts) {
+        *n = p.trim().parse::<usize>().map_err(|_| bad())?;
+        if *n == 0 {
+            return Err(bad());
+        }
+    }
+    Ok(sizes)
+}
+
+/// [`parse_sizes`], each size also at most `MAX` (for options whose cost grows with the size).
+pub fn parse_sizes_upto<const MAX: usize>(s: &str) -> Result<[usize; 3], String> {
+    let sizes = parse_sizes(s)?;
+    if sizes.iter().any(|&n| n > MAX) {
+        return Err(format!("sizes must be in 1..={MAX}; got '{s}'"));
+    }
+    Ok(sizes)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::{parse_sizes, parse_sizes_upto};
+
+    #[test]
+    fn sizes_parse_with_every_separator() {
+        assert_eq!(parse_sizes("15x8x16"), Ok([15, 8, 16]));
+        assert_eq!(parse_sizes("8×4×8"), Ok([8, 4, 8]));
+        assert_eq!(parse_sizes("128X64X256"), Ok([128, 64, 256]));
+        assert_eq!(parse_sizes(" 15 x 8 x 16 "), Ok([15, 8, 16]));
+        assert_eq!(parse_sizes_upto::<256>("256x1x2"), Ok([256, 1, 2]));
+    }
+
+    #[test]
+    fn bad_sizes_are_errors_naming_the_input() {
+        for bad in [
+            "",
+            "15",
+            "15x8",
+            "15x8x16x2",
+            "0x8x16",
+            "15x0x16",
+            "ax8x16",
+            "15x-8x16",
+            "15x8.5x16",
+            "15xx8",
+            "15,8,16",
+            "x8x16",
+            "99999999999999999999999x1x1",
+        ] {
+            let e = parse_sizes(bad).expect_err(bad);
+            assert!(e.contains(&format!("'{bad}'")), "{e}");
+        }
+        let e = parse_sizes_upto::<256>("257x8x16").unwrap_err();
+        assert!(e.contains("1..=256") && e.contains("257x8x16"), "{e}");
+    }
+}

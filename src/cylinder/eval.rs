@@ -28,6 +28,7 @@ use super::render::{CylinderRender, ExactMethod, RenderParams, render_exact};
 use super::texture::{CylindricalTexture, RowPyramid};
 use super::warp::{DrawOrder, RadiusModel};
 use crate::metrics::{CompareOptions, compare, psnr_from_mse, silhouette_iou};
+use crate::stats::ErrorStats;
 
 /// Parameters of [`evaluate`] and [`sweep`].
 #[derive(Clone, Debug, Serialize)]
@@ -85,7 +86,8 @@ impl Default for EvalParams {
     }
 }
 
-/// Error statistics of offsets, texels.
+/// Error statistics of offsets, texels ([`ErrorStats`] conventions, plus the share above one
+/// texel).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
 pub struct OffsetError {
     /// Root mean square.
@@ -99,18 +101,16 @@ pub struct OffsetError {
 }
 
 impl OffsetError {
-    fn of(mut errors: Vec<f64>) -> Self {
+    fn of(errors: Vec<f64>) -> Self {
         let count = errors.len();
         if count == 0 {
             return Self::default();
         }
-        let rms = (errors.iter().map(|e| e * e).sum::<f64>() / count as f64).sqrt();
         let above = errors.iter().filter(|e| **e > 1.0).count() as f64 / count as f64;
-        let rank = ((0.99 * count as f64).ceil() as usize).clamp(1, count) - 1;
-        let (_, p99, _) = errors.select_nth_unstable_by(rank, f64::total_cmp);
+        let stats = ErrorStats::of(errors);
         Self {
-            rms,
-            p99: *p99,
+            rms: stats.rms,
+            p99: stats.p99,
             share_above_one: above,
             count,
         }

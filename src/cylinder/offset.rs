@@ -52,7 +52,8 @@ use super::frame::{column_offset, offset_column, ray_sectors, row_coordinate, se
 use super::render::{CylinderRender, RenderParams, render_rows};
 use super::texture::CylindricalTexture;
 use super::warp::{Fragment, RadiusModel, SliceView};
-use crate::fit::{self, ErrorStats, FitParams, FitReport, TrilinearGrid};
+use crate::fit::{self, FitParams, FitReport, TrilinearGrid};
+use crate::stats::ErrorStats;
 
 /// Which fine samples enter the fit.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize)]
@@ -207,8 +208,8 @@ pub struct OffsetTexture {
 #[derive(Clone, Debug)]
 pub struct OffsetSamples {
     /// `k` per fine sample (texels), `None` outside the silhouette; layout of
-    /// [`fit::SampleGrid`] (x fastest, then rows, then angles).
-    pub grid: fit::SampleGrid,
+    /// [`fit::FitSamples`] (x fastest, then rows, then angles).
+    pub grid: fit::FitSamples,
     /// The silhouette mask at the fine grid's rows and angles, when the abscissa was normalised
     /// within it.
     pub mask: Option<SilhouetteMask>,
@@ -324,7 +325,7 @@ pub fn sample_offsets(
         })
         .sum();
     Ok(OffsetSamples {
-        grid: fit::SampleGrid::new([nx, ny, na], values)?,
+        grid: fit::FitSamples::new([nx, ny, na], values)?,
         mask: mask.then_some(SilhouetteMask {
             rows: ny,
             angles: na,
@@ -337,10 +338,10 @@ pub fn sample_offsets(
 }
 
 /// Error (texels, wrapped) of the fitted offsets over the defined samples.
-fn offset_error(samples: &fit::SampleGrid, grid: &TrilinearGrid, columns: usize) -> ErrorStats {
+fn offset_error(samples: &fit::FitSamples, grid: &TrilinearGrid, columns: usize) -> ErrorStats {
     let [nx, ny, _] = samples.dims();
     let l = columns as f64;
-    let mut errors: Vec<f64> = samples
+    let errors: Vec<f64> = samples
         .values()
         .par_iter()
         .enumerate()
@@ -351,29 +352,11 @@ fn offset_error(samples: &fit::SampleGrid, grid: &TrilinearGrid, columns: usize)
             Some(d.min(l - d))
         })
         .collect();
-    let count = errors.len();
-    if count == 0 {
-        return ErrorStats {
-            rms: 0.0,
-            max: 0.0,
-            p99: 0.0,
-            count,
-        };
-    }
-    let rms = (errors.iter().map(|e| e * e).sum::<f64>() / count as f64).sqrt();
-    let max = errors.iter().copied().fold(0.0, f64::max);
-    let rank = ((0.99 * count as f64).ceil() as usize).clamp(1, count) - 1;
-    let (_, p99, _) = errors.select_nth_unstable_by(rank, f64::total_cmp);
-    ErrorStats {
-        rms,
-        max,
-        p99: *p99,
-        count,
-    }
+    ErrorStats::of(errors)
 }
 
 /// Keeps the samples where `k` is continuous (see [`FitSupport::Continuous`]).
-fn continuous_only(samples: &fit::SampleGrid, jump: f64, columns: usize) -> Vec<Option<f64>> {
+fn continuous_only(samples: &fit::FitSamples, jump: f64, columns: usize) -> Vec<Option<f64>> {
     let [nx, ny, na] = samples.dims();
     let l = columns as f64;
     let values = samples.values();
@@ -458,7 +441,7 @@ impl OffsetTexture {
             FitSupport::All => data.values().to_vec(),
             FitSupport::Continuous { jump } => continuous_only(data, jump, l),
         };
-        let fitted_grid = fit::SampleGrid::new(data.dims(), kept)?;
+        let fitted_grid = fit::FitSamples::new(data.dims(), kept)?;
         let support_s = t0.elapsed().as_secs_f64();
         let fitter = fit::Fitter::new(&fitted_grid, params.cells, [false, false, true])?;
         let mut fit_params = FitParams {

@@ -18,6 +18,7 @@ use super::filter::{FilterCase, FilterRule, Sin2Fit, filter, filter_errors, fit_
 use super::octree::{AnalyticVolume, Octree, OctreeParams, OctreeReport, VoxelGrid};
 use super::quadrature::SphereQuadrature;
 use super::rng::{RandomGeometry, SplitMix64};
+use crate::stats::{EvenMedian, median};
 
 /// One row of the eigen table.
 #[derive(Debug, Clone, PartialEq, Serialize)]
@@ -70,11 +71,6 @@ fn one_pass<T: EigenScalar>(mats: &[Matrix3<T>], solve: Solver<T>) -> f64 {
     start.elapsed().as_nanos() as f64 / mats.len().max(1) as f64
 }
 
-fn median(mut v: Vec<f64>) -> f64 {
-    v.sort_by(f64::total_cmp);
-    v[v.len() / 2]
-}
-
 /// Interleaved timings of two solvers (pass A, pass B, pass A, …) so both see the same machine
 /// load.
 struct PairTiming {
@@ -99,8 +95,9 @@ fn time_pair<T: EigenScalar>(
     PairTiming {
         best_a: best(&ta),
         best_b: best(&tb),
-        median_a: median(ta),
-        median_b: median(tb),
+        // Upper median (a measured time); `batches.max(1)` passes, so never empty.
+        median_a: median(&mut ta, EvenMedian::Upper).unwrap_or(0.0),
+        median_b: median(&mut tb, EvenMedian::Upper).unwrap_or(0.0),
     }
 }
 

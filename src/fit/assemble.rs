@@ -20,7 +20,7 @@ use rayon::prelude::*;
 use sprs::{CsMat, CsMatI};
 
 use super::FitError;
-use super::grid::{SampleGrid, axis_weight, node_count};
+use super::grid::{FitSamples, axis_weight, node_count};
 
 /// Offsets `(dx, dy, dz) ∈ {−1, 0, 1}³` of a 27-point stencil, index `(dx+1) + 3(dy+1) + 9(dz+1)`.
 const CENTRE: usize = 13;
@@ -198,7 +198,7 @@ pub struct DataStats {
 
 impl DataStats {
     /// Computes the statistics (two parallel passes). Error: no defined sample.
-    pub fn of(samples: &SampleGrid) -> Result<Self, FitError> {
+    pub fn of(samples: &FitSamples) -> Result<Self, FitError> {
         let values = samples.values();
         let (count, sum, min, max) = values
             .par_iter()
@@ -247,7 +247,7 @@ impl NormalEquations {
     /// cells. Errors: zero cells, no defined sample. Cost: see the module docs (about 10 ms
     /// for 2 million samples on 15×8×16 cells, 2 cores).
     pub fn assemble(
-        samples: &SampleGrid,
+        samples: &FitSamples,
         cells: [usize; 3],
         periodic: [bool; 3],
     ) -> Result<Self, FitError> {
@@ -457,7 +457,7 @@ impl DesignMatrix {
     /// z-slices. Errors: zero cells, too many nodes for `u32`, no defined sample.
     /// Cost: memory `≈ 8 × 12` bytes per defined sample.
     pub fn build(
-        samples: &SampleGrid,
+        samples: &FitSamples,
         cells: [usize; 3],
         periodic: [bool; 3],
         c: f64,
@@ -584,7 +584,7 @@ mod tests {
         let values: Vec<Option<f64>> = (0..dims.iter().product::<usize>())
             .map(|i| (i % 5 != 0).then(|| ((i * 37) % 17) as f64 - 8.0))
             .collect();
-        let samples = SampleGrid::new(dims, values).unwrap();
+        let samples = FitSamples::new(dims, values).unwrap();
         for (cells, periodic) in [
             ([3, 2, 2], [false, false, false]),
             ([1, 2, 3], [true, true, false]),

@@ -1,5 +1,5 @@
-//! Sample grids (the data) and trilinear node grids (the fitted function), with the coordinate
-//! conventions of the module docs written once here.
+//! Fit samples (the data, [`FitSamples`]) and trilinear node grids (the fitted function), with
+//! the coordinate conventions of the module docs written once here.
 
 use rayon::prelude::*;
 
@@ -49,7 +49,7 @@ pub fn axis_weight(u: f64, cells: usize, periodic: bool) -> (usize, usize, f64) 
 /// cells: the per-sample work of evaluating a grid at all samples is then one [`TrilinearGrid`]
 /// blend. Cost: `Nx + Ny + Nz` calls.
 pub(crate) fn sample_weights(
-    samples: &SampleGrid,
+    samples: &FitSamples,
     cells: [usize; 3],
     periodic: [bool; 3],
 ) -> [Vec<(usize, usize, f64)>; 3] {
@@ -63,19 +63,20 @@ pub(crate) fn sample_weights(
 }
 
 /// Samples `d(i, j, k)` of a function on a fine `Nx × Ny × Nz` grid over `[0, 1]³`, each defined
-/// or not.
+/// or not: the data the trilinear fit approximates. (Not to be confused with data-gen's
+/// `SampleGrid`, the pixels of a captured view.)
 ///
 /// Storage: `values[i + Nx·(j + Ny·k)]` (x fastest). Positions: `coords[axis][i]`, by default
-/// [`sample_coordinate`] (`(i + 0.5)/N`); [`SampleGrid::with_coordinates`] accepts any positions
+/// [`sample_coordinate`] (`(i + 0.5)/N`); [`FitSamples::with_coordinates`] accepts any positions
 /// in `[0, 1]`. Every defined value is finite (checked at construction).
 #[derive(Debug, Clone, PartialEq)]
-pub struct SampleGrid {
+pub struct FitSamples {
     dims: [usize; 3],
     coords: [Vec<f64>; 3],
     values: Vec<Option<f64>>,
 }
 
-impl SampleGrid {
+impl FitSamples {
     /// Samples at the default cell-centre positions. Errors: a zero size, `values.len() ≠
     /// Nx·Ny·Nz`, a NaN or infinite defined value. Cost: one pass over the values.
     pub fn new(dims: [usize; 3], values: Vec<Option<f64>>) -> Result<Self, FitError> {
@@ -92,7 +93,7 @@ impl SampleGrid {
     }
 
     /// Samples at given per-axis positions (`coords[axis].len()` is that axis's size; every
-    /// position finite and in `[0, 1]`). Errors as [`SampleGrid::new`], plus
+    /// position finite and in `[0, 1]`). Errors as [`FitSamples::new`], plus
     /// [`FitError::CoordinateOutOfRange`].
     pub fn with_coordinates(
         coords: [Vec<f64>; 3],
@@ -151,7 +152,7 @@ impl SampleGrid {
     }
 
     /// Samples `f(x, y, z)` at the default positions, in parallel over z-slices (`None` =
-    /// undefined). Errors as [`SampleGrid::new`] (a non-finite value from `f` is an error, not
+    /// undefined). Errors as [`FitSamples::new`] (a non-finite value from `f` is an error, not
     /// a silent hole). Cost: `Nx·Ny·Nz` calls of `f`.
     pub fn from_fn(
         dims: [usize; 3],

@@ -29,7 +29,7 @@
 //! - **Axes**: `x, y, z` = axis 0, 1, 2; arrays are stored x fastest (`i + N_x·(j + N_y·k)`).
 //! - **Samples**: sample `(i, j, k)` sits at `((i + ½)/Nx, (j + ½)/Ny, (k + ½)/Nz)`, the cell
 //!   centres, on periodic and non-periodic axes alike ([`grid::sample_coordinate`]); other
-//!   positions can be given with [`SampleGrid::with_coordinates`].
+//!   positions can be given with [`FitSamples::with_coordinates`].
 //! - **Nodes**: node `i` of an axis of `A` cells sits at `u = i/A`. A non-periodic axis has
 //!   `A + 1` nodes (`i = 0..=A`); a periodic axis has `A` nodes, node `A` being node 0, so `g`
 //!   has period 1 along it and no seam.
@@ -63,9 +63,12 @@ use rayon::prelude::*;
 use serde::Serialize;
 use thiserror::Error;
 
+/// The error statistics of a fit ([`error_stats`]), kept at their old path `fit::ErrorStats`;
+/// they live in [`crate::stats`].
+pub use crate::stats::ErrorStats;
 pub use assemble::{DataStats, DesignMatrix, NodeLayout, NormalEquations};
 pub use dense::{DENSE_MAX_NODES, dense_min_norm};
-pub use grid::{SampleGrid, TrilinearGrid, axis_weight, node_count, sample_coordinate};
+pub use grid::{FitSamples, TrilinearGrid, axis_weight, node_count, sample_coordinate};
 pub use quantize::{Quantized, quantize};
 
 /// Default regularisation weight λ (dimensionless; see the module docs), chosen from the
@@ -188,68 +191,30 @@ impl Default for FitParams {
     }
 }
 
-/// Error of a fit over the defined samples, `|d − g|`.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
-pub struct ErrorStats {
-    /// Root mean square error.
-    pub rms: f64,
-    /// Largest error.
-    pub max: f64,
-    /// 99th percentile (nearest rank).
-    pub p99: f64,
-    /// Number of defined samples.
-    pub count: usize,
-}
-
-/// Fit error of `grid` against the defined samples of `samples` (in parallel over z-slices).
+/// Fit error `|d − g|` of `grid` against the defined samples of `samples` (in parallel over
+/// z-slices; statistics as [`ErrorStats`]).
 /// Cost: one pass over the samples and a selection for the percentile.
-pub fn error_stats(samples: &SampleGrid, grid: &TrilinearGrid) -> ErrorStats {
+pub fn error_stats(samples: &FitSamples, grid: &TrilinearGrid) -> ErrorStats {
     let [nx, ny, _] = samples.dims();
     let w = grid::sample_weights(samples, grid.cells(), grid.periodic());
-    // Per z-slice: the errors, their sum of squares and their maximum.
-    let slices: Vec<(Vec<f64>, f64, f64)> = samples
+    // Per z-slice: the errors ([`ErrorStats::of_chunks`] sums them slice by slice).
+    let slices: Vec<Vec<f64>> = samples
         .values()
         .par_chunks(nx * ny)
         .enumerate()
         .map(|(k, slice)| {
             let mut errs = Vec::with_capacity(slice.len());
-            let (mut ss, mut mx) = (0.0f64, 0.0f64);
             for (j, row) in slice.chunks_exact(nx).enumerate() {
                 for (i, v) in row.iter().enumerate() {
                     if let Some(d) = v {
-                        let e = (d - grid.blend([w[0][i], w[1][j], w[2][k]])).abs();
-                        ss += e * e;
-                        mx = mx.max(e);
-                        errs.push(e);
+                        errs.push((d - grid.blend([w[0][i], w[1][j], w[2][k]])).abs());
                     }
                 }
             }
-            (errs, ss, mx)
+            errs
         })
         .collect();
-    let count: usize = slices.iter().map(|s| s.0.len()).sum();
-    if count == 0 {
-        return ErrorStats {
-            rms: 0.0,
-            max: 0.0,
-            p99: 0.0,
-            count,
-        };
-    }
-    let sum_sq: f64 = slices.iter().map(|s| s.1).sum();
-    let max = slices.iter().map(|s| s.2).fold(0.0, f64::max);
-    let mut errors = Vec::with_capacity(count);
-    for s in &slices {
-        errors.extend_from_slice(&s.0);
-    }
-    let rank = ((0.99 * count as f64).ceil() as usize).clamp(1, count) - 1;
-    let (_, p99, _) = errors.select_nth_unstable_by(rank, f64::total_cmp);
-    ErrorStats {
-        rms: (sum_sq / count as f64).sqrt(),
-        max,
-        p99: *p99,
-        count,
-    }
+    ErrorStats::of_chunks(slices)
 }
 
 /// Wall time of each stage, in seconds.
@@ -314,19 +279,19 @@ pub struct TrilinearFit {
 
 /// Fits a trilinear grid to samples (assembly, solve, report). Errors: see [`FitError`].
 /// Cost: see the module docs.
-pub fn fit(samples: &SampleGrid, params: &FitParams) -> Result<TrilinearFit, FitError> {
+pub fn fit(samples: &FitSamples, params: &FitParams) -> Result<TrilinearFit, FitError> {
     Fitter::new(samples, params.cells, params.periodic)?.fit(params)
 }
 
-/// Samples `f` on a `dims` grid ([`SampleGrid::from_fn`]) and fits it; the report's timing
+/// Samples `f` on a `dims` grid ([`FitSamples::from_fn`]) and fits it; the report's timing
 /// includes the sampling. Returns the samples too, for further evaluation.
 pub fn fit_fn(
     dims: [usize; 3],
     f: impl Fn([f64; 3]) -> Option<f64> + Sync,
     params: &FitParams,
-) -> Result<(SampleGrid, TrilinearFit), FitError> {
+) -> Result<(FitSamples, TrilinearFit), FitError> {
     let t0 = Instant::now();
-    let samples = SampleGrid::from_fn(dims, f)?;
+    let samples = FitSamples::from_fn(dims, f)?;
     let sampling_s = t0.elapsed().as_secs_f64();
     let mut fitted = fit(&samples, params)?;
     fitted.report.timing.sampling_s = sampling_s;
@@ -337,7 +302,7 @@ pub fn fit_fn(
 /// without re-assembly.
 #[derive(Debug, Clone)]
 pub struct Fitter<'a> {
-    samples: &'a SampleGrid,
+    samples: &'a FitSamples,
     normal: NormalEquations,
     assembly_s: f64,
 }
@@ -345,7 +310,7 @@ pub struct Fitter<'a> {
 impl<'a> Fitter<'a> {
     /// Assembles the normal equations. Errors: zero cells, no defined sample.
     pub fn new(
-        samples: &'a SampleGrid,
+        samples: &'a FitSamples,
         cells: [usize; 3],
         periodic: [bool; 3],
     ) -> Result<Self, FitError> {

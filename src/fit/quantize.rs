@@ -9,7 +9,7 @@
 
 use rayon::prelude::*;
 
-use super::grid::{SampleGrid, TrilinearGrid};
+use super::grid::{FitSamples, TrilinearGrid};
 use super::{ErrorStats, FitError, error_stats};
 
 /// Node values quantised to `bits` bits.
@@ -75,7 +75,7 @@ impl Quantized {
     pub fn refit(
         &mut self,
         template: &TrilinearGrid,
-        samples: &SampleGrid,
+        samples: &FitSamples,
     ) -> Result<(), FitError> {
         let raw = TrilinearGrid::new(
             template.cells(),
@@ -139,7 +139,7 @@ impl Quantized {
 /// Cost: two parallel passes over the samples.
 pub fn quantize(
     grid: &TrilinearGrid,
-    samples: &SampleGrid,
+    samples: &FitSamples,
     bits: u32,
 ) -> Result<(Quantized, ErrorStats), FitError> {
     let mut q = Quantized::min_max(grid, bits)?;

@@ -27,6 +27,7 @@
 use rayon::prelude::*;
 
 use super::mip::{MipError, Texture};
+use crate::stats::{EvenMedian, median};
 use altrep_data_gen::SplitMix64;
 
 /// One registered view (module docs).
@@ -94,16 +95,6 @@ fn reduce(img: &[f64], s: usize, ch: usize, k: u32) -> Vec<f64> {
             }
         });
     out
-}
-
-fn median(v: &mut [f64]) -> f64 {
-    v.sort_by(f64::total_cmp);
-    let n = v.len();
-    if n % 2 == 1 {
-        v[n / 2]
-    } else {
-        0.5 * (v[n / 2 - 1] + v[n / 2])
-    }
 }
 
 /// Fuses `views` into an `n × n` texture (`n` a power of two, 1 to 4096). Cost: module docs.
@@ -178,7 +169,9 @@ pub fn fuse(
             let med: Vec<f64> = (0..ch)
                 .map(|c| {
                     let mut v: Vec<f64> = estimates.iter().map(|e| e[node * ch + c]).collect();
-                    median(&mut v)
+                    // Mean of the two middle estimates for an even count; never empty
+                    // (the views of level l are among the estimates).
+                    median(&mut v, EvenMedian::Mean).unwrap_or(0.0)
                 })
                 .collect();
             for &k in &here {

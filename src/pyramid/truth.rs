@@ -30,6 +30,7 @@ use rayon::prelude::*;
 use super::ewa::ewa_into;
 use super::fip::{FipMap, Scheme};
 use super::mip::{MipError, PyramidParams, Texture, WrapMode};
+use crate::stats::{EvenMedian, median};
 use altrep_data_gen::SplitMix64;
 
 /// Angle subtended by one pixel, radians.
@@ -247,16 +248,14 @@ pub fn lookup_all(
         }
         times.push(start.elapsed().as_secs_f64() * 1e9 / fps.len().max(1) as f64);
     }
-    times.sort_by(f64::total_cmp);
-    (out, times[1])
+    // Median of the three passes.
+    let ns = median(&mut times, EvenMedian::Upper).unwrap_or(0.0);
+    (out, ns)
 }
 
-/// RMS difference of two equally long value lists.
+/// RMS difference of two equally long value lists ([`crate::stats::rms`] of `a − b`).
 pub fn rms(a: &[f64], b: &[f64]) -> f64 {
-    if a.is_empty() {
-        return 0.0;
-    }
-    (a.iter().zip(b).map(|(x, y)| (x - y) * (x - y)).sum::<f64>() / a.len() as f64).sqrt()
+    crate::stats::rms(a.iter().zip(b).map(|(x, y)| x - y))
 }
 
 /// Parameters of [`measure_sweep`].

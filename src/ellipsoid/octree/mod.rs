@@ -35,16 +35,18 @@
 //!   [`Octree::from_nodes`], and what a lookup returns ([`NodeSample`]);
 //! - `build`: [`Octree::build`] with its [`OctreeParams`] and [`OctreeReport`];
 //! - `render`: level choice, [`Octree::lookup`] and [`Octree::render_level`] ([`RenderParams`]);
-//! - `shapes`: analytic test volumes ([`AnalyticShape`], [`AnalyticVolume`]).
+//!
+//! The analytic test volumes ([`AnalyticShape`], [`AnalyticVolume`]) live in `altrep_data_gen`
+//! with the other shapes; they are re-exported here at their old paths, and `voxels` makes an
+//! [`AnalyticVolume`] a [`VoxelSource`].
 
 mod build;
 mod render;
-mod shapes;
 mod storage;
 mod voxels;
 
+pub use altrep_data_gen::{AnalyticShape, AnalyticVolume};
 pub use build::{OctreeParams, OctreeReport};
 pub use render::RenderParams;
-pub use shapes::{AnalyticShape, AnalyticVolume};
 pub use storage::{NodeSample, Octree, OctreeNode, PackedEllipsoid};
 pub use voxels::{Voxel, VoxelGrid, VoxelSource};

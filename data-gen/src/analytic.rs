@@ -1,9 +1,16 @@
-//! Analytic procedural volumes for the octree: signed-distance shapes ([`AnalyticShape`]) and
-//! their union sampled as voxels ([`AnalyticVolume`]).
+//! Analytic shapes with an exact signed distance **and gradient** ([`AnalyticShape`]), and
+//! procedural voxel volumes made of them ([`AnalyticVolume`]): the octree's test volumes (a
+//! sphere inside a torus, a lawn texel of grass blades on a ground slab).
+//!
+//! Coordinates: the unit cube `[0, 1]³` (not the bounding cylinder of the crate conventions);
+//! `y` is up. Unlike [`crate::Primitive`] (ray-cast solids, normals by ray hit or numeric
+//! gradient), these shapes give the analytic gradient of their distance, which the volumes use
+//! as the surface normal.
 
-use nalgebra::Vector3;
+use glam::DVec3;
 
-use super::voxels::{Voxel, VoxelSource};
+use crate::rng::SplitMix64;
+use crate::volume::Voxel;
 
 /// An analytic signed-distance shape for procedural test volumes (unit-cube coordinates).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -44,58 +51,65 @@ pub enum AnalyticShape {
 
 impl AnalyticShape {
     /// Signed distance (negative inside) and its gradient (outward unit normal) at `p`.
-    pub fn sdf(&self, p: &Vector3<f64>) -> (f64, Vector3<f64>) {
-        let safe = |v: Vector3<f64>| {
-            let n = v.norm();
-            if n > 0.0 { v / n } else { Vector3::y() }
+    /// Cost: a few flops.
+    pub fn sdf(&self, p: DVec3) -> (f64, DVec3) {
+        let safe = |v: DVec3| {
+            let n = v.length();
+            if n > 0.0 { v / n } else { DVec3::Y }
         };
         match *self {
             AnalyticShape::Sphere { center, radius } => {
-                let d = p - Vector3::from(center);
-                (d.norm() - radius, safe(d))
+                let d = p - DVec3::from(center);
+                (d.length() - radius, safe(d))
             }
             AnalyticShape::Torus {
                 center,
                 major,
                 minor,
             } => {
-                let d = p - Vector3::from(center);
-                let radial = Vector3::new(d.x, 0.0, d.z);
+                let d = p - DVec3::from(center);
+                let radial = DVec3::new(d.x, 0.0, d.z);
                 let ring = safe(radial) * major;
                 let q = d - ring;
-                (q.norm() - minor, safe(q))
+                (q.length() - minor, safe(q))
             }
             AnalyticShape::Capsule { a, b, radius } => {
-                let (a, b) = (Vector3::from(a), Vector3::from(b));
+                let (a, b) = (DVec3::from(a), DVec3::from(b));
                 let ab = b - a;
-                let t = ((p - a).dot(&ab) / ab.norm_squared()).clamp(0.0, 1.0);
+                let t = ((p - a).dot(ab) / ab.length_squared()).clamp(0.0, 1.0);
                 let d = p - (a + ab * t);
-                (d.norm() - radius, safe(d))
+                (d.length() - radius, safe(d))
             }
             AnalyticShape::Slab { min, max } => {
-                let c = (Vector3::from(min) + Vector3::from(max)) * 0.5;
-                let h = (Vector3::from(max) - Vector3::from(min)) * 0.5;
+                let c = (DVec3::from(min) + DVec3::from(max)) * 0.5;
+                let h = (DVec3::from(max) - DVec3::from(min)) * 0.5;
                 let d = p - c;
                 let q = d.abs() - h;
                 let outside = q.map(|x| x.max(0.0));
-                if outside.norm() > 0.0 {
-                    let n = outside.component_mul(&d.map(|x| x.signum()));
-                    (outside.norm(), safe(n))
+                if outside.length() > 0.0 {
+                    let n = outside * d.map(f64::signum);
+                    (outside.length(), safe(n))
                 } else {
-                    let k = q.imax();
-                    let mut n = Vector3::zeros();
+                    // The axis of the largest q (the first on ties).
+                    let mut k = 0;
+                    for i in 1..3 {
+                        if q[i] > q[k] {
+                            k = i;
+                        }
+                    }
+                    let mut n = DVec3::ZERO;
                     n[k] = d[k].signum();
-                    (q.max(), n)
+                    (q[k], n)
                 }
             }
         }
     }
 }
 
-/// A procedural volume: a union of [`AnalyticShape`]s in the unit cube, sampled at voxel centres.
-/// Coverage `clamp(0.5 − sd/h, 0, 1)` (a one-voxel ramp, `h` the voxel size), normal = gradient of
-/// the nearest shape where `|sd| < h` (the surface shell), `None` deeper inside; each shape has a
-/// colour. Cost per voxel: one distance per shape.
+/// A procedural volume: a union of [`AnalyticShape`]s in the unit cube, sampled at voxel centres
+/// ([`AnalyticVolume::sample`]). Coverage `clamp(0.5 − sd/h, 0, 1)` (a one-voxel ramp, `h` the
+/// voxel size), normal = gradient of the nearest shape where `|sd| < h` (the surface shell), `None`
+/// deeper inside; each shape has a colour. Cost per voxel: one distance per shape.
 #[derive(Debug, Clone, PartialEq)]
 pub struct AnalyticVolume {
     /// Name used in reports.
@@ -134,7 +148,7 @@ impl AnalyticVolume {
 
     /// A lawn texel like the seed's: a ground slab and 16 tilted grass blades (capsules), seeded.
     pub fn lawn(n: usize, seed: u64) -> Self {
-        let mut rng = crate::ellipsoid::rng::SplitMix64::new(seed);
+        let mut rng = SplitMix64::new(seed);
         let mut shapes = vec![(
             AnalyticShape::Slab {
                 min: [0.0, 0.0, 0.0],
@@ -174,17 +188,15 @@ impl AnalyticVolume {
     }
 }
 
-impl VoxelSource for AnalyticVolume {
-    fn dims(&self) -> [usize; 3] {
-        [self.n; 3]
-    }
-
-    fn voxel(&self, x: usize, y: usize, z: usize) -> Voxel {
+impl AnalyticVolume {
+    /// Voxel `(x, y, z)` of the `n³` grid (centre `((x, y, z) + ½)/n`), [`Voxel::EMPTY`] where
+    /// the coverage is zero (or the volume has no shape). Cost: one distance per shape.
+    pub fn sample(&self, x: usize, y: usize, z: usize) -> Voxel {
         let h = 1.0 / self.n as f64;
-        let p = Vector3::new(x as f64 + 0.5, y as f64 + 0.5, z as f64 + 0.5) * h;
-        let mut best: Option<(f64, Vector3<f64>, [f32; 3])> = None;
+        let p = DVec3::new(x as f64 + 0.5, y as f64 + 0.5, z as f64 + 0.5) * h;
+        let mut best: Option<(f64, DVec3, [f32; 3])> = None;
         for (shape, color) in &self.shapes {
-            let (d, g) = shape.sdf(&p);
+            let (d, g) = shape.sdf(p);
             if best.is_none_or(|(bd, _, _)| d < bd) {
                 best = Some((d, g, *color));
             }
@@ -199,7 +211,49 @@ impl VoxelSource for AnalyticVolume {
         Voxel {
             density,
             color,
-            normal: (d.abs() < h).then(|| [g.x as f32, g.y as f32, g.z as f32]),
+            normal: (d.abs() < h).then_some([g.x as f32, g.y as f32, g.z as f32]),
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn distances_and_gradients_match_closed_forms() {
+        let sphere = AnalyticShape::Sphere {
+            center: [0.5; 3],
+            radius: 0.25,
+        };
+        let (d, g) = sphere.sdf(DVec3::new(0.5, 0.5, 0.95));
+        assert!((d - 0.2).abs() < 1e-12 && (g - DVec3::Z).length() < 1e-12);
+        let slab = AnalyticShape::Slab {
+            min: [0.0; 3],
+            max: [1.0, 0.1, 1.0],
+        };
+        let (d, g) = slab.sdf(DVec3::new(0.5, 0.04, 0.5));
+        assert!((d + 0.04).abs() < 1e-12 && (g + DVec3::Y).length() < 1e-12);
+        let (d, g) = slab.sdf(DVec3::new(0.5, 0.3, 0.5));
+        assert!((d - 0.2).abs() < 1e-12 && (g - DVec3::Y).length() < 1e-12);
+        let torus = AnalyticShape::Torus {
+            center: [0.5; 3],
+            major: 0.3,
+            minor: 0.05,
+        };
+        let (d, g) = torus.sdf(DVec3::new(0.9, 0.5, 0.5));
+        assert!((d - 0.05).abs() < 1e-12 && (g - DVec3::X).length() < 1e-12);
+    }
+
+    #[test]
+    fn volumes_cover_their_shapes_and_nothing_else() {
+        let v = AnalyticVolume::sphere_torus(32);
+        let centre = v.sample(16, 16, 16);
+        assert_eq!(centre.density, 1.0);
+        assert_eq!(centre.normal, None);
+        assert_eq!(v.sample(0, 0, 0), Voxel::EMPTY);
+        let lawn = AnalyticVolume::lawn(32, 1);
+        assert_eq!(lawn.shapes.len(), 17);
+        assert_eq!(lawn.sample(3, 0, 3).density, 1.0);
     }
 }

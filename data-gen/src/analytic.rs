@@ -10,6 +10,7 @@
 use glam::DVec3;
 
 use crate::rng::SplitMix64;
+use crate::volume::Voxel;
 
 /// An analytic signed-distance shape for procedural test volumes (unit-cube coordinates).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -187,22 +188,10 @@ impl AnalyticVolume {
     }
 }
 
-/// One voxel of an [`AnalyticVolume`] with non-zero coverage.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct AnalyticVoxel {
-    /// Coverage in `(0, 1]`.
-    pub density: f32,
-    /// Linear RGB colour of the nearest shape.
-    pub color: [f32; 3],
-    /// Outward unit normal of the nearest shape in the surface shell (`|sd| < h`), `None` deeper
-    /// inside.
-    pub normal: Option<[f32; 3]>,
-}
-
 impl AnalyticVolume {
-    /// Voxel `(x, y, z)` of the `n³` grid (centre `((x, y, z) + ½)/n`), `None` where the coverage
-    /// is zero (or the volume has no shape). Cost: one distance per shape.
-    pub fn sample(&self, x: usize, y: usize, z: usize) -> Option<AnalyticVoxel> {
+    /// Voxel `(x, y, z)` of the `n³` grid (centre `((x, y, z) + ½)/n`), [`Voxel::EMPTY`] where
+    /// the coverage is zero (or the volume has no shape). Cost: one distance per shape.
+    pub fn sample(&self, x: usize, y: usize, z: usize) -> Voxel {
         let h = 1.0 / self.n as f64;
         let p = DVec3::new(x as f64 + 0.5, y as f64 + 0.5, z as f64 + 0.5) * h;
         let mut best: Option<(f64, DVec3, [f32; 3])> = None;
@@ -212,16 +201,18 @@ impl AnalyticVolume {
                 best = Some((d, g, *color));
             }
         }
-        let (d, g, color) = best?;
+        let Some((d, g, color)) = best else {
+            return Voxel::EMPTY;
+        };
         let density = (0.5 - d / h).clamp(0.0, 1.0) as f32;
         if density == 0.0 {
-            return None;
+            return Voxel::EMPTY;
         }
-        Some(AnalyticVoxel {
+        Voxel {
             density,
             color,
-            normal: (d.abs() < h).then(|| [g.x as f32, g.y as f32, g.z as f32]),
-        })
+            normal: (d.abs() < h).then_some([g.x as f32, g.y as f32, g.z as f32]),
+        }
     }
 }
 
@@ -257,12 +248,12 @@ mod tests {
     #[test]
     fn volumes_cover_their_shapes_and_nothing_else() {
         let v = AnalyticVolume::sphere_torus(32);
-        let centre = v.sample(16, 16, 16).expect("the sphere's centre is full");
+        let centre = v.sample(16, 16, 16);
         assert_eq!(centre.density, 1.0);
         assert_eq!(centre.normal, None);
-        assert_eq!(v.sample(0, 0, 0), None);
+        assert_eq!(v.sample(0, 0, 0), Voxel::EMPTY);
         let lawn = AnalyticVolume::lawn(32, 1);
         assert_eq!(lawn.shapes.len(), 17);
-        assert_eq!(lawn.sample(3, 0, 3).map(|s| s.density), Some(1.0));
+        assert_eq!(lawn.sample(3, 0, 3).density, 1.0);
     }
 }

@@ -36,7 +36,7 @@ mod shapes;
 mod truth;
 mod volume;
 
-pub use analytic::{AnalyticShape, AnalyticVolume, AnalyticVoxel};
+pub use analytic::{AnalyticShape, AnalyticVolume};
 pub use capture::{
     CylinderParams, Projection, Sample, SampleGrid, ViewParams, capture_cylinder, capture_view,
 };
@@ -48,4 +48,4 @@ pub use rng::SplitMix64;
 pub use shape::{Albedo, Csg, Part, Primitive, Shape};
 pub use shapes::{SCENE_SHAPES, scene_shape};
 pub use truth::{Light, TruthParams, render_truth};
-pub use volume::{Volume, VoxelParams, voxelize};
+pub use volume::{Volume, Voxel, VoxelParams, voxelize};

@@ -12,6 +12,27 @@ use rayon::prelude::*;
 use crate::error::{DataGenError, finite, nonzero};
 use crate::shape::Shape;
 
+/// One voxel sample (density, colour, normal), as the octree takes it as input
+/// ([`crate::AnalyticVolume::sample`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Voxel {
+    /// Coverage in `[0, 1]`.
+    pub density: f32,
+    /// Linear RGB albedo (ignored where `density = 0`).
+    pub color: [f32; 3],
+    /// Outward surface normal (any non-zero length; the octree normalises it), `None` where no surface.
+    pub normal: Option<[f32; 3]>,
+}
+
+impl Voxel {
+    /// The empty voxel.
+    pub const EMPTY: Voxel = Voxel {
+        density: 0.0,
+        color: [0.0; 3],
+        normal: None,
+    };
+}
+
 /// Parameters of [`voxelize`].
 #[derive(Clone, Copy, Debug)]
 pub struct VoxelParams {

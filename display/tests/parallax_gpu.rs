@@ -54,7 +54,8 @@ fn asset(shape: &str, dir: &Path) -> ParallaxData {
     let s = scene_shape(shape).unwrap();
     let src = Source {
         name: shape,
-        shape: &s,
+        geometry: Some(&s),
+        texture: None,
         light: Light::default(),
     };
     let spec = ParallaxSpec {

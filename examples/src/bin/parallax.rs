@@ -60,7 +60,8 @@ fn precompute(args: &Args, kind: BoundKind) -> Result<ParallaxData, String> {
     let shape = scene_shape(&args.shape).map_err(|e| e.to_string())?;
     let src = Source {
         name: &args.shape,
-        shape: &shape,
+        geometry: Some(&shape),
+        texture: None,
         light: Light::default(),
     };
     let spec = ParallaxSpec {

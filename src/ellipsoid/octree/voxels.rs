@@ -4,26 +4,8 @@
 use rayon::prelude::*;
 
 use crate::ellipsoid::error::EllipsoidError;
-
-/// One input voxel.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Voxel {
-    /// Coverage in `[0, 1]`.
-    pub density: f32,
-    /// Linear RGB albedo (ignored where `density = 0`).
-    pub color: [f32; 3],
-    /// Outward surface normal (any non-zero length; normalised here), `None` where no surface.
-    pub normal: Option<[f32; 3]>,
-}
-
-impl Voxel {
-    /// The empty voxel.
-    pub const EMPTY: Voxel = Voxel {
-        density: 0.0,
-        color: [0.0; 3],
-        normal: None,
-    };
-}
+/// One input voxel, kept at its old path; it lives in `altrep_data_gen` with the volumes.
+pub use altrep_data_gen::Voxel;
 
 /// A voxelised volume the octree can be built from (random access, shared between threads).
 pub trait VoxelSource: Sync {
@@ -146,10 +128,6 @@ impl VoxelSource for altrep_data_gen::AnalyticVolume {
     }
 
     fn voxel(&self, x: usize, y: usize, z: usize) -> Voxel {
-        self.sample(x, y, z).map_or(Voxel::EMPTY, |v| Voxel {
-            density: v.density,
-            color: v.color,
-            normal: v.normal,
-        })
+        self.sample(x, y, z)
     }
 }

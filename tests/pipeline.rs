@@ -697,8 +697,8 @@ fn kill_mid_run(signal: &str) {
     let big = SCENE
         .replace("size = 32", "size = 64")
         .replace("screen_px = [8, 32]", "screen_px = [8, 64]")
-        .replace("resolution = 32", "resolution = 64")
-        .replace("screen_px = [4, 16]", "screen_px = [4, 64]");
+        .replace("resolution = 32", "resolution = 128")
+        .replace("screen_px = [4, 16]", "screen_px = [4, 128]");
     std::fs::write(&scene, &big).unwrap();
     let out = dir.path().join("out");
     let mut child = Command::new(BIN)

@@ -296,6 +296,46 @@ fn score(images: &[RgbaImage], truth: &[RgbaImage]) -> Result<(f64, f64), Parall
     Ok((psnr_from_mse(mse / n), iou / n))
 }
 
+/// The display angles of a quality measurement (offset from the view angles). Errors: no
+/// angle or no supersampling.
+fn quality_angles(params: &QualityParams) -> Result<Vec<f64>, ParallaxError> {
+    if params.angles == 0 || params.supersample == 0 {
+        return Err(invalid(
+            "quality sweep",
+            format!("{} angles ×{}", params.angles, params.supersample),
+            "must be positive",
+        ));
+    }
+    Ok((0..params.angles)
+        .map(|a| TAU * (a as f64 + 0.5) / params.angles as f64 + 0.05)
+        .collect())
+}
+
+/// The supersampled ground truth of `shape` at every angle, `size` pixels square.
+fn quality_truths(
+    shape: &dyn Shape,
+    params: &QualityParams,
+    alphas: &[f64],
+    size: usize,
+) -> Result<Vec<RgbaImage>, ParallaxError> {
+    Ok(alphas
+        .iter()
+        .map(|&angle| {
+            render_truth(
+                shape,
+                &TruthParams {
+                    angle,
+                    width: size,
+                    height: size,
+                    supersample: params.supersample,
+                    light: params.light,
+                    cylinder: params.base.cylinder,
+                },
+            )
+        })
+        .collect::<Result<Vec<_>, _>>()?)
+}
+
 /// Image quality of inverse warping (for every N and size of `params`) and of the two baselines
 /// against the supersampled ground truth. Inverse warping marches from the cylinder: stored bounds
 /// never change the image (checked by the mismatch counts of [`measure_steps`]).
@@ -305,34 +345,10 @@ pub fn measure_quality(
     shape: &dyn Shape,
     params: &QualityParams,
 ) -> Result<Vec<QualityRow>, ParallaxError> {
-    if params.angles == 0 || params.supersample == 0 {
-        return Err(invalid(
-            "quality sweep",
-            format!("{} angles ×{}", params.angles, params.supersample),
-            "must be positive",
-        ));
-    }
-    let alphas: Vec<f64> = (0..params.angles)
-        .map(|a| TAU * (a as f64 + 0.5) / params.angles as f64 + 0.05)
-        .collect();
+    let alphas = quality_angles(params)?;
     let mut rows = Vec::new();
     for &size in &params.sizes {
-        let truth = alphas
-            .iter()
-            .map(|&angle| {
-                render_truth(
-                    shape,
-                    &TruthParams {
-                        angle,
-                        width: size,
-                        height: size,
-                        supersample: params.supersample,
-                        light: params.light,
-                        cylinder: params.base.cylinder,
-                    },
-                )
-            })
-            .collect::<Result<Vec<_>, _>>()?;
+        let truth = quality_truths(shape, params, &alphas, size)?;
         let screen = RenderParams {
             width: size,
             height: size,
@@ -576,34 +592,10 @@ pub fn measure_quality_sweep(
     params: &QualityParams,
     variants: &[Variant],
 ) -> Result<Vec<SweepRow>, ParallaxError> {
-    if params.angles == 0 || params.supersample == 0 {
-        return Err(invalid(
-            "quality sweep",
-            format!("{} angles ×{}", params.angles, params.supersample),
-            "must be positive",
-        ));
-    }
-    let alphas: Vec<f64> = (0..params.angles)
-        .map(|a| TAU * (a as f64 + 0.5) / params.angles as f64 + 0.05)
-        .collect();
+    let alphas = quality_angles(params)?;
     let mut rows = Vec::new();
     for &size in &params.sizes {
-        let truth = alphas
-            .iter()
-            .map(|&angle| {
-                render_truth(
-                    shape,
-                    &TruthParams {
-                        angle,
-                        width: size,
-                        height: size,
-                        supersample: params.supersample,
-                        light: params.light,
-                        cylinder: params.base.cylinder,
-                    },
-                )
-            })
-            .collect::<Result<Vec<_>, _>>()?;
+        let truth = quality_truths(shape, params, &alphas, size)?;
         let screen = RenderParams {
             width: size,
             height: size,

@@ -2,8 +2,8 @@
 //! systems, periodic seams, quantisation, property tests and bad input.
 
 use altrep::fit::{
-    DesignMatrix, FitError, FitParams, FitSamples, Fitter, TrilinearGrid, dense_min_norm, fit,
-    node_count, quantize,
+    DataStats, DesignMatrix, FitError, FitParams, FitSamples, Fitter, TrilinearGrid,
+    dense_min_norm, fit, node_count, quantize,
 };
 use altrep::solvers::{Method, PreconditionerKind, StopReason};
 use nalgebra::{DMatrix, DVector};
@@ -408,4 +408,33 @@ proptest! {
             }
         }
     }
+}
+
+/// The data statistics do not depend on the number of threads (ordered chunk sums), and agree with
+/// a serial two-pass computation.
+#[test]
+fn data_stats_are_the_same_on_any_thread_count() {
+    let dims = [61, 37, 29];
+    let samples = FitSamples::from_fn(dims, |p| {
+        let v = (p[0] * 17.3).sin() * 1e3 + p[1] * 1e-3 + (p[2] * 5.1).cos();
+        ((p[0] + p[1]) < 1.7).then_some(v)
+    })
+    .unwrap();
+    let on = |threads: usize| {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap()
+            .install(|| DataStats::of(&samples).unwrap())
+    };
+    let one = on(1);
+    for threads in [2, 3, 7] {
+        assert_eq!(on(threads), one, "{threads} threads");
+    }
+    let defined: Vec<f64> = samples.values().iter().filter_map(|v| *v).collect();
+    assert_eq!(one.count, defined.len());
+    let mean = defined.iter().sum::<f64>() / defined.len() as f64;
+    let var = defined.iter().map(|d| (d - mean) * (d - mean)).sum::<f64>() / defined.len() as f64;
+    approx::assert_relative_eq!(one.mean, mean, max_relative = 1e-12);
+    approx::assert_relative_eq!(one.std_dev, var.sqrt(), max_relative = 1e-12);
 }

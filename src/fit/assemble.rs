@@ -181,6 +181,9 @@ impl AxisMap {
     }
 }
 
+/// Samples per chunk of the ordered sums in [`DataStats::of`].
+const STATS_CHUNK: usize = 1 << 14;
+
 /// Summary of the defined samples.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
 pub struct DataStats {
@@ -197,28 +200,40 @@ pub struct DataStats {
 }
 
 impl DataStats {
-    /// Computes the statistics (two parallel passes). Error: no defined sample.
+    /// Computes the statistics (two parallel passes over fixed chunks of
+    /// 16384 samples, whose partial sums are added in chunk order, so the
+    /// result is the same bit for bit whatever the number of threads). Error: no
+    /// defined sample.
     pub fn of(samples: &FitSamples) -> Result<Self, FitError> {
         let values = samples.values();
-        let (count, sum, min, max) = values
-            .par_iter()
-            .filter_map(|v| *v)
-            .fold(
-                || (0usize, 0.0f64, f64::INFINITY, f64::NEG_INFINITY),
-                |(n, s, lo, hi), d| (n + 1, s + d, lo.min(d), hi.max(d)),
-            )
-            .reduce(
-                || (0, 0.0, f64::INFINITY, f64::NEG_INFINITY),
-                |a, b| (a.0 + b.0, a.1 + b.1, a.2.min(b.2), a.3.max(b.3)),
-            );
+        let partial: Vec<(usize, f64, f64, f64)> = values
+            .par_chunks(STATS_CHUNK)
+            .map(|chunk| {
+                chunk.iter().filter_map(|v| *v).fold(
+                    (0usize, 0.0f64, f64::INFINITY, f64::NEG_INFINITY),
+                    |(n, s, lo, hi), d| (n + 1, s + d, lo.min(d), hi.max(d)),
+                )
+            })
+            .collect();
+        let (count, sum, min, max) = partial
+            .iter()
+            .fold((0, 0.0, f64::INFINITY, f64::NEG_INFINITY), |a, b| {
+                (a.0 + b.0, a.1 + b.1, a.2.min(b.2), a.3.max(b.3))
+            });
         if count == 0 {
             return Err(FitError::NoDefinedSample);
         }
         let mean = sum / count as f64;
-        let ss: f64 = values
-            .par_iter()
-            .filter_map(|v| v.map(|d| (d - mean) * (d - mean)))
-            .sum();
+        let squares: Vec<f64> = values
+            .par_chunks(STATS_CHUNK)
+            .map(|chunk| {
+                chunk
+                    .iter()
+                    .filter_map(|v| v.map(|d| (d - mean) * (d - mean)))
+                    .sum::<f64>()
+            })
+            .collect();
+        let ss: f64 = squares.iter().sum();
         Ok(Self {
             count,
             min,

@@ -25,6 +25,8 @@
 #![warn(missing_docs)]
 
 pub mod check;
+pub mod cylinder;
+mod offscreen;
 pub mod parallax;
 
 use std::path::Path;

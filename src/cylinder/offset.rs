@@ -606,40 +606,55 @@ impl OffsetTexture {
         }
         let tolerance = tolerance_px * 2.0 / params.width as f64;
         let cyl = texture.cylinder();
-        let (l, alpha) = (self.columns, params.angle);
+        let alpha = params.angle;
         render_rows(texture, params, true, |row, out, named| {
             let v = row_coordinate(row.y, &cyl, self.rows);
             let slice = texture.slice(v);
             let view = SliceView::new(&slice, alpha, RadiusModel::General);
             let mut steps = 0u64;
             for ((x, o), nm) in row.xs.iter().zip(out.iter_mut()).zip(named.iter_mut()) {
-                let Some((k, inside)) = self.offset(*x, v, alpha) else {
-                    continue;
-                };
-                let u = offset_column(k, alpha, l);
-                *nm = Some(u);
-                if !inside {
-                    continue;
-                }
-                let plain = || {
-                    view.point_at_column(u)
-                        .filter(|(xh, _)| (xh - x).abs() <= tolerance)
-                        .map(|(_, f)| f)
-                };
-                *o = match mode {
-                    OffsetMode::Plain => plain(),
-                    OffsetMode::Hybrid { steps: m } => {
-                        let (hit, n) = refine(&view, *x, u, m);
-                        steps += u64::from(n);
-                        if let Some(h) = hit {
-                            *nm = Some(h.column);
-                        }
-                        hit.or_else(plain)
-                    }
-                };
+                let (f, u, n) = self.sample(&view, *x, v, mode, tolerance);
+                *o = f;
+                *nm = u;
+                steps += u64::from(n);
             }
             (steps, row.xs.len() as u64)
         })
+    }
+
+    /// One screen sample of [`Self::render`]: at abscissa `x` (units of `R`) of the slice `view`
+    /// (taken at continuous row `v`, seen from `view.alpha`), the fragment, the column the
+    /// fetched (and, in hybrid mode, refined) offset names, and the sector tests of the
+    /// refinement. `tolerance` is the validation tolerance in units of `R` (`tolerance_px·2/W`).
+    /// Cost: one fetch, plus at most `m` sector tests in hybrid mode.
+    pub fn sample(
+        &self,
+        view: &SliceView,
+        x: f64,
+        v: f64,
+        mode: OffsetMode,
+        tolerance: f64,
+    ) -> (Option<Fragment>, Option<f64>, u32) {
+        let Some((k, inside)) = self.offset(x, v, view.alpha) else {
+            return (None, None, 0);
+        };
+        let u = offset_column(k, view.alpha, self.columns);
+        if !inside {
+            return (None, Some(u), 0);
+        }
+        let plain = || {
+            view.point_at_column(u)
+                .filter(|(xh, _)| (xh - x).abs() <= tolerance)
+                .map(|(_, f)| f)
+        };
+        match mode {
+            OffsetMode::Plain => (plain(), Some(u), 0),
+            OffsetMode::Hybrid { steps: m } => {
+                let (hit, n) = refine(view, x, u, m);
+                let named = hit.map_or(u, |h| h.column);
+                (hit.or_else(plain), Some(named), n)
+            }
+        }
     }
 }
 

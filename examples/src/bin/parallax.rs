@@ -11,7 +11,9 @@
 //! cargo run -p altrep-examples --bin parallax -- --shape truck --out target/examples/parallax
 //! ```
 //!
-//! `--window` (a winit window with orbit controls) is not implemented yet; it says so.
+//! `--window` opens a winit window instead (drag: azimuth, wheel: zoom; images with parallax are
+//! captured from horizontal views, so there is no elevation); without a display it fails with
+//! "no display: set DISPLAY or WAYLAND_DISPLAY".
 
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -23,6 +25,7 @@ use altrep::pipeline::{Needs, Representation, Source};
 use altrep_data_gen::{BoundingCylinder, Light, RgbaImage, TruthParams, render_truth, scene_shape};
 use altrep_display::parallax::{DrawParams, ParallaxDisplay, Precision};
 use altrep_display::{Gpu, load_parallax, to_srgb8};
+use altrep_examples::window;
 use clap::Parser;
 use image::codecs::gif::{GifEncoder, Repeat};
 use image::{Delay, Frame};
@@ -51,7 +54,7 @@ struct Args {
     /// Pixel repetition of the written images.
     #[arg(long, default_value_t = 3)]
     scale: u32,
-    /// Open a window with orbit controls (not implemented yet).
+    /// Open a window with orbit controls (drag: azimuth, wheel: zoom) instead of writing files.
     #[arg(long)]
     window: bool,
 }
@@ -90,13 +93,6 @@ fn precompute(args: &Args, kind: BoundKind) -> Result<ParallaxData, String> {
 }
 
 fn run(args: &Args) -> Result<(), String> {
-    if args.window {
-        return Err(
-            "--window is not implemented yet (no winit front end); the headless output is the \
-             supported mode"
-                .into(),
-        );
-    }
     let kind = BoundKind::ALL
         .into_iter()
         .find(|k| k.slug() == args.bounds)
@@ -105,11 +101,33 @@ fn run(args: &Args) -> Result<(), String> {
         Some(dir) => load_parallax(dir).map_err(|e| e.to_string())?,
         None => precompute(args, kind)?,
     };
+    let p = &data.images.params;
+    let (w, h) = (p.width, p.height);
+    if args.window {
+        return window::run(
+            &format!("parallax impostor: {} ({})", args.shape, kind.name()),
+            false,
+            |gpu| ParallaxDisplay::new(gpu, &data, Precision::F32).map_err(|e| e.to_string()),
+            |gpu, disp, orbit| {
+                disp.render(
+                    gpu,
+                    &DrawParams {
+                        alpha: orbit.azimuth,
+                        kind,
+                        width: w,
+                        height: h,
+                        light: Light::default(),
+                    },
+                )
+                .map(|f| f.image)
+                .map_err(|e| e.to_string())
+            },
+        )
+        .map_err(|e| e.to_string());
+    }
     let gpu = Gpu::headless().map_err(|e| e.to_string())?;
     println!("adapter: {}", gpu.describe());
     let disp = ParallaxDisplay::new(&gpu, &data, Precision::F32).map_err(|e| e.to_string())?;
-    let p = &data.images.params;
-    let (w, h) = (p.width, p.height);
     let shape = scene_shape(&args.shape).map_err(|e| e.to_string())?;
     let light = Light::default();
     let frame_at = |alpha: f64| -> Result<(RgbaImage, f64, f64), String> {

@@ -1,0 +1,3 @@
+//! Shared parts of the example programs (`src/bin/*`): the `--window` viewer.
+
+pub mod window;

@@ -377,6 +377,12 @@ impl<Op: LinearOperator + ?Sized> LinearOperator for ExplicitTranspose<'_, Op> {
     fn to_csr(&self) -> Option<sprs::CsMat<f64>> {
         self.a.to_csr()
     }
+    fn diagonal(&self) -> Option<Vec<f64>> {
+        self.a.diagonal()
+    }
+    fn column_norms(&self) -> Option<Vec<f64>> {
+        self.a.column_norms()
+    }
     fn check_finite(&self) -> Result<(), SolverError> {
         self.a.check_finite()
     }

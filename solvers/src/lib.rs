@@ -46,6 +46,7 @@ pub mod io;
 pub mod krylov;
 pub mod lsq;
 pub mod operator;
+pub mod parallel;
 pub mod precond;
 pub mod report;
 pub mod vecops;
@@ -54,6 +55,7 @@ pub use error::SolverError;
 pub use krylov::{bicgstab, bicgstab_with, pbicg, pbicg_with, pcg, pcg_with};
 pub use lsq::{lsmr, lsqr};
 pub use operator::{LinearOperator, par_mul_vec, par_mul_vec_transpose};
+pub use parallel::{Parallelism, parallelism, with_parallelism};
 pub use precond::{
     Identity, Jacobi, Preconditioner, PreconditionerKind, Ssor, build_preconditioner,
 };

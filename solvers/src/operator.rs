@@ -9,6 +9,7 @@
 //! directly.
 
 use crate::error::{SolverError, check_finite, check_len};
+use crate::parallel::go_parallel;
 use rayon::prelude::*;
 use sprs::{CsMat, CsMatI, CsMatViewI, SpIndex};
 
@@ -37,28 +38,49 @@ pub trait LinearOperator: Sync {
     fn column_norms(&self) -> Option<Vec<f64>> {
         self.to_csr().map(|a| column_norms(&a))
     }
+    /// The diagonal (length `min(nrows, ncols)`, zeros where not stored), when the operator
+    /// has entries; used to build the Jacobi preconditioner. Default: through
+    /// [`LinearOperator::to_csr`]. Cost: O(nnz).
+    fn diagonal(&self) -> Option<Vec<f64>> {
+        self.to_csr().map(|a| crate::precond::diagonal(&a))
+    }
     /// Checks that every stored value is finite. Default: `Ok(())` (nothing to check).
     fn check_finite(&self) -> Result<(), SolverError> {
         Ok(())
     }
 }
 
-/// Below this many stored entries a product runs serially (a rayon split costs ~µs).
-const PAR_MIN_NNZ: usize = 16_384;
+/// A product with at least this many stored entries runs in parallel (under
+/// [`crate::Parallelism::Auto`]); below it, serially. On the fit's default normal matrix (2304
+/// rows, 45 344 non-zeros) a rayon split and join costs more than the product itself: issue 15
+/// measured 77 µs per PCG iteration split against about 30 µs for a serial loop. The split pays
+/// once each thread gets a few hundred µs of work, hence 2^18 entries (about 0.1–0.2 ms serially
+/// on the project's machine). `cargo bench --bench solvers` (group `csr_product_split`: serial
+/// and split products on 27-point stencils of 97 k to 1.2 M entries) is the measurement to
+/// revisit it with; it was taken only on a heavily loaded machine so far (bench/RESULTS.md).
+pub const PAR_MIN_NNZ: usize = 262_144;
 /// Rows per parallel task in a CSR product.
 const ROW_CHUNK: usize = 512;
+/// The transpose product of a matrix with `nnz` entries scatters `nnz / TRANSPOSE_BLOCK_NNZ`
+/// row blocks (at most 64, at most `nnz / ncols`) into buffers of their own; fewer than two
+/// blocks: one scatter. This shape depends on the sizes only, never on the threads.
+const TRANSPOSE_BLOCK_NNZ: usize = 65_536;
 
-/// `y ← A·x` for a CSR matrix given by its raw arrays (`indptr` of length `nrows + 1`, starting
-/// at 0), parallel over blocks of rows. Deterministic: each `y[i]` is one serial row sum.
-/// Cost: `2·nnz` flops.
-pub fn csr_apply_raw<I: SpIndex, Iptr: SpIndex>(
+/// `y[k] ← Σ_j A[first + k, j]·x[j]` for the rows `first .. first + y.len()`: each row is one
+/// serial sum in stored order, starting from 0 (so the result does not depend on how rows are
+/// grouped). Four rows are summed side by side (their entries interleaved) to keep the
+/// floating-point units busy while one row's chain of additions waits; each row's own order of
+/// additions is unchanged.
+#[inline]
+fn csr_rows<I: SpIndex, Iptr: SpIndex>(
     indptr: &[Iptr],
     indices: &[I],
     data: &[f64],
     x: &[f64],
+    first: usize,
     y: &mut [f64],
 ) {
-    let row = |i: usize| -> f64 {
+    let one = |i: usize| -> f64 {
         let (s, e) = (indptr[i].index(), indptr[i + 1].index());
         let mut acc = 0.0;
         for (c, v) in indices[s..e].iter().zip(&data[s..e]) {
@@ -66,22 +88,77 @@ pub fn csr_apply_raw<I: SpIndex, Iptr: SpIndex>(
         }
         acc
     };
-    if data.len() < PAR_MIN_NNZ {
-        y.iter_mut().enumerate().for_each(|(i, yi)| *yi = row(i));
+    let mut quads = y.chunks_exact_mut(4);
+    let mut i = first;
+    for yq in &mut quads {
+        let p = [
+            indptr[i].index(),
+            indptr[i + 1].index(),
+            indptr[i + 2].index(),
+            indptr[i + 3].index(),
+            indptr[i + 4].index(),
+        ];
+        let common = (p[1] - p[0])
+            .min(p[2] - p[1])
+            .min(p[3] - p[2])
+            .min(p[4] - p[3]);
+        let (c0, c1, c2, c3) = (
+            &indices[p[0]..p[0] + common],
+            &indices[p[1]..p[1] + common],
+            &indices[p[2]..p[2] + common],
+            &indices[p[3]..p[3] + common],
+        );
+        let (d0, d1, d2, d3) = (
+            &data[p[0]..p[0] + common],
+            &data[p[1]..p[1] + common],
+            &data[p[2]..p[2] + common],
+            &data[p[3]..p[3] + common],
+        );
+        let mut acc = [0.0f64; 4];
+        for t in 0..common {
+            acc[0] += d0[t] * x[c0[t].index()];
+            acc[1] += d1[t] * x[c1[t].index()];
+            acc[2] += d2[t] * x[c2[t].index()];
+            acc[3] += d3[t] * x[c3[t].index()];
+        }
+        for (k, a) in acc.iter_mut().enumerate() {
+            let (s, e) = (p[k] + common, p[k + 1]);
+            for (c, v) in indices[s..e].iter().zip(&data[s..e]) {
+                *a += v * x[c.index()];
+            }
+        }
+        yq.copy_from_slice(&acc);
+        i += 4;
+    }
+    for (k, yi) in quads.into_remainder().iter_mut().enumerate() {
+        *yi = one(i + k);
+    }
+}
+
+/// `y ← A·x` for a CSR matrix given by its raw arrays (`indptr` of length `nrows + 1`, starting
+/// at 0), parallel over blocks of rows from [`PAR_MIN_NNZ`] entries. Deterministic: each `y[i]`
+/// is one serial row sum, the same on every path. Cost: `2·nnz` flops.
+pub fn csr_apply_raw<I: SpIndex, Iptr: SpIndex>(
+    indptr: &[Iptr],
+    indices: &[I],
+    data: &[f64],
+    x: &[f64],
+    y: &mut [f64],
+) {
+    if !go_parallel(data.len(), PAR_MIN_NNZ) {
+        csr_rows(indptr, indices, data, x, 0, y);
     } else {
         y.par_chunks_mut(ROW_CHUNK).enumerate().for_each(|(c, yc)| {
-            let base = c * ROW_CHUNK;
-            yc.iter_mut()
-                .enumerate()
-                .for_each(|(k, yi)| *yi = row(base + k));
+            csr_rows(indptr, indices, data, x, c * ROW_CHUNK, yc);
         });
     }
 }
 
 /// `y ← Aᵀ·x` for a CSR matrix given by its raw arrays (a scatter). Large matrices are cut into
-/// a fixed number of row blocks; each block scatters into its own buffer of length `ncols`, and
-/// buffers are added in block order, so the result is reproducible whatever the thread count.
-/// Cost: `2·nnz` flops plus `blocks·ncols` additions.
+/// a fixed number of row blocks (a function of the sizes only); each block scatters into its own
+/// buffer of length `ncols`, and buffers are added in block order, so the result is the same
+/// whatever the thread count and whether the blocks run in parallel (from [`PAR_MIN_NNZ`]
+/// entries) or one after the other. Cost: `2·nnz` flops plus `blocks·ncols` additions.
 pub fn csr_apply_transpose_raw<I: SpIndex, Iptr: SpIndex>(
     indptr: &[Iptr],
     indices: &[I],
@@ -106,20 +183,22 @@ pub fn csr_apply_transpose_raw<I: SpIndex, Iptr: SpIndex>(
     y.iter_mut().for_each(|v| *v = 0.0);
     let nnz = data.len();
     // Blocks: enough to feed the threads, few enough that the buffers stay small next to A.
-    let blocks = (nnz / (4 * PAR_MIN_NNZ)).min(64).min(nnz / ncols.max(1));
-    if nnz < PAR_MIN_NNZ || blocks < 2 {
+    let blocks = (nnz / TRANSPOSE_BLOCK_NNZ).min(64).min(nnz / ncols.max(1));
+    if blocks < 2 {
         scatter(0..nrows, y);
         return;
     }
     let per = nrows.div_ceil(blocks);
-    let partial: Vec<Vec<f64>> = (0..blocks)
-        .into_par_iter()
-        .map(|b| {
-            let mut out = vec![0.0; ncols];
-            scatter(b * per..((b + 1) * per).min(nrows), &mut out);
-            out
-        })
-        .collect();
+    let block = |b: usize| {
+        let mut out = vec![0.0; ncols];
+        scatter(b * per..((b + 1) * per).min(nrows), &mut out);
+        out
+    };
+    let partial: Vec<Vec<f64>> = if go_parallel(nnz, PAR_MIN_NNZ) {
+        (0..blocks).into_par_iter().map(block).collect()
+    } else {
+        (0..blocks).map(block).collect()
+    };
     for p in &partial {
         y.iter_mut().zip(p).for_each(|(yi, pi)| *yi += pi);
     }
@@ -197,6 +276,9 @@ impl<I: SpIndex, Iptr: SpIndex> LinearOperator for CsMatViewI<'_, f64, I, Iptr> 
     fn column_norms(&self) -> Option<Vec<f64>> {
         Some(column_norms_generic(self))
     }
+    fn diagonal(&self) -> Option<Vec<f64>> {
+        Some(diagonal_generic(self))
+    }
     fn check_finite(&self) -> Result<(), SolverError> {
         check_finite("matrix", self.data())
     }
@@ -220,6 +302,9 @@ impl<I: SpIndex, Iptr: SpIndex> LinearOperator for CsMatI<f64, I, Iptr> {
     }
     fn column_norms(&self) -> Option<Vec<f64>> {
         Some(column_norms_generic(&self.view()))
+    }
+    fn diagonal(&self) -> Option<Vec<f64>> {
+        Some(diagonal_generic(&self.view()))
     }
     fn check_finite(&self) -> Result<(), SolverError> {
         check_finite("matrix", self.data())
@@ -255,6 +340,21 @@ impl<Op: LinearOperator + ?Sized> LinearOperator for ColumnScaled<'_, Op> {
 /// Euclidean norm of every column of a matrix (length `ncols`). Cost: O(nnz).
 pub fn column_norms(a: &CsMat<f64>) -> Vec<f64> {
     column_norms_generic(&a.view())
+}
+
+/// The diagonal of a matrix in either storage, without a copy (the sum of the stored entries
+/// `(i, i)` of each outer lane, as [`crate::precond::diagonal`] computes it). Cost: O(nnz).
+fn diagonal_generic<I: SpIndex, Iptr: SpIndex>(a: &CsMatViewI<'_, f64, I, Iptr>) -> Vec<f64> {
+    let n = a.rows().min(a.cols());
+    let mut d = vec![0.0; n];
+    for (i, lane) in a.outer_iterator().enumerate().take(n) {
+        for (j, v) in lane.iter() {
+            if j == i {
+                d[i] += v;
+            }
+        }
+    }
+    d
 }
 
 fn column_norms_generic<I: SpIndex, Iptr: SpIndex>(a: &CsMatViewI<'_, f64, I, Iptr>) -> Vec<f64> {

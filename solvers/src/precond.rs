@@ -284,7 +284,13 @@ pub fn build_preconditioner<Op: LinearOperator + ?Sized>(
     };
     Ok(match kind {
         PreconditionerKind::None => Box::new(Identity),
-        PreconditionerKind::Jacobi => Box::new(Jacobi::new(&need_csr()?)?),
+        // Only the diagonal is needed: no copy of the matrix.
+        PreconditionerKind::Jacobi => Box::new(Jacobi::from_diagonal(&a.diagonal().ok_or(
+            SolverError::PreconditionerUnavailable {
+                preconditioner: kind.name(),
+                reason: "the operator exposes no matrix entries (diagonal is None)",
+            },
+        )?)?),
         PreconditionerKind::Ssor { omega } => Box::new(Ssor::new(&need_csr()?, omega)?),
     })
 }

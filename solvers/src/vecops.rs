@@ -3,12 +3,22 @@
 //! Short vectors (the normal equations of a fit have a few thousand unknowns) run serially: a
 //! rayon split costs more than the work. Long vectors (LSQR's sample-space vectors, millions of
 //! entries) are cut into fixed chunks of [`PAR_CHUNK`] entries; partial sums are added in chunk
-//! order, so results are bit-for-bit reproducible whatever the thread count.
+//! order, so results are bit-for-bit reproducible whatever the thread count, and the same
+//! whether the chunks run in parallel or one after the other (see [`crate::parallel`]).
 
 use rayon::prelude::*;
 
-/// Vectors at least this long are processed in parallel, in chunks of this many entries.
+use crate::parallel::go_parallel;
+
+/// Chunk length of long vectors: a dot product of at least `2·PAR_CHUNK` entries is the ordered
+/// sum of the dot products of its chunks (the reduction's shape, independent of threads).
 pub const PAR_CHUNK: usize = 1 << 15;
+
+/// Vectors at least this long are processed in parallel (under [`crate::Parallelism::Auto`]):
+/// below it the rayon split (a few µs) costs more than the work it shares. The fit's normal
+/// equations (a few thousand unknowns) stay far below it; LSQR's sample-space vectors (about a
+/// million entries) far above. `cargo bench --bench solvers`, group `vecops_split`.
+pub const PAR_MIN_LEN: usize = 2 * PAR_CHUNK;
 
 /// `xᵀy`. Cost: `2n` flops.
 pub fn dot(x: &[f64], y: &[f64]) -> f64 {
@@ -16,11 +26,17 @@ pub fn dot(x: &[f64], y: &[f64]) -> f64 {
     if x.len() < 2 * PAR_CHUNK {
         return dot_serial(x, y);
     }
-    let partial: Vec<f64> = x
-        .par_chunks(PAR_CHUNK)
-        .zip(y.par_chunks(PAR_CHUNK))
-        .map(|(a, b)| dot_serial(a, b))
-        .collect();
+    let partial: Vec<f64> = if go_parallel(x.len(), PAR_MIN_LEN) {
+        x.par_chunks(PAR_CHUNK)
+            .zip(y.par_chunks(PAR_CHUNK))
+            .map(|(a, b)| dot_serial(a, b))
+            .collect()
+    } else {
+        x.chunks(PAR_CHUNK)
+            .zip(y.chunks(PAR_CHUNK))
+            .map(|(a, b)| dot_serial(a, b))
+            .collect()
+    };
     partial.iter().sum()
 }
 
@@ -50,7 +66,7 @@ pub fn norm2(x: &[f64]) -> f64 {
 /// Applies `f(&mut y[i], x[i])` for every `i`, in parallel for long vectors.
 pub fn zip_apply(y: &mut [f64], x: &[f64], f: impl Fn(&mut f64, f64) + Sync) {
     debug_assert_eq!(x.len(), y.len());
-    if y.len() < 2 * PAR_CHUNK {
+    if !go_parallel(y.len(), PAR_MIN_LEN) {
         y.iter_mut().zip(x).for_each(|(yi, &xi)| f(yi, xi));
     } else {
         y.par_chunks_mut(PAR_CHUNK)
@@ -71,7 +87,7 @@ pub fn xpby(x: &[f64], b: f64, y: &mut [f64]) {
 
 /// `y ← a·y`.
 pub fn scale(a: f64, y: &mut [f64]) {
-    if y.len() < 2 * PAR_CHUNK {
+    if !go_parallel(y.len(), PAR_MIN_LEN) {
         y.iter_mut().for_each(|v| *v *= a);
     } else {
         y.par_chunks_mut(PAR_CHUNK)
@@ -97,5 +113,32 @@ mod tests {
         assert_eq!(z[3], x[3] + 0.5 * (y[3] + 2.0 * x[3]));
         scale(2.0, &mut z);
         assert_eq!(z[3], 2.0 * (x[3] + 0.5 * (y[3] + 2.0 * x[3])));
+    }
+
+    #[test]
+    fn serial_and_parallel_kernels_are_bitwise_identical() {
+        use crate::parallel::{Parallelism, with_parallelism};
+        for n in [7, 2 * PAR_CHUNK - 1, 2 * PAR_CHUNK, 3 * PAR_CHUNK + 5] {
+            let x: Vec<f64> = (0..n).map(|i| (i as f64 * 0.731).sin()).collect();
+            let y: Vec<f64> = (0..n).map(|i| (i as f64 * 0.237).cos() * 1e3).collect();
+            let run = |mode| {
+                with_parallelism(mode, || {
+                    let mut z = y.clone();
+                    axpy(0.3, &x, &mut z);
+                    xpby(&x, -1.7, &mut z);
+                    scale(1.1, &mut z);
+                    (
+                        dot(&x, &z).to_bits(),
+                        z.iter().map(|v| v.to_bits()).collect::<Vec<_>>(),
+                    )
+                })
+            };
+            assert_eq!(
+                run(Parallelism::Serial),
+                run(Parallelism::Parallel),
+                "n = {n}"
+            );
+            assert_eq!(run(Parallelism::Serial), run(Parallelism::Auto), "n = {n}");
+        }
     }
 }

@@ -490,10 +490,55 @@ impl RowSweep {
 struct Scratch {
     /// `(θ, end point index or NONE)`, sorted.
     events: Vec<(f64, u32)>,
+    /// `(cos θ, sin θ)` of each event, computed once.
+    trig: Vec<(f64, f64)>,
     /// Whether each piece is met by the ray in the current interval.
     met: Vec<bool>,
     /// The pieces met in the current interval.
     active: Vec<u32>,
+}
+
+/// The uniform angle grid `θ_m = m·step` (`step = Δθ / subdivisions`) that cuts the event
+/// intervals, with `cos θ_m`, `sin θ_m` and `τ(θ_m) = sin θ_m / (1 + cos θ_m)` computed once per
+/// build instead of once per box (the values are the same: the same functions of the same `θ_m`).
+struct AngleGrid {
+    step: f64,
+    /// Index of `m = 0` in `trig`.
+    zero: i64,
+    /// `(cos θ_m, sin θ_m, τ(θ_m))` for `m = −zero ..= zero`.
+    trig: Vec<(f64, f64, f64)>,
+}
+
+impl AngleGrid {
+    fn new(delta: f64, subdivisions: usize) -> Self {
+        let step = delta / subdivisions as f64;
+        // One spare point on each side: `⌊θ/step⌋ + 1` may step past ±subdivisions by rounding.
+        let zero = subdivisions as i64 + 2;
+        let trig = (-zero..=zero)
+            .map(|m| {
+                let th = m as f64 * step;
+                let (co, si) = (th.cos(), th.sin());
+                (co, si, si / (1.0 + co))
+            })
+            .collect();
+        Self { step, zero, trig }
+    }
+
+    /// `(cos, sin, τ)` of `θ_m`.
+    #[inline]
+    fn at(&self, m: i64) -> (f64, f64, f64) {
+        match usize::try_from(m + self.zero)
+            .ok()
+            .and_then(|k| self.trig.get(k))
+        {
+            Some(&t) => t,
+            None => {
+                let th = m as f64 * self.step;
+                let (co, si) = (th.cos(), th.sin());
+                (co, si, si / (1.0 + co))
+            }
+        }
+    }
 }
 
 /// Half-width of the window of event angles whose pieces are re-tested (radians); far above the
@@ -513,7 +558,7 @@ fn pixel_points(
     rs: &RowSweep,
     x: f64,
     delta: f64,
-    subdivisions: usize,
+    angles: &AngleGrid,
     sc: &mut Scratch,
     halves: &mut [HalfPoints; 2],
 ) {
@@ -534,12 +579,13 @@ fn pixel_points(
         }
     }
     events.sort_unstable_by(|a, b| a.0.total_cmp(&b.0));
+    let trig = &mut sc.trig;
+    trig.clear();
+    trig.extend(events.iter().map(|e| (e.0.cos(), e.0.sin())));
     sc.met.clear();
     sc.met.resize(rs.pieces.len(), false);
     sc.active.clear();
     let r = grid.cylinder.radius;
-    let step = delta / subdivisions as f64;
-    let tau = |th: f64| th.sin() / (1.0 + th.cos());
     let pieces_of = |k: usize| {
         let e = events[k].1;
         if e == NONE {
@@ -562,7 +608,7 @@ fn pixel_points(
         // Exact value at this event angle: the nearest met piece among those met just before
         // and those bounded by the events here.
         {
-            let (co, si) = (th.cos(), th.sin());
+            let (co, si) = trig[idx];
             let mut best: Option<f64> = None;
             let mut consider = |id: u32| {
                 if id != NONE
@@ -582,13 +628,14 @@ fn pixel_points(
                 }
             }
             if let Some(z) = best {
-                push_exact(halves, th, (tau(th), z));
+                push_exact(halves, th, (si / (1.0 + co), z));
             }
         }
         if gend == n {
             break;
         }
         let (ea, eb) = (th, events[gend].0);
+        let (trig_a, trig_b) = (trig[idx], trig[gend]);
         idx = gend;
         // Update the met set at the interval's middle.
         let mid = 0.5 * (ea + eb);
@@ -634,7 +681,16 @@ fn pixel_points(
             continue;
         };
         let half = usize::from(mid >= 0.0);
-        push_piece_boxes(&mut halves[half], a, b, x, r, (ea, eb), step, tau);
+        push_piece_boxes(
+            &mut halves[half],
+            a,
+            b,
+            x,
+            r,
+            (ea, eb),
+            (trig_a, trig_b),
+            angles,
+        );
     }
     for hp in halves.iter() {
         debug_assert!(hp.upper.windows(2).all(|w| w[0].0 <= w[1].0));
@@ -673,8 +729,8 @@ fn push_piece_boxes(
     x: f64,
     r: f64,
     (ea, eb): (f64, f64),
-    step: f64,
-    tau: impl Fn(f64) -> f64,
+    (trig_a, trig_b): ((f64, f64), (f64, f64)),
+    angles: &AngleGrid,
 ) {
     let (dx, dz) = (b.0 - a.0, b.1 - a.1);
     let len2 = dx * dx + dz * dz;
@@ -683,10 +739,10 @@ fn push_piece_boxes(
     } else {
         0.0
     };
-    // Crossing on the piece's line at angle th: (t, t, z_e, z_e); a piece seen edge-on (only
-    // possible at an interval end) gives both its ends.
-    let on_line = |th: f64| -> (f64, f64, f64, f64) {
-        let (co, si) = (th.cos(), th.sin());
+    // Crossing on the piece's line at the angle with cosine `co` and sine `si`:
+    // (t, t, z_e, z_e); a piece seen edge-on (only possible at an interval end) gives both its
+    // ends.
+    let on_line = |(co, si): (f64, f64)| -> (f64, f64, f64, f64) {
         let xe_a = a.0 * co + a.1 * si;
         let xe_b = b.0 * co + b.1 * si;
         let ze = |t: f64| {
@@ -702,14 +758,20 @@ fn push_piece_boxes(
             (0.0, 1.0, z0.min(z1), z0.max(z1))
         }
     };
+    let tau_of = |(co, si): (f64, f64)| si / (1.0 + co);
     // Boxes over the sub-intervals cut by the uniform grid strictly inside (ea, eb).
+    let step = angles.step;
     let mut m = (ea / step).floor() as i64 + 1;
-    let mut s_a = ea;
-    let mut end_a = on_line(ea);
+    let mut end_a = on_line(trig_a);
+    let mut ta = tau_of(trig_a);
     loop {
         let gm = m as f64 * step;
-        let s_b = if gm < eb { gm } else { eb };
-        let end_b = on_line(s_b);
+        let (last, end_b, tb) = if gm < eb {
+            let (co, si, t) = angles.at(m);
+            (false, on_line((co, si)), t)
+        } else {
+            (true, on_line(trig_b), tau_of(trig_b))
+        };
         let (t_lo, t_hi) = (end_a.0.min(end_b.0), end_a.1.max(end_b.1));
         let mut zlo = end_a.2.min(end_b.2);
         let mut zhi = end_a.3.max(end_b.3);
@@ -722,17 +784,16 @@ fn push_piece_boxes(
                 zhi = zhi.max(-zf);
             }
         }
-        let (ta, tb) = (tau(s_a), tau(s_b));
         let (zlo, zhi) = (zlo - EPS * r, zhi + EPS * r);
         hp.upper.push((ta, zhi));
         hp.upper.push((tb, zhi));
         hp.lower.push((ta, zlo));
         hp.lower.push((tb, zlo));
-        if s_b >= eb {
+        if last {
             break;
         }
-        s_a = s_b;
         end_a = end_b;
+        ta = tb;
         m += 1;
     }
 }
@@ -923,6 +984,7 @@ pub fn build_bounds(
     } else {
         params.subdivisions
     };
+    let angles = AngleGrid::new(delta, subdivisions);
     let mut views = Vec::new();
     let mut storage = Vec::new();
     if kind != BoundKind::Cylinder {
@@ -945,7 +1007,7 @@ pub fn build_bounds(
                                     &rs,
                                     x,
                                     delta,
-                                    subdivisions,
+                                    &angles,
                                     &mut scratch,
                                     &mut halves,
                                 );
@@ -1128,6 +1190,222 @@ mod reference {
         }
     }
 
+    /// The sweep as first written (trigonometry evaluated per box): the optimised
+    /// [`pixel_points`] must give bit-for-bit the same points in the same order.
+    #[allow(clippy::too_many_arguments)]
+    pub(super) fn pixel_points_v1(
+        grid: &PixelGrid,
+        rs: &RowSweep,
+        x: f64,
+        delta: f64,
+        subdivisions: usize,
+        sc: &mut Scratch,
+        halves: &mut [HalfPoints; 2],
+    ) {
+        halves[0].clear();
+        halves[1].clear();
+        let events = &mut sc.events;
+        events.clear();
+        events.extend([(-delta, NONE), (0.0, NONE), (delta, NONE)]);
+        for (e, &(rho, psi, _)) in rs.ends.iter().enumerate() {
+            if rho < x.abs() {
+                continue;
+            }
+            let phi = (x / rho).clamp(-1.0, 1.0).acos();
+            for th in [wrap(psi - phi), wrap(psi + phi)] {
+                if th > -delta && th < delta {
+                    events.push((th, e as u32));
+                }
+            }
+        }
+        events.sort_unstable_by(|a, b| a.0.total_cmp(&b.0));
+        sc.met.clear();
+        sc.met.resize(rs.pieces.len(), false);
+        sc.active.clear();
+        let r = grid.cylinder.radius;
+        let step = delta / subdivisions as f64;
+        let tau = |th: f64| th.sin() / (1.0 + th.cos());
+        let pieces_of = |k: usize| {
+            let e = events[k].1;
+            if e == NONE {
+                [NONE, NONE]
+            } else {
+                rs.ends[e as usize].2
+            }
+        };
+        let n = events.len();
+        let (mut idx, mut lo) = (0usize, 0usize);
+        while idx < n {
+            let th = events[idx].0;
+            let mut gend = idx;
+            while gend < n && events[gend].0 == th {
+                gend += 1;
+            }
+            while events[lo].0 < th - WINDOW {
+                lo += 1;
+            }
+            // Exact value at this event angle: the nearest met piece among those met just before
+            // and those bounded by the events here.
+            {
+                let (co, si) = (th.cos(), th.sin());
+                let mut best: Option<f64> = None;
+                let mut consider = |id: u32| {
+                    if id != NONE
+                        && let Some((_, z)) = rs.eval(id, x, co, si)
+                    {
+                        best = Some(best.map_or(z, |b: f64| b.max(z)));
+                    }
+                };
+                if idx == 0 {
+                    rs.existing.iter().for_each(|&id| consider(id));
+                } else {
+                    sc.active.iter().for_each(|&id| consider(id));
+                    let mut k = lo;
+                    while k < n && events[k].0 <= th + WINDOW {
+                        pieces_of(k).iter().for_each(|&id| consider(id));
+                        k += 1;
+                    }
+                }
+                if let Some(z) = best {
+                    push_exact(halves, th, (tau(th), z));
+                }
+            }
+            if gend == n {
+                break;
+            }
+            let (ea, eb) = (th, events[gend].0);
+            idx = gend;
+            // Update the met set at the interval's middle.
+            let mid = 0.5 * (ea + eb);
+            let (co, si) = (mid.cos(), mid.sin());
+            let retest = |id: u32, met: &mut Vec<bool>, active: &mut Vec<u32>| {
+                if id == NONE {
+                    return;
+                }
+                let now = rs.eval(id, x, co, si).is_some();
+                if met[id as usize] != now {
+                    met[id as usize] = now;
+                    if now {
+                        active.push(id);
+                    } else if let Some(p) = active.iter().position(|&a| a == id) {
+                        active.swap_remove(p);
+                    }
+                }
+            };
+            if ea == -delta {
+                for &id in &rs.existing {
+                    retest(id, &mut sc.met, &mut sc.active);
+                }
+            } else {
+                let mut k = lo;
+                while k < n && events[k].0 <= eb + WINDOW {
+                    for id in pieces_of(k) {
+                        retest(id, &mut sc.met, &mut sc.active);
+                    }
+                    k += 1;
+                }
+            }
+            // The visible piece: nearest met piece.
+            let mut vis: Option<(u32, f64)> = None;
+            for &id in &sc.active {
+                if let Some((_, z)) = rs.eval(id, x, co, si)
+                    && vis.is_none_or(|(_, bz)| z > bz)
+                {
+                    vis = Some((id, z));
+                }
+            }
+            let Some((id, _)) = vis else { continue };
+            let Some((a, b)) = rs.pieces[id as usize] else {
+                continue;
+            };
+            let half = usize::from(mid >= 0.0);
+            push_piece_boxes_v1(&mut halves[half], a, b, x, r, (ea, eb), step, tau);
+        }
+        for hp in halves.iter() {
+            debug_assert!(hp.upper.windows(2).all(|w| w[0].0 <= w[1].0));
+        }
+    }
+
+    /// Conservative corner points `(τ, z_e)` of the crossing of the screen ray at abscissa `x` with
+    /// the surface piece `a → b` (view frame, `(x_t, z_t)` pairs), for view angles in the open
+    /// interval `(ea, eb)` where that piece is the visible one. The interval is cut at the points of
+    /// the uniform grid of `step` inside it; over each sub-interval the crossing's depth is bounded by
+    /// its values at both ends and, where the foot of the perpendicular from the axis falls inside
+    /// the sub-interval's range of piece parameters, by the depth of that foot (the extremum of
+    /// `|z_e|` along the piece). Each box is widened by `EPS·r` and pushed as two upper and two lower
+    /// corners at `τ(s_a)` and `τ(s_b)`.
+    #[allow(clippy::too_many_arguments)]
+    fn push_piece_boxes_v1(
+        hp: &mut HalfPoints,
+        a: (f64, f64),
+        b: (f64, f64),
+        x: f64,
+        r: f64,
+        (ea, eb): (f64, f64),
+        step: f64,
+        tau: impl Fn(f64) -> f64,
+    ) {
+        let (dx, dz) = (b.0 - a.0, b.1 - a.1);
+        let len2 = dx * dx + dz * dz;
+        let t_foot = if len2 > 0.0 {
+            -(a.0 * dx + a.1 * dz) / len2
+        } else {
+            0.0
+        };
+        // Crossing on the piece's line at angle th: (t, t, z_e, z_e); a piece seen edge-on (only
+        // possible at an interval end) gives both its ends.
+        let on_line = |th: f64| -> (f64, f64, f64, f64) {
+            let (co, si) = (th.cos(), th.sin());
+            let xe_a = a.0 * co + a.1 * si;
+            let xe_b = b.0 * co + b.1 * si;
+            let ze = |t: f64| {
+                let (px, pz) = (a.0 + t * dx, a.1 + t * dz);
+                pz * co - px * si
+            };
+            if xe_b - xe_a > 1e-14 * r {
+                let t = ((x - xe_a) / (xe_b - xe_a)).clamp(0.0, 1.0);
+                let z = ze(t);
+                (t, t, z, z)
+            } else {
+                let (z0, z1) = (ze(0.0), ze(1.0));
+                (0.0, 1.0, z0.min(z1), z0.max(z1))
+            }
+        };
+        // Boxes over the sub-intervals cut by the uniform grid strictly inside (ea, eb).
+        let mut m = (ea / step).floor() as i64 + 1;
+        let mut s_a = ea;
+        let mut end_a = on_line(ea);
+        loop {
+            let gm = m as f64 * step;
+            let s_b = if gm < eb { gm } else { eb };
+            let end_b = on_line(s_b);
+            let (t_lo, t_hi) = (end_a.0.min(end_b.0), end_a.1.max(end_b.1));
+            let mut zlo = end_a.2.min(end_b.2);
+            let mut zhi = end_a.3.max(end_b.3);
+            if t_foot > t_lo && t_foot < t_hi {
+                let (px, pz) = (a.0 + t_foot * dx, a.1 + t_foot * dz);
+                let zf = (px * px + pz * pz - x * x).max(0.0).sqrt();
+                if zlo >= 0.0 {
+                    zlo = zlo.min(zf);
+                } else if zhi <= 0.0 {
+                    zhi = zhi.max(-zf);
+                }
+            }
+            let (ta, tb) = (tau(s_a), tau(s_b));
+            let (zlo, zhi) = (zlo - EPS * r, zhi + EPS * r);
+            hp.upper.push((ta, zhi));
+            hp.upper.push((tb, zhi));
+            hp.lower.push((ta, zlo));
+            hp.lower.push((tb, zlo));
+            if s_b >= eb {
+                break;
+            }
+            s_a = s_b;
+            end_a = end_b;
+            m += 1;
+        }
+    }
+
     /// The exact sweep of one pixel: fills the corner points of both half ranges.
     #[allow(clippy::too_many_arguments)]
     pub(super) fn pixel_points_by_march(
@@ -1165,7 +1443,6 @@ mod reference {
             let (x1, x2) = cylinder_range(x, co, si, r_march);
             march_row(grid, row, x, co, si, x1, x2).hit
         };
-        let step = delta / subdivisions as f64;
         let tau = |th: f64| th.sin() / (1.0 + th.cos());
         // Exact values at every event angle.
         for &e in events.iter() {
@@ -1185,7 +1462,16 @@ mod reference {
             let g = &row[h.texel];
             let (a, b) = piece(grid, g, h.texel, h.right);
             let half = half_of(0.5 * (ea + eb));
-            push_piece_boxes(&mut halves[half], a, b, x, r, (ea, eb), step, tau);
+            push_piece_boxes(
+                &mut halves[half],
+                a,
+                b,
+                x,
+                r,
+                (ea, eb),
+                ((ea.cos(), ea.sin()), (eb.cos(), eb.sin())),
+                &AngleGrid::new(delta, subdivisions),
+            );
         }
         for hp in halves.iter_mut() {
             hp.upper.sort_by(|p, q| p.0.total_cmp(&q.0));
@@ -1224,7 +1510,8 @@ mod tests {
                     reference::row_endpoints(&grid, row, &mut ends);
                     for i in 0..p.width {
                         let x = grid.x_at(i as f64 + 0.5);
-                        pixel_points(&grid, &rs, x, p.delta_theta(), 4, &mut sc, &mut a);
+                        let angles = AngleGrid::new(p.delta_theta(), 4);
+                        pixel_points(&grid, &rs, x, p.delta_theta(), &angles, &mut sc, &mut a);
                         reference::pixel_points_by_march(
                             &grid,
                             row,
@@ -1278,6 +1565,64 @@ mod tests {
                 }
             }
         }
+    }
+
+    /// The optimised sweep (trigonometry cached per event and per grid angle) gives bit-for-bit
+    /// the corner points of the sweep as first written, in the same order, at the default
+    /// subdivision count and for zmin/zmax's single subdivision.
+    #[test]
+    fn optimised_sweep_is_bitwise_the_first_sweep() {
+        use crate::parallax::images::{ParallaxImages, ParallaxParams};
+        let bits = |v: &[(f64, f64)]| {
+            v.iter()
+                .map(|p| (p.0.to_bits(), p.1.to_bits()))
+                .collect::<Vec<_>>()
+        };
+        let mut compared = 0usize;
+        for name in ["truck", "tree", "building", "torus"] {
+            let shape = altrep_data_gen::scene_shape(name).unwrap();
+            let p = ParallaxParams {
+                views: 8,
+                width: 32,
+                height: 16,
+                ..Default::default()
+            };
+            let images = ParallaxImages::capture(&shape, &p).unwrap();
+            let grid = images.pixel_grid();
+            let delta = p.delta_theta();
+            let mut sc = Scratch::default();
+            let mut sc1 = Scratch::default();
+            let mut a = [HalfPoints::default(), HalfPoints::default()];
+            let mut b = [HalfPoints::default(), HalfPoints::default()];
+            for subdivisions in [1, 64] {
+                let angles = AngleGrid::new(delta, subdivisions);
+                for view in &images.views {
+                    for j in 0..p.height {
+                        let row = &view.geom[j * p.width..(j + 1) * p.width];
+                        let rs = RowSweep::new(&grid, row);
+                        for i in 0..p.width {
+                            let x = grid.x_at(i as f64 + 0.5);
+                            pixel_points(&grid, &rs, x, delta, &angles, &mut sc, &mut a);
+                            reference::pixel_points_v1(
+                                &grid,
+                                &rs,
+                                x,
+                                delta,
+                                subdivisions,
+                                &mut sc1,
+                                &mut b,
+                            );
+                            for h in 0..2 {
+                                assert_eq!(bits(&a[h].upper), bits(&b[h].upper), "{name}");
+                                assert_eq!(bits(&a[h].lower), bits(&b[h].lower), "{name}");
+                                compared += a[h].upper.len();
+                            }
+                        }
+                    }
+                }
+            }
+        }
+        assert!(compared > 10_000, "only {compared} points compared");
     }
 
     #[test]

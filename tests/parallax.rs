@@ -194,8 +194,11 @@ fn all_bounds(images: &ParallaxImages, params: &BoundParams) -> Vec<Bounds> {
         .collect()
 }
 
+/// Both surface models: the default (tangent brims) and the original flat brims.
 fn check_no_violations(label: &str, shape: &dyn Shape, bit_depths: &[u32]) {
-    check_no_violations_with(label, shape, bit_depths, Brim::Flat);
+    for brim in [Brim::DEFAULT, Brim::Flat] {
+        check_no_violations_with(&format!("{label}, {brim:?}"), shape, bit_depths, brim);
+    }
 }
 
 fn check_no_violations_with(label: &str, shape: &dyn Shape, bit_depths: &[u32], brim: Brim) {
@@ -570,13 +573,15 @@ fn tangent_brims_keep_the_bounds_conservative_and_theta_zero_exact() {
 #[test]
 fn tangent_brims_change_only_unjoined_ends_and_reject_bad_slopes() {
     let images = ParallaxImages::capture(&scene_shape("truck").unwrap(), &small(8, 32)).unwrap();
-    assert_eq!(images.brim(), Brim::Flat);
+    assert_eq!(images.brim(), Brim::DEFAULT);
     let flat0 = images.with_brim(Brim::Tangent { max_slope: 0.0 }).unwrap();
     let tangent = images.with_brim(TANGENT).unwrap();
     assert_eq!(tangent.brim(), TANGENT);
     // The stored data are untouched, and slope 0 is the flat model.
     assert_eq!(tangent.codes(), images.codes());
-    assert_abs_diff_eq!(flat0.march_radius(), images.march_radius(), epsilon = 1e-12);
+    let flat = images.with_brim(Brim::Flat).unwrap();
+    assert_eq!(flat.brim(), Brim::Flat);
+    assert_abs_diff_eq!(flat0.march_radius(), flat.march_radius(), epsilon = 1e-12);
     // A mip level keeps the model.
     assert_eq!(tangent.level(1).unwrap().brim(), TANGENT);
     for bad in [-1.0, f64::NAN, f64::INFINITY] {
@@ -628,14 +633,15 @@ fn every_reconstruction_option_gives_finite_premultiplied_images() {
         0.7,
         WarpMethod::Inverse,
         &screen,
-        &Reconstruction::default(),
+        &Reconstruction::DEFAULT,
     );
     assert_eq!(
         same.unwrap(),
         plain,
-        "the default options are the original path"
+        "render is render_with the default reconstruction"
     );
-    for bits in 0..16u32 {
+    assert_eq!(Reconstruction::default(), Reconstruction::DEFAULT);
+    for bits in 0..32u32 {
         let rec = Reconstruction {
             rows: if bits & 1 == 1 {
                 RowFilter::Linear
@@ -645,6 +651,7 @@ fn every_reconstruction_option_gives_finite_premultiplied_images() {
             depth_test: bits & 2 != 0,
             fallback: bits & 4 != 0,
             soft_edges: bits & 8 != 0,
+            fill_holes: bits & 16 != 0,
         };
         for method in [WarpMethod::Inverse, WarpMethod::Direct] {
             let img = render_with(&images, 0.7, method, &screen, &rec).unwrap();

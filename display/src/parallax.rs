@@ -1,8 +1,12 @@
-//! Images with parallax on the GPU: the fragment-shader twin of `altrep::parallax::render`
+//! Images with parallax on the GPU: the fragment-shader twin of `altrep::parallax::render_with`
 //! (inverse warping bounded by the cylinder, any screen size, one ray per pixel, no mip) and of
-//! `altrep::parallax::render_bounded` (stored per-pixel bounds of every kind, at the views' own
-//! size). Two bracketing views are marched per fragment, combined by angular proportion, relit
-//! from the stored normals with a diffuse light, and the depth of the nearer crossing is written.
+//! `altrep::parallax::render_bounded_with` (stored per-pixel bounds of every kind, at the views'
+//! own size), under any `Reconstruction` (the default: tangent brims as the asset's images
+//! define them, linear row filter, fallback views, soft edges, hole filling; or the original path). Two
+//! bracketing views are marched per fragment and view row read, combined by angular proportion
+//! (the next views out, from the cylinder, where both miss), relit from the stored normals with a
+//! diffuse light; the output is premultiplied RGBA and the depth of the nearer crossing is
+//! written.
 //!
 //! The shader (`parallax.wgsl`) repeats the CPU's formulas in the same order; it runs in `f32`
 //! ([`Precision::F32`], what an engine ships) or, where the adapter has `SHADER_F64`, in `f64`
@@ -12,7 +16,7 @@
 
 use std::time::Instant;
 
-use altrep::parallax::{BoundKind, ParallaxImages};
+use altrep::parallax::{BoundKind, Brim, ParallaxImages, Reconstruction, RowFilter};
 use altrep::pipeline::parallax::ParallaxData;
 use altrep_data_gen::{Light, RgbaImage};
 use wgpu::util::DeviceExt;
@@ -44,6 +48,10 @@ pub struct DrawParams {
     pub height: usize,
     /// The light (direction toward it, ambient share).
     pub light: Light,
+    /// How the views are combined: `Reconstruction::DEFAULT` (what `altrep::parallax::render`
+    /// draws) or any other, e.g. `Reconstruction::ORIGINAL`. The surface model at silhouettes
+    /// is the asset's (`ParallaxImages::brim`).
+    pub rec: Reconstruction,
 }
 
 /// An images-with-parallax asset uploaded to the GPU, with the pipeline that draws it.
@@ -243,8 +251,11 @@ impl ParallaxDisplay {
             .collect()
     }
 
-    /// Draws one frame and reads back the image, the steps and the depth. Cost: one draw of
-    /// `width × height` fragments, two bounded marches each, plus the read-back.
+    /// Draws one frame and reads back the image, the steps (of the two bracketing views, summed
+    /// over the view rows read; fallback marches not counted, as `render_bounded_with`) and the
+    /// depth. Cost: one draw of `width × height` fragments, two bounded marches per view row
+    /// read (one at the views' size, two with the linear row filter at other sizes) plus two
+    /// cylinder marches where both views miss and `rec.fallback` is set, plus the read-back.
     ///
     /// Errors: a non-finite angle, a zero or huge screen, a kind not stored in the asset, stored
     /// bounds at a screen size other than the views', a GPU error.
@@ -291,7 +302,15 @@ impl ParallaxDisplay {
             .images
             .bracketing(d.alpha)
             .map_err(|_| invalid("alpha", d.alpha, "must be finite"))?;
+        let [(k0, th0, w0), (k3, t3, w3)] = self
+            .images
+            .fallback_views(d.alpha)
+            .map_err(|_| invalid("alpha", d.alpha, "must be finite"))?;
         let r = self.images.params.cylinder.radius;
+        let max_slope = match self.images.brim() {
+            Brim::Flat => 0.0,
+            Brim::Tangent { max_slope } => max_slope,
+        };
         let mut pv = self.fixed.to_vec();
         pv.extend_from_slice(&[
             t1.cos(),
@@ -300,7 +319,16 @@ impl ParallaxDisplay {
             t2.sin(),
             2.0 * r / d.width as f64,
             self.eps(),
+            th0.cos(),
+            th0.sin(),
+            t3.cos(),
+            t3.sin(),
+            max_slope,
         ]);
+        for v in &self.images.views {
+            let (sa, ca) = v.angle.sin_cos();
+            pv.extend_from_slice(&[sa, ca]);
+        }
         let dev = &gpu.device;
         let init = |label: &str, bytes: &[u8], usage| {
             dev.create_buffer_init(&wgpu::util::BufferInitDescriptor {
@@ -319,9 +347,25 @@ impl ParallaxDisplay {
             kind_id,
             d.width as u32,
             d.height as u32,
+            u32::from(d.rec.rows == RowFilter::Linear),
+            u32::from(d.rec.fallback),
+            u32::from(d.rec.soft_edges),
+            u32::from(d.rec.depth_test),
+            k0 as u32,
+            k3 as u32,
+            u32::from(d.rec.fill_holes),
         ];
         let ubuf = init("U", bytemuck::cast_slice(&u), st);
-        let l = [dir.x, dir.y, dir.z, d.light.ambient, w1 as f32, w2 as f32];
+        let l = [
+            dir.x,
+            dir.y,
+            dir.z,
+            d.light.ambient,
+            w1 as f32,
+            w2 as f32,
+            w0 as f32,
+            w3 as f32,
+        ];
         let lbuf = init("L", bytemuck::cast_slice(&l), st);
         let frags = d.width * d.height;
         let steps_bytes = (frags * 8) as u64;

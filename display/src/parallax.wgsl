@@ -10,9 +10,12 @@ alias real = f32;
 // Scalars in `real`: see `ParallaxDisplay::render` for the layout.
 @group(0) @binding(0) var<storage, read> P: array<real>;
 // Integers: 0 Lx, 1 Ly, 2 k1, 3 k2, 4 bound kind (0 cylinder, 1 zmin/zmax, 2 pair, 3 best c,
-// 4 best c split), 5 screen width, 6 screen height.
+// 4 best c split), 5 screen width, 6 screen height, then the reconstruction (warp.rs
+// `Reconstruction`): 7 rows (0 nearest, 1 linear), 8 fallback, 9 soft edges, 10 depth test,
+// 11 k0 = k1 − 1 and 12 k3 = k2 + 1 (the fallback views), 13 fill holes.
 @group(0) @binding(1) var<storage, read> U: array<u32>;
-// Light: direction xyz (unit, object frame), ambient; then blend weights w1, w2 (f32, as the CPU).
+// Light: direction xyz (unit, object frame), ambient; then blend weights w1, w2 (f32, as the CPU),
+// then the fallback views' weights w0, w3.
 @group(0) @binding(2) var<storage, read> L: array<f32>;
 // Per texel of every view (index (k·Ly + j)·Lx + i): linear albedo (xyz) and decoded normal (xyz).
 @group(0) @binding(3) var<storage, read> ATTR: array<vec4<f32>>;
@@ -34,6 +37,12 @@ const CO2: u32 = 7u;
 const SI2: u32 = 8u;
 const SCREEN_PITCH: u32 = 9u; // 2R / screen width
 const EPS: u32 = 10u;         // widening of the march ends (warp.rs: 1e-9·δx; see the host)
+const CO0: u32 = 11u;         // cos, sin of θ0 = θ1 + Δθ (fallback view k0)
+const SI0: u32 = 12u;
+const CO3: u32 = 13u;         // cos, sin of θ3 = θ2 − Δθ (fallback view k3)
+const SI3: u32 = 14u;
+const MAX_SLOPE: u32 = 15u;   // brim max slope (images.rs `Brim`: 0 flat)
+const VIEW_SC: u32 = 16u;     // per view k: sin α_k at 16 + 2k, cos α_k at 17 + 2k
 
 struct VsOut {
     @builtin(position) pos: vec4<f32>,
@@ -96,6 +105,27 @@ fn geom(k: u32, j: u32, i: u32) -> Geom {
     }
     if g.link_r {
         g.zr = 0.5 * (g.z + depth_at(idx + 1u));
+    }
+    // images.rs `apply_brim`: unjoined ends drop along the stored normal's tangent.
+    if g.defined && (!g.link_l || !g.link_r) {
+        let ms = P[MAX_SLOPE];
+        let sa = P[VIEW_SC + 2u * k];
+        let ca = P[VIEW_SC + 2u * k + 1u];
+        let n = ATTR[2u * idx + 1u].xyz;
+        let nx = real(n.x) * sa - real(n.z) * ca;
+        let nz = real(n.x) * ca + real(n.z) * sa;
+        var down_l = ms;
+        var down_r = ms;
+        if nz > 1e-6 {
+            down_l = -nx / nz;
+            down_r = nx / nz;
+        }
+        if !g.link_l {
+            g.zl = g.z - 0.5 * P[PITCH] * clamp(down_l, 0.0, ms);
+        }
+        if !g.link_r {
+            g.zr = g.z - 0.5 * P[PITCH] * clamp(down_r, 0.0, ms);
+        }
     }
     return g;
 }
@@ -317,25 +347,196 @@ fn shade(k: u32, j: u32, h: Hit) -> vec3<f32> {
     return a * (amb + (1.0 - amb) * max(dot(nn, dir), 0.0));
 }
 
-struct FsOut {
-    @location(0) color: vec4<f32>,
-    @builtin(frag_depth) depth: f32,
+// warp.rs `edge_coverage`: 1 − u/2 on a brim (u from the texel centre outward), else 1.
+fn edge_coverage(k: u32, j: u32, h: Hit) -> f32 {
+    let g = geom(k, j, h.texel);
+    if h.right && !g.link_r {
+        return f32(1.0 - 0.5 * h.t);
+    }
+    if !h.right && !g.link_l {
+        return f32(1.0 - 0.5 * (1.0 - h.t));
+    }
+    return 1.0;
+}
+
+// warp.rs `on_brim`.
+fn on_brim(k: u32, j: u32, h: Hit) -> bool {
+    let g = geom(k, j, h.texel);
+    if h.right {
+        return !g.link_r;
+    }
+    return !g.link_l;
+}
+
+// A combined ray: premultiplied colour, depth of the nearer crossing, whether anything hit.
+struct Col {
+    ok: bool,
+    c: vec4<f32>,
+    z_e: real,
 };
 
-@fragment
-fn fs_main(@builtin(position) pos: vec4<f32>) -> FsOut {
-    let px = u32(pos.x);
-    let py = u32(pos.y);
-    let sw = U[5];
-    let sh = U[6];
-    let lx = U[0];
-    let ly = U[1];
-    // RenderParams::sample_xs (one ray per pixel) and view_row.
-    let x = -P[R_CAP] + (real(px) + 0.5) * P[SCREEN_PITCH];
-    let j = min(u32(floor((real(py) + 0.5) * real(ly) / real(sh))), ly - 1u);
-    // Stored bounds are per texel: the host only selects them at the views' own size.
-    let idx = j * lx + min(px, lx - 1u);
+fn soft(k: u32, j: u32, h: Hit) -> vec4<f32> {
+    let col = shade(k, j, h);
+    if U[9] != 0u {
+        let cov = edge_coverage(k, j, h);
+        return vec4<f32>(col * cov, cov);
+    }
+    return vec4<f32>(col, 1.0);
+}
 
+// warp.rs `combine`: the crossings a (view ka, weight wa) and b (view kb, weight wb) of one ray.
+fn combine(ka: u32, kb: u32, wa: f32, wb: f32, j: u32, a: Hit, b: Hit) -> Col {
+    var o: Col;
+    o.ok = a.ok || b.ok;
+    o.c = vec4<f32>(0.0);
+    o.z_e = 0.0;
+    if a.ok && b.ok {
+        o.z_e = max(a.z_e, b.z_e);
+        if U[10] != 0u && abs(a.z_e - b.z_e) > P[THRESH] {
+            if a.z_e > b.z_e {
+                o.c = soft(ka, j, a);
+                o.z_e = a.z_e;
+            } else {
+                o.c = soft(kb, j, b);
+                o.z_e = b.z_e;
+            }
+        } else if U[9] != 0u && on_brim(ka, j, a) && on_brim(kb, j, b) {
+            o.c = wa * soft(ka, j, a) + wb * soft(kb, j, b);
+        } else {
+            o.c = vec4<f32>(wa * shade(ka, j, a) + wb * shade(kb, j, b), 1.0);
+        }
+    } else if a.ok {
+        o.c = soft(ka, j, a);
+        o.z_e = a.z_e;
+    } else if b.ok {
+        o.c = soft(kb, j, b);
+        o.z_e = b.z_e;
+    }
+    return o;
+}
+
+// warp.rs `hidden_in`: whether the screen point (x, z_e) lies below the surface of a defined
+// texel of row j of view k seen under (co, si).
+fn hidden_in(k: u32, co: real, si: real, j: u32, x: real, z_e: real) -> bool {
+    let xt = x * co - z_e * si;
+    let zt = x * si + z_e * co;
+    let u = (xt + P[R_CAP]) / P[PITCH];
+    if !(u >= 0.0 && u < real(U[0])) {
+        return false;
+    }
+    let i = u32(floor(u));
+    let g = geom(k, j, i);
+    if !g.defined {
+        return false;
+    }
+    let f = u - real(i);
+    var h = g.z + (g.zr - g.z) * (2.0 * f - 1.0);
+    if f < 0.5 {
+        h = g.zl + (g.z - g.zl) * 2.0 * f;
+    }
+    return zt < h;
+}
+
+// A wall crossing for hole filling: the texel on the far side of the step and the depth.
+struct Wall {
+    ok: bool,
+    hit: Hit,
+};
+
+// warp.rs `first_wall`, one boundary: the step between texels i and i + 1 of view k.
+fn wall_at(k: u32, j: u32, i: u32, x: real, co: real, si: real, ko: u32, cko: real, sko: real) -> Wall {
+    var w: Wall;
+    w.ok = false;
+    let a = geom(k, j, i);
+    let b = geom(k, j, i + 1u);
+    if !(a.defined && b.defined) || a.link_r {
+        return w;
+    }
+    let xb = x_at(real(i) + 1.0);
+    let z = (x - xb * co) / si;
+    var lo = b.zl;
+    var hi = a.zr;
+    var lower = i + 1u;
+    var right = false;
+    if si > 0.0 {
+        lo = a.zr;
+        hi = b.zl;
+        lower = i;
+        right = true;
+    }
+    let z_e = z * co - xb * si;
+    if lo <= z && z < hi && hidden_in(ko, cko, sko, j, x, z_e) {
+        w.ok = true;
+        w.hit.ok = true;
+        w.hit.texel = lower;
+        w.hit.right = right;
+        w.hit.t = select(0.0, 1.0, right);
+        w.hit.z_e = z_e;
+    }
+    return w;
+}
+
+// warp.rs `first_wall` from the cylinder, accepting walls that view ko also hides.
+fn first_wall(k: u32, j: u32, x: real, co: real, si: real, ko: u32, cko: real, sko: real) -> Wall {
+    var w: Wall;
+    w.ok = false;
+    if si == 0.0 {
+        return w;
+    }
+    let q = cylinder_range(x, co, si);
+    let c1 = cell(q.x1);
+    let c2 = cell(q.x2);
+    let last = i32(U[0]) - 2;
+    if si > 0.0 {
+        for (var c = max(c1, 0); c <= min(c2, last); c++) {
+            w = wall_at(k, j, u32(c), x, co, si, ko, cko, sko);
+            if w.ok {
+                return w;
+            }
+        }
+    } else {
+        for (var c = min(c1, last); c >= max(c2, 0); c--) {
+            w = wall_at(k, j, u32(c), x, co, si, ko, cko, sko);
+            if w.ok {
+                return w;
+            }
+        }
+    }
+    return w;
+}
+
+// warp.rs `hole_fill`: the nearer accepted wall of the two bracketing views, opaque.
+fn hole_fill(j: u32, x: real) -> Col {
+    let k1 = U[2];
+    let k2 = U[3];
+    let a = first_wall(k1, j, x, P[CO1], P[SI1], k2, P[CO2], P[SI2]);
+    let b = first_wall(k2, j, x, P[CO2], P[SI2], k1, P[CO1], P[SI1]);
+    var o: Col;
+    o.ok = a.ok || b.ok;
+    o.c = vec4<f32>(0.0);
+    o.z_e = 0.0;
+    if a.ok && (!b.ok || !(b.hit.z_e > a.hit.z_e)) {
+        o.c = vec4<f32>(shade(k1, j, a.hit), 1.0);
+        o.z_e = a.hit.z_e;
+    } else if b.ok {
+        o.c = vec4<f32>(shade(k2, j, b.hit), 1.0);
+        o.z_e = b.hit.z_e;
+    }
+    return o;
+}
+
+// One ray on view row j: the bracketing views within the march range of the pixel's bounds,
+// then, where both miss, the fallback views from the cylinder (warp.rs `render_bounded_with`,
+// `render_with`). Steps of the bracketing views only.
+struct RowOut {
+    col: Col,
+    s1: u32,
+    s2: u32,
+};
+
+fn ray_row(j: u32, x: real, px: u32) -> RowOut {
+    // Stored bounds are per texel: the host only selects them at the views' own size.
+    let idx = j * U[0] + min(px, U[0] - 1u);
     let k1 = U[2];
     let k2 = U[3];
     var m1: March;
@@ -350,27 +551,87 @@ fn fs_main(@builtin(position) pos: vec4<f32>) -> FsOut {
     if r2.ok {
         m2 = march_row(k2, j, x, P[CO2], P[SI2], r2.x1, r2.x2);
     }
-    let f = 2u * (py * sw + px);
-    STEPS[f] = m1.steps;
-    STEPS[f + 1u] = m2.steps;
+    var o: RowOut;
+    o.s1 = m1.steps;
+    o.s2 = m2.steps;
+    o.col = combine(k1, k2, L[4], L[5], j, m1.hit, m2.hit);
+    if !o.col.ok && U[8] != 0u {
+        let k0 = U[11];
+        let k3 = U[12];
+        let q0 = cylinder_range(x, P[CO0], P[SI0]);
+        let m0 = march_row(k0, j, x, P[CO0], P[SI0], q0.x1, q0.x2);
+        let q3 = cylinder_range(x, P[CO3], P[SI3]);
+        let m3 = march_row(k3, j, x, P[CO3], P[SI3], q3.x1, q3.x2);
+        o.col = combine(k0, k3, L[6], L[7], j, m0.hit, m3.hit);
+    }
+    if !o.col.ok && U[13] != 0u {
+        o.col = hole_fill(j, x);
+    }
+    return o;
+}
 
-    if !m1.hit.ok && !m2.hit.ok {
+struct FsOut {
+    @location(0) color: vec4<f32>,
+    @builtin(frag_depth) depth: f32,
+};
+
+@fragment
+fn fs_main(@builtin(position) pos: vec4<f32>) -> FsOut {
+    let px = u32(pos.x);
+    let py = u32(pos.y);
+    let sw = U[5];
+    let sh = U[6];
+    let ly = U[1];
+    // RenderParams::sample_xs (one ray per pixel).
+    let x = -P[R_CAP] + (real(px) + 0.5) * P[SCREEN_PITCH];
+    var acc = vec4<f32>(0.0);
+    var hit = false;
+    var z_e = -P[MARCH_R];
+    var s1 = 0u;
+    var s2 = 0u;
+    if U[7] == 0u {
+        // RenderParams::view_row: the nearest view row.
+        let j = min(u32(floor((real(py) + 0.5) * real(ly) / real(sh))), ly - 1u);
+        let o = ray_row(j, x, px);
+        s1 = o.s1;
+        s2 = o.s2;
+        if o.col.ok {
+            acc = o.col.c;
+            hit = true;
+            z_e = o.col.z_e;
+        }
+    } else {
+        // RenderParams::row_weights (one sub-row): rows j0 and j0 + 1, linearly.
+        let v = (real(py) + 0.5) * (real(ly) / real(sh)) - 0.5;
+        let j0 = floor(v);
+        let f = v - j0;
+        for (var q = 0; q < 2; q++) {
+            let j = i32(j0) + q;
+            var w = 1.0 - f;
+            if q == 1 {
+                w = f;
+            }
+            if j < 0 || j >= i32(ly) || w <= 0.0 {
+                continue;
+            }
+            let o = ray_row(u32(j), x, px);
+            s1 += o.s1;
+            s2 += o.s2;
+            if o.col.ok {
+                acc += o.col.c * f32(w);
+                hit = true;
+                z_e = max(z_e, o.col.z_e);
+            }
+        }
+    }
+    let f = 2u * (py * sw + px);
+    STEPS[f] = s1;
+    STEPS[f + 1u] = s2;
+    if !hit {
         discard;
     }
-    var col: vec3<f32>;
-    var z_e: real;
-    if m1.hit.ok && m2.hit.ok {
-        col = L[4] * shade(k1, j, m1.hit) + L[5] * shade(k2, j, m2.hit);
-        z_e = max(m1.hit.z_e, m2.hit.z_e);
-    } else if m1.hit.ok {
-        col = shade(k1, j, m1.hit);
-        z_e = m1.hit.z_e;
-    } else {
-        col = shade(k2, j, m2.hit);
-        z_e = m2.hit.z_e;
-    }
     var out: FsOut;
-    out.color = vec4<f32>(col, 1.0);
+    out.color = acc;
     // Orthographic depth: z_e = R' (nearest) → 0, z_e = −R' → 1.
     let r = P[MARCH_R];
     out.depth = clamp(f32((r - z_e) / (2.0 * r)), 0.0, 1.0);

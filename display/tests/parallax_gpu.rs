@@ -11,7 +11,10 @@ use std::path::{Path, PathBuf};
 
 use altrep::asset::{AssetWriter, Conventions};
 use altrep::metrics::psnr;
-use altrep::parallax::{BoundKind, RenderParams, WarpMethod, march, render, render_bounded};
+use altrep::parallax::{
+    BoundKind, Reconstruction, RenderParams, WarpMethod, march, render, render_bounded,
+    render_bounded_with, render_with,
+};
 use altrep::pipeline::parallax::{Parallax, ParallaxData, ParallaxSpec};
 use altrep::pipeline::{Needs, Representation, Source};
 use altrep_data_gen::{BoundingCylinder, Light, TruthParams, render_truth, scene_shape};
@@ -91,6 +94,7 @@ fn draw(kind: BoundKind, alpha: f64) -> DrawParams {
         width: SIZE,
         height: SIZE,
         light: Light::default(),
+        rec: Reconstruction::DEFAULT,
     }
 }
 
@@ -194,6 +198,67 @@ fn gpu_cylinder_march_matches_cpu_render_at_other_screen_sizes() {
                 0.02,
             );
         }
+    }
+}
+
+/// The original reconstruction (nearest row, two views, hard coverage) stays selectable on the
+/// GPU: against `render_bounded_with` / `render_with` under `Reconstruction::ORIGINAL`, and it
+/// differs from the default where the default softens edges and fills holes.
+#[test]
+fn gpu_original_reconstruction_matches_cpu_original() {
+    let Some(gpu) = gpu() else { return };
+    let dir = tempfile::tempdir().unwrap();
+    let light = Light::default();
+    let data = asset("tree", dir.path());
+    let disp = ParallaxDisplay::new(&gpu, &data, Precision::F32).unwrap();
+    let best = data
+        .bounds
+        .iter()
+        .find(|b| b.kind == BoundKind::BestC)
+        .unwrap();
+    for alpha in ANGLES {
+        let orig = Reconstruction::ORIGINAL;
+        let d = DrawParams {
+            rec: orig,
+            ..draw(BoundKind::BestC, alpha)
+        };
+        let frame = disp.render(&gpu, &d).unwrap();
+        let cpu = render_bounded_with(&data.images, best, alpha, &light, &orig).unwrap();
+        check_image(
+            &format!("tree-original-{alpha:.2}"),
+            &frame.image,
+            &cpu.image,
+            40.0,
+            0.02,
+        );
+        let (default_cpu, _) = render_bounded(&data.images, best, alpha, &light).unwrap();
+        if alpha != std::f64::consts::FRAC_PI_2 {
+            assert_ne!(
+                default_cpu, cpu.image,
+                "α={alpha}: the default changes the image"
+            );
+        }
+        let screen = RenderParams {
+            width: 48,
+            height: 40,
+            supersample: 1,
+            light,
+            mip: false,
+        };
+        let cpu = render_with(&data.images, alpha, WarpMethod::Inverse, &screen, &orig).unwrap();
+        let d = DrawParams {
+            width: 48,
+            height: 40,
+            ..draw(BoundKind::Cylinder, alpha)
+        };
+        let frame = disp.render(&gpu, &DrawParams { rec: orig, ..d }).unwrap();
+        check_image(
+            &format!("tree-original-48x40-{alpha:.2}"),
+            &frame.image,
+            &cpu,
+            40.0,
+            0.02,
+        );
     }
 }
 

@@ -336,8 +336,8 @@ fn quality_truths(
         .collect::<Result<Vec<_>, _>>()?)
 }
 
-/// Image quality of inverse warping (for every N and size of `params`) and of the two baselines
-/// against the supersampled ground truth. Inverse warping marches from the cylinder: stored bounds
+/// Image quality of inverse warping with the default reconstruction ([`render`]; for every N and
+/// size of `params`) and of the two baselines against the supersampled ground truth. Inverse warping marches from the cylinder: stored bounds
 /// never change the image (checked by the mismatch counts of [`measure_steps`]).
 ///
 /// Errors: invalid parameters, capture or comparison errors.
@@ -511,28 +511,24 @@ pub struct Variant {
 }
 
 impl Variant {
-    /// The original path (flat brims, nearest row, angular blend).
+    /// The original path before issue 11 (flat brims, nearest row, two views, hard coverage).
     pub fn original() -> Self {
         Self {
-            name: "inverse warp".into(),
+            name: "original inverse warp".into(),
             brim: Brim::Flat,
-            rec: Reconstruction::default(),
+            rec: Reconstruction::ORIGINAL,
         }
     }
 
-    /// The best combination measured (issue 11): tangent brims (max slope 4), linear row filter,
-    /// fallback to the next views out, soft edges (the depth test, measured alone at ±0.05 dB,
-    /// is left out).
+    /// The best combination measured (issue 11), the default since: tangent brims (max slope 4,
+    /// [`Brim::DEFAULT`]), linear row filter, fallback to the next views out, soft edges, hole
+    /// filling ([`Reconstruction::DEFAULT`]; the depth test, measured alone at ±0.05 dB, is left
+    /// out).
     pub fn best() -> Self {
         Self {
-            name: "inverse, all options".into(),
-            brim: Brim::Tangent { max_slope: 4.0 },
-            rec: Reconstruction {
-                rows: RowFilter::Linear,
-                depth_test: false,
-                fallback: true,
-                soft_edges: true,
-            },
+            name: "inverse warp (default)".into(),
+            brim: Brim::DEFAULT,
+            rec: Reconstruction::DEFAULT,
         }
     }
 
@@ -556,6 +552,7 @@ impl Variant {
             with("+ depth test", &|v| v.rec.depth_test = true),
             with("+ fallback views", &|v| v.rec.fallback = true),
             with("+ soft edges", &|v| v.rec.soft_edges = true),
+            with("+ hole filling", &|v| v.rec.fill_holes = true),
             Self::best(),
         ]
     }

@@ -17,12 +17,14 @@
 //! (pair), 1.04 (best c), 0.67 (best c, split θ); zero violations on the dense sweep. See the
 //! closing note of issue 5 for all six shapes and the report's ÷5 / ÷12.
 //!
-//! **Reconstruction options** (issue 11; defaults are the original path above): the surface at
-//! unjoined texel ends ([`Brim`], [`ParallaxImages::with_brim`]: flat, or along the stored
-//! normal's tangent), and in [`render_with`] a linear filter between view rows, a depth test
-//! between the two views, a fallback to the next views out where both miss, and soft coverage at
-//! silhouette brims ([`Reconstruction`]). [`measure_quality_sweep`] measures each alone and all
-//! together, with the error split by distance to the true outline ([`error_split`]).
+//! **Reconstruction** (issue 11): the surface at unjoined texel ends ([`Brim`],
+//! [`ParallaxImages::with_brim`]: along the stored normal's tangent by default, or flat as
+//! originally), and in [`render_with`] / [`render_bounded_with`] a linear filter between view
+//! rows, a fallback to the next views out where both miss, soft coverage at silhouette brims
+//! (all three on by default, [`Reconstruction::DEFAULT`]) and a depth test between the two views
+//! (off). [`Brim::Flat`] with [`Reconstruction::ORIGINAL`] is the original path.
+//! [`measure_quality_sweep`] measures each option alone and all together, with the error split
+//! by distance to the true outline ([`error_split`]).
 //!
 //! ## Sign conventions (derived once from data-gen's; SPEC §14 says the report slips)
 //!
@@ -97,8 +99,9 @@ pub use measure::{
     measure_quality, measure_quality_sweep, measure_steps,
 };
 pub use warp::{
-    Crossing, MarchResult, Reconstruction, RenderParams, RowFilter, WarpMethod, cylinder_range,
-    march, render, render_bounded, render_with, warp_row_direct, warp_view,
+    BoundedRender, Crossing, MarchResult, Reconstruction, RenderParams, RowFilter, WarpMethod,
+    cylinder_range, march, render, render_bounded, render_bounded_with, render_with,
+    warp_row_direct, warp_view,
 };
 
 use altrep_data_gen::DataGenError;

@@ -20,6 +20,7 @@ use std::process::ExitCode;
 
 use altrep::asset::{AssetWriter, Conventions};
 use altrep::parallax::BoundKind;
+use altrep::parallax::Reconstruction;
 use altrep::pipeline::parallax::{Parallax, ParallaxData, ParallaxSpec};
 use altrep::pipeline::{Needs, Representation, Source};
 use altrep_data_gen::{BoundingCylinder, Light, RgbaImage, TruthParams, render_truth, scene_shape};
@@ -140,6 +141,7 @@ fn run(args: &Args) -> Result<(), String> {
                     width: w,
                     height: h,
                     light,
+                    rec: Reconstruction::DEFAULT,
                 },
             )
             .map_err(|e| e.to_string())?;

@@ -26,6 +26,7 @@
 
 pub mod check;
 pub mod parallax;
+pub mod pyramid;
 
 use std::path::Path;
 

@@ -28,6 +28,7 @@ pub mod check;
 pub mod cylinder;
 mod offscreen;
 pub mod parallax;
+pub mod pyramid;
 
 use std::path::Path;
 

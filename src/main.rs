@@ -32,6 +32,8 @@ enum Command {
     Precompute(cli::precompute::PrecomputeArgs),
     /// Pyramids: mip/rip/fip/EWA error and time against supersampled truth, filters, fusion PSNR.
     Pyramid(cli::pyramid::PyramidArgs),
+    /// Run time against error: sweep every representation's parameters, write CSV, JSON and plots.
+    Report(cli::report::ReportArgs),
     /// Volumetric textures as slices: merge rules, levels and directions vs a ray-marched volume.
     Slices(cli::slices::SlicesArgs),
 }
@@ -47,6 +49,7 @@ fn main() {
         Command::Parallax(args) => cli::parallax::run(args),
         Command::Precompute(args) => cli::precompute::run(args),
         Command::Pyramid(args) => cli::pyramid::run(args),
+        Command::Report(args) => cli::report::run(args),
         Command::Slices(args) => cli::slices::run(args),
     };
     if let Err(e) = result {

@@ -20,10 +20,12 @@ pub mod fit;
 pub mod metrics;
 pub mod parallax;
 pub mod pipeline;
+pub mod profile;
 pub mod pyramid;
 
 /// The mip pyramid, kept at its old path (`crate::mip::…`); it lives in [`pyramid::mip`].
 pub use pyramid::mip;
+pub mod report;
 pub mod slices;
 pub mod stats;
 

@@ -34,6 +34,8 @@ enum Command {
     Pyramid(cli::pyramid::PyramidArgs),
     /// Pyramids benchmark: lookup error/time table and RGBA8 sRGB mip-chain build speed vs image and fast_image_resize.
     PyramidBench(cli::pyramid_bench::PyramidBenchArgs),
+    /// Run time against error: sweep every representation's parameters, write CSV, JSON and plots.
+    Report(cli::report::ReportArgs),
     /// Volumetric textures as slices: merge rules, levels and directions vs a ray-marched volume.
     Slices(cli::slices::SlicesArgs),
 }
@@ -50,6 +52,7 @@ fn main() {
         Command::Precompute(args) => cli::precompute::run(args),
         Command::Pyramid(args) => cli::pyramid::run(args),
         Command::PyramidBench(args) => cli::pyramid_bench::run(args),
+        Command::Report(args) => cli::report::run(args),
         Command::Slices(args) => cli::slices::run(args),
     };
     if let Err(e) = result {

@@ -583,6 +583,7 @@ fn options(out: &Path) -> RunOptions {
         shard: None,
         everything: false,
         progress: false,
+        profile: false,
     }
 }
 

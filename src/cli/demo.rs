@@ -93,6 +93,7 @@ pub fn run(args: DemoArgs) -> CliResult {
             shard: None,
             everything: false,
             json: None,
+            profile: false,
         },
     )?;
     let ctx = DemoContext {

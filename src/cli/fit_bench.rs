@@ -103,8 +103,9 @@ pub fn test_function_with(p: [f64; 3], with_jump: bool) -> Option<f64> {
     Some(smooth + jump)
 }
 
-/// The solver configurations of the solver table: (method, preconditioner).
-fn configurations() -> Vec<(Method, PreconditionerKind)> {
+/// The solver configurations of the solver table (and of `altrep report`): (method,
+/// preconditioner).
+pub fn configurations() -> Vec<(Method, PreconditionerKind)> {
     use PreconditionerKind::{Jacobi, None, Ssor};
     vec![
         (Method::Pbicg, Jacobi),

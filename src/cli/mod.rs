@@ -10,6 +10,7 @@ pub mod parallax;
 pub mod precompute;
 pub mod pyramid;
 pub mod pyramid_bench;
+pub mod report;
 pub mod slices;
 
 /// Error type of the command-line layer: a message for the user, already formatted.

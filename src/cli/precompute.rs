@@ -30,6 +30,10 @@ pub struct PrecomputeArgs {
     /// Also write the run summary as JSON to this file.
     #[arg(long)]
     pub json: Option<PathBuf>,
+    /// Time every stage (capture, bounds, octree, pyramids, writing, …) of every build and print
+    /// the table (also in report.md and report.json); assets then run one at a time.
+    #[arg(long)]
+    pub profile: bool,
 }
 
 /// Fails unless a file can be created at `path` (checked before any work, then removed).
@@ -68,6 +72,7 @@ pub fn run_manifest(manifest: &Manifest, args: &PrecomputeArgs) -> CliResult {
         shard: args.shard,
         everything: args.everything,
         progress: true,
+        profile: args.profile,
     };
     if args.dry_run {
         for (asset, repr, plan) in plan_scene(manifest, &options)? {
@@ -86,6 +91,9 @@ pub fn run_manifest(manifest: &Manifest, args: &PrecomputeArgs) -> CliResult {
     }
     let summary = run_scene(manifest, &options)?;
     print!("{}", summary.table());
+    if let Some(p) = &summary.profile {
+        print!("\nPer-stage profile\n\n{}", p.markdown());
+    }
     let built = summary
         .outcomes
         .iter()

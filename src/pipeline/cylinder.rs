@@ -201,6 +201,7 @@ impl Representation for Cylinder {
         source: &Source,
     ) -> Result<(CylinderData, serde_json::Value), PipelineError> {
         let t0 = Instant::now();
+        let capturing = crate::profile::timer("capture");
         let mut texture = CylindricalTexture::capture(
             source.shape()?,
             &texture_params(d.columns, d.rows),
@@ -209,9 +210,11 @@ impl Representation for Cylinder {
         if !d.normals {
             texture = texture.baked(&source.light);
         }
-        let texture = texture.quantized_rgba8();
+        capturing.stop();
+        let texture = crate::profile::stage("quantisation", || texture.quantized_rgba8());
         let capture_s = secs(t0);
-        let (bounds, report) = MarchBounds::build(&texture, &spec.bounds)?;
+        let (bounds, report) =
+            crate::profile::stage("bounds", || MarchBounds::build(&texture, &spec.bounds))?;
         Ok((
             CylinderData { texture, bounds },
             json!({ "capture_s": capture_s, "bounds_s": report.build_s,

@@ -139,6 +139,7 @@ impl Representation for OctreeRepr {
     ) -> Result<(Octree, serde_json::Value), PipelineError> {
         let n = decisions.resolution;
         let t0 = Instant::now();
+        let voxelising = crate::profile::timer("voxelise");
         let volume = voxelize(
             source.shape()?,
             &VoxelParams {
@@ -149,6 +150,7 @@ impl Representation for OctreeRepr {
                 supersample: spec.supersample,
             },
         )?;
+        voxelising.stop();
         let voxelize_s = secs(t0);
         if volume.density.iter().all(|&d| d <= 0.0) {
             return Err(PipelineError::Invisible {
@@ -157,6 +159,7 @@ impl Representation for OctreeRepr {
             });
         }
         let rule = rule_of(&spec.rule).ok_or_else(|| PipelineError::Spec(spec.rule.clone()))?;
+        let octree = crate::profile::timer("octree");
         let (tree, report) = Octree::build(
             &volume,
             &BuildParams {
@@ -164,6 +167,7 @@ impl Representation for OctreeRepr {
                 ..BuildParams::default()
             },
         )?;
+        octree.stop();
         Ok((
             tree,
             json!({ "voxelize_s": voxelize_s, "build_s": report.build_seconds,

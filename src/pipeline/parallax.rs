@@ -270,6 +270,7 @@ impl Representation for Parallax {
     ) -> Result<(ParallaxData, serde_json::Value), PipelineError> {
         let params = spec.params(decisions.size);
         let t0 = Instant::now();
+        let capturing = crate::profile::timer("capture");
         let grids = (0..params.views)
             .into_par_iter()
             .map(|k| -> Result<SampleGrid, PipelineError> {
@@ -312,6 +313,7 @@ impl Representation for Parallax {
             });
         }
         let images = ParallaxImages::from_grids(&grids, &params)?;
+        capturing.stop();
         let bound_params = BoundParams {
             bits: spec.bound_bits,
             ..BoundParams::default()
@@ -321,7 +323,8 @@ impl Representation for Parallax {
         for b in &decisions.bounds {
             let kind = kind_of(b).ok_or_else(|| PipelineError::Spec(format!("bound kind {b}")))?;
             let t = Instant::now();
-            let bd = build_bounds(&images, kind, &bound_params)?;
+            let bd =
+                crate::profile::stage("bounds", || build_bounds(&images, kind, &bound_params))?;
             bound_report.push(json!({ "kind": b, "seconds": secs(t), "bytes": bd.bytes(&images) }));
             bounds.push(bd);
         }

@@ -305,6 +305,7 @@ impl Representation for PyramidRepr {
     ) -> Result<(PyramidAsset, serde_json::Value), PipelineError> {
         let tex = source.texture()?;
         let t0 = Instant::now();
+        let _building = crate::profile::timer("pyramids");
         let params = PyramidParams {
             kind: d.kind,
             ..*spec

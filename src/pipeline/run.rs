@@ -70,6 +70,9 @@ pub struct RunOptions {
     pub everything: bool,
     /// Show progress bars.
     pub progress: bool,
+    /// Time every stage of every build ([`crate::profile`]); assets then run one at a time so
+    /// that each stage's time is its own.
+    pub profile: bool,
 }
 
 /// How one representation of one asset ended.
@@ -120,6 +123,9 @@ pub struct RunSummary {
     pub wall_seconds: f64,
     /// Assets left to other shards.
     pub other_shards: Vec<String>,
+    /// Per-stage times, with `--profile`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub profile: Option<crate::profile::StageTable>,
 }
 
 impl RunSummary {
@@ -364,71 +370,105 @@ pub fn run_scene(manifest: &Manifest, options: &RunOptions) -> Result<RunSummary
     );
     let pictures_dir = options.out.join("pictures");
     std::fs::create_dir_all(&pictures_dir).map_err(io(&pictures_dir))?;
-    let outcomes: Vec<AssetOutcome> = mine
-        .par_iter()
-        .flat_map_iter(|spec| {
-            let mut v = Vec::new();
-            let loaded = load_source(spec);
-            let needs = effective_needs(spec, options.everything);
-            let fail = |repr: &str, e: &PipelineError| AssetOutcome {
-                asset: spec.name.clone(),
-                representation: repr.into(),
-                outcome: Outcome::Failed(e.to_string()),
-                plan: Plan::default(),
-                seconds: 0.0,
-                build_seconds: 0.0,
-                bytes: 0,
-                cache_note: None,
-                measurement: None,
-                pictures: Vec::new(),
-            };
-            match loaded {
-                Err(e) => {
-                    for repr in wanted(spec) {
-                        v.push(fail(repr, &e));
-                    }
-                }
-                Ok((loaded, input_hash)) => {
-                    let source = loaded.source(&spec.name, light);
-                    let mut go = |repr: &str, r: Result<AssetOutcome, PipelineError>| {
-                        v.push(r.unwrap_or_else(|e| fail(repr, &e)));
-                        bar.inc(1);
-                    };
-                    bar.set_message(spec.name.clone());
-                    if let Some(p) = &spec.parallax {
-                        go(
-                            Parallax::NAME,
-                            run_one::<Parallax>(p, &needs, &source, &input_hash, options),
-                        );
-                    }
-                    if let Some(p) = &spec.cylinder {
-                        go(
-                            Cylinder::NAME,
-                            run_one::<Cylinder>(p, &needs, &source, &input_hash, options),
-                        );
-                    }
-                    if let Some(p) = &spec.octree {
-                        go(
-                            OctreeRepr::NAME,
-                            run_one::<OctreeRepr>(p, &needs, &source, &input_hash, options),
-                        );
-                    }
-                    if let Some(p) = &spec.pyramid {
-                        go(
-                            PyramidRepr::NAME,
-                            run_one::<PyramidRepr>(p, &needs, &source, &input_hash, options),
-                        );
-                    }
+    let profile = options.profile.then(crate::profile::Profile::new);
+    let one = |spec: &&AssetSpec| {
+        let mut v = Vec::new();
+        let loaded = load_source(spec);
+        let needs = effective_needs(spec, options.everything);
+        let fail = |repr: &str, e: &PipelineError| AssetOutcome {
+            asset: spec.name.clone(),
+            representation: repr.into(),
+            outcome: Outcome::Failed(e.to_string()),
+            plan: Plan::default(),
+            seconds: 0.0,
+            build_seconds: 0.0,
+            bytes: 0,
+            cache_note: None,
+            measurement: None,
+            pictures: Vec::new(),
+        };
+        match loaded {
+            Err(e) => {
+                for repr in wanted(spec) {
+                    v.push(fail(repr, &e));
                 }
             }
-            v
-        })
-        .collect();
+            Ok((loaded, input_hash)) => {
+                let source = loaded.source(&spec.name, light);
+                let mut go = |repr: &str, r: Result<AssetOutcome, PipelineError>| {
+                    v.push(r.unwrap_or_else(|e| fail(repr, &e)));
+                    bar.inc(1);
+                };
+                bar.set_message(spec.name.clone());
+                if let Some(p) = &spec.parallax {
+                    go(
+                        Parallax::NAME,
+                        run_one::<Parallax>(
+                            p,
+                            &needs,
+                            &source,
+                            &input_hash,
+                            options,
+                            profile.as_ref(),
+                        ),
+                    );
+                }
+                if let Some(p) = &spec.cylinder {
+                    go(
+                        Cylinder::NAME,
+                        run_one::<Cylinder>(
+                            p,
+                            &needs,
+                            &source,
+                            &input_hash,
+                            options,
+                            profile.as_ref(),
+                        ),
+                    );
+                }
+                if let Some(p) = &spec.octree {
+                    go(
+                        OctreeRepr::NAME,
+                        run_one::<OctreeRepr>(
+                            p,
+                            &needs,
+                            &source,
+                            &input_hash,
+                            options,
+                            profile.as_ref(),
+                        ),
+                    );
+                }
+                if let Some(p) = &spec.pyramid {
+                    go(
+                        PyramidRepr::NAME,
+                        run_one::<PyramidRepr>(
+                            p,
+                            &needs,
+                            &source,
+                            &input_hash,
+                            options,
+                            profile.as_ref(),
+                        ),
+                    );
+                }
+            }
+        }
+        v
+    };
+    // With --profile, assets run one at a time: each stage's time is then its own.
+    let outcomes: Vec<AssetOutcome> = if profile.is_some() {
+        mine.iter().flat_map(one).collect()
+    } else {
+        mine.par_iter().flat_map_iter(one).collect()
+    };
     bar.finish_and_clear();
+    let wall_seconds = t0.elapsed().as_secs_f64();
     let summary = RunSummary {
         outcomes,
-        wall_seconds: t0.elapsed().as_secs_f64(),
+        wall_seconds,
         other_shards: other_shards.iter().map(|a| a.name.clone()).collect(),
+        profile: profile.map(|p| p.table(wall_seconds)),
     };
     write_report(&summary, options)?;
     Ok(summary)
@@ -479,9 +519,11 @@ fn run_one<R: Representation>(
     source: &Source,
     input_hash: &str,
     options: &RunOptions,
+    profile: Option<&std::sync::Arc<crate::profile::Profile>>,
 ) -> Result<AssetOutcome, PipelineError> {
     let t0 = Instant::now();
-    let (plan, decisions) = R::plan(spec, needs, source)?;
+    let _scope = profile.map(|p| p.scope(source.name, R::NAME));
+    let (plan, decisions) = crate::profile::stage("plan", || R::plan(spec, needs, source))?;
     let dir = options.out.join(source.name).join(R::NAME);
     if let Some(reason) = &plan.refused {
         // Nothing of it is kept: a folder from an earlier run would be stale.
@@ -531,6 +573,7 @@ fn run_one<R: Representation>(
     let tb = Instant::now();
     let (data, build_report) = R::build(spec, needs, &decisions, source)?;
     let build_seconds = tb.elapsed().as_secs_f64();
+    let writing = crate::profile::timer("writing");
     let mut w = AssetWriter::new(&options.out, source.name, R::NAME)?;
     let metadata = R::write(&data, &mut w)?;
     drop(data);
@@ -547,9 +590,13 @@ fn run_one<R: Representation>(
         metadata,
         report.clone(),
     )?;
+    writing.stop();
     // Measure what a renderer would load: the files just written.
+    let measuring = crate::profile::timer("measure");
     let loaded = R::read(&AssetReader::open(&dir)?)?;
     let (measurement, pictures) = R::measure(&loaded, needs, source)?;
+    measuring.stop();
+    let _reporting = crate::profile::timer("report");
     let mut written = Vec::new();
     for p in pictures {
         let rel = format!("pictures/{}", p.file);
@@ -624,6 +671,9 @@ fn write_report(summary: &RunSummary, options: &RunOptions) -> Result<(), Pipeli
         for (file, caption) in &o.pictures {
             md += &format!("\n![{caption}]({file})\n\n_{caption} (pixels magnified)_\n");
         }
+    }
+    if let Some(p) = &summary.profile {
+        md += &format!("\n## Per-stage profile\n\n{}", p.markdown());
     }
     if !summary.other_shards.is_empty() {
         md += &format!(

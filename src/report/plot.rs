@@ -1,0 +1,308 @@
+//! Plots of a [`RepresentationReport`]: one panel per cost axis (cost across, error up), one
+//! coloured curve per series, the source documents' operating points circled and named, their
+//! other claims as dashed vertical lines. Drawn with `plotters`, as SVG (text as `<text>`
+//! elements) and PNG (text rasterised with DejaVu Sans, embedded in the binary by the `dejavu`
+//! crate and registered with plotters' `ab_glyph` backend: no system font is read, so PNGs come
+//! out the same on a bare machine).
+//!
+//! A cost axis whose values are all positive and span more than a factor 20 is drawn on a log
+//! scale (ticks labelled with the values, the axis name says "log").
+
+use std::sync::Once;
+
+use plotters::coord::Shift;
+use plotters::prelude::*;
+use plotters::style::FontStyle;
+
+use super::{Cost, ReportError, RepresentationReport};
+
+/// Width of one panel, pixels.
+pub const PANEL_WIDTH: u32 = 520;
+/// Height of a plot, pixels.
+pub const PLOT_HEIGHT: u32 = 440;
+/// The font family every text uses (registered once from the embedded DejaVu Sans).
+const FONT: &str = "sans-serif";
+
+fn register_font() -> Result<(), String> {
+    static ONCE: Once = Once::new();
+    let mut result = Ok(());
+    ONCE.call_once(|| {
+        result = plotters::style::register_font(FONT, FontStyle::Normal, dejavu::sans::regular())
+            .map_err(|_| "the embedded DejaVu Sans font is not a valid font".to_string());
+    });
+    result
+}
+
+fn plot_err(name: &str) -> impl Fn(String) -> ReportError + '_ {
+    move |message| ReportError::Plot {
+        name: name.to_string(),
+        message,
+    }
+}
+
+/// The plot's size in pixels.
+pub fn size(r: &RepresentationReport) -> (u32, u32) {
+    (PANEL_WIDTH * r.panels.len().max(1) as u32, PLOT_HEIGHT)
+}
+
+/// The plot as an SVG document.
+pub fn svg(r: &RepresentationReport) -> Result<String, ReportError> {
+    register_font().map_err(plot_err(r.name))?;
+    let mut s = String::new();
+    {
+        let root = SVGBackend::with_string(&mut s, size(r)).into_drawing_area();
+        draw(&root, r).map_err(plot_err(r.name))?;
+        root.present()
+            .map_err(|e| plot_err(r.name)(e.to_string()))?;
+    }
+    Ok(s)
+}
+
+/// The plot as PNG bytes.
+pub fn png(r: &RepresentationReport) -> Result<Vec<u8>, ReportError> {
+    register_font().map_err(plot_err(r.name))?;
+    let (w, h) = size(r);
+    let mut buf = vec![0u8; (w * h * 3) as usize];
+    {
+        let root = BitMapBackend::with_buffer(&mut buf, (w, h)).into_drawing_area();
+        draw(&root, r).map_err(plot_err(r.name))?;
+        root.present()
+            .map_err(|e| plot_err(r.name)(e.to_string()))?;
+    }
+    let img = image::RgbImage::from_raw(w, h, buf)
+        .ok_or_else(|| plot_err(r.name)("pixel buffer of the wrong size".into()))?;
+    let mut out = std::io::Cursor::new(Vec::new());
+    img.write_to(&mut out, image::ImageFormat::Png)
+        .map_err(|e| plot_err(r.name)(e.to_string()))?;
+    Ok(out.into_inner())
+}
+
+/// One axis: value → drawn coordinate (log10 or identity) and back for tick labels.
+#[derive(Clone, Copy)]
+struct Axis {
+    log: bool,
+    lo: f64,
+    hi: f64,
+}
+
+impl Axis {
+    fn fit(values: &[f64], allow_log: bool) -> Self {
+        let (mut lo, mut hi) = values
+            .iter()
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &v| {
+                (a.min(v), b.max(v))
+            });
+        if !lo.is_finite() {
+            (lo, hi) = (0.0, 1.0);
+        }
+        let log = allow_log && lo > 0.0 && hi / lo > 20.0;
+        let (mut a, mut b) = if log {
+            (lo.log10(), hi.log10())
+        } else {
+            (lo, hi)
+        };
+        let pad = if b > a {
+            0.08 * (b - a)
+        } else {
+            a.abs().max(1.0) * 0.1
+        };
+        a -= pad;
+        b += pad;
+        Self { log, lo: a, hi: b }
+    }
+
+    fn to(&self, v: f64) -> f64 {
+        if self.log { v.log10() } else { v }
+    }
+
+    fn label(&self, t: f64) -> String {
+        let v = if self.log { 10f64.powf(t) } else { t };
+        let a = v.abs();
+        if a == 0.0 {
+            "0".into()
+        } else if !(1e-3..1e5).contains(&a) {
+            format!("{v:.0e}")
+        } else if a >= 100.0 {
+            format!("{v:.0}")
+        } else if a >= 1.0 {
+            format!("{v:.3}")
+                .trim_end_matches('0')
+                .trim_end_matches('.')
+                .to_string()
+        } else {
+            format!("{v:.4}")
+                .trim_end_matches('0')
+                .trim_end_matches('.')
+                .to_string()
+        }
+    }
+}
+
+fn draw<DB: DrawingBackend>(
+    root: &DrawingArea<DB, Shift>,
+    r: &RepresentationReport,
+) -> Result<(), String> {
+    let e = |x: DrawingAreaErrorKind<DB::ErrorType>| x.to_string();
+    root.fill(&WHITE).map_err(e)?;
+    let title = format!("{}: cost against error", r.name);
+    let body = root.titled(&title, (FONT, 20)).map_err(e)?;
+    let panels = body.split_evenly((1, r.panels.len().max(1)));
+    let mut series: Vec<&str> = Vec::new();
+    for p in &r.points {
+        if !series.contains(&p.series.as_str()) {
+            series.push(&p.series);
+        }
+    }
+    for (k, (area, &cost)) in panels.iter().zip(&r.panels).enumerate() {
+        draw_panel(area, r, cost, &series, k == 0)?;
+    }
+    Ok(())
+}
+
+fn draw_panel<DB: DrawingBackend>(
+    area: &DrawingArea<DB, Shift>,
+    r: &RepresentationReport,
+    cost: Cost,
+    series: &[&str],
+    legend: bool,
+) -> Result<(), String> {
+    let e = |x: DrawingAreaErrorKind<DB::ErrorType>| x.to_string();
+    let pairs: Vec<(f64, f64)> = r
+        .points
+        .iter()
+        .filter_map(|p| Some((p.cost(cost)?, r.error_of(p)?)))
+        .filter(|(x, y)| x.is_finite() && y.is_finite())
+        .collect();
+    let mut xs: Vec<f64> = pairs.iter().map(|p| p.0).collect();
+    xs.extend(
+        r.references
+            .iter()
+            .filter(|f| f.cost == cost)
+            .map(|f| f.value),
+    );
+    let ys: Vec<f64> = pairs.iter().map(|p| p.1).collect();
+    let ax = Axis::fit(&xs, true);
+    let ay = Axis::fit(&ys, !r.uses_psnr);
+    let x_desc = format!(
+        "{}{}",
+        r.cost_label(cost),
+        if ax.log { " (log)" } else { "" }
+    );
+    let y_desc = format!("{}{}", r.error_label, if ay.log { " (log)" } else { "" });
+    let mut chart = ChartBuilder::on(area)
+        .margin(12)
+        .x_label_area_size(42)
+        .y_label_area_size(62)
+        .build_cartesian_2d(ax.lo..ax.hi, ay.lo..ay.hi)
+        .map_err(e)?;
+    let xl = |v: &f64| ax.label(*v);
+    let yl = |v: &f64| ay.label(*v);
+    chart
+        .configure_mesh()
+        .x_desc(x_desc)
+        .y_desc(y_desc)
+        .x_label_formatter(&xl)
+        .y_label_formatter(&yl)
+        .axis_desc_style((FONT, 14))
+        .label_style((FONT, 11))
+        .light_line_style(WHITE.mix(0.0))
+        .draw()
+        .map_err(e)?;
+    for (i, name) in series.iter().enumerate() {
+        let color = Palette99::pick(i).to_rgba();
+        let mut pts: Vec<(f64, f64)> = r
+            .points
+            .iter()
+            .filter(|p| p.series == *name)
+            .filter_map(|p| Some((ax.to(p.cost(cost)?), ay.to(r.error_of(p)?))))
+            .filter(|(x, y)| x.is_finite() && y.is_finite())
+            .collect();
+        if pts.is_empty() {
+            continue;
+        }
+        pts.sort_by(|a, b| a.0.total_cmp(&b.0));
+        let drawn = chart
+            .draw_series(LineSeries::new(pts.clone(), color.stroke_width(1)))
+            .map_err(e)?;
+        if legend {
+            drawn.label(name.to_string()).legend(move |(x, y)| {
+                PathElement::new(vec![(x, y), (x + 16, y)], color.stroke_width(2))
+            });
+        }
+        chart
+            .draw_series(pts.iter().map(|&p| Circle::new(p, 3, color.filled())))
+            .map_err(e)?;
+    }
+    for f in r.references.iter().filter(|f| f.cost == cost) {
+        let x = ax.to(f.value);
+        if !x.is_finite() {
+            continue;
+        }
+        chart
+            .draw_series(DashedLineSeries::new(
+                vec![(x, ay.lo), (x, ay.hi)],
+                6,
+                4,
+                BLACK.mix(0.6).stroke_width(1),
+            ))
+            .map_err(e)?;
+        chart
+            .draw_series(std::iter::once(Text::new(
+                f.label.clone(),
+                (x, ay.hi - 0.04 * (ay.hi - ay.lo)),
+                (FONT, 11).into_font().color(&BLACK.mix(0.8)),
+            )))
+            .map_err(e)?;
+    }
+    for p in r.points.iter().filter(|p| p.operating_point.is_some()) {
+        let (Some(x), Some(y)) = (p.cost(cost), r.error_of(p)) else {
+            continue;
+        };
+        let at = (ax.to(x), ay.to(y));
+        if !(at.0.is_finite() && at.1.is_finite()) {
+            continue;
+        }
+        let label = p.operating_point.clone().unwrap_or_default();
+        chart
+            .draw_series(std::iter::once(
+                EmptyElement::at(at)
+                    + Circle::new((0, 0), 8, BLACK.stroke_width(2))
+                    + Text::new(label, (10, -16), (FONT, 12).into_font()),
+            ))
+            .map_err(e)?;
+    }
+    if legend && !series.is_empty() {
+        chart
+            .configure_series_labels()
+            .background_style(WHITE.mix(0.85))
+            .border_style(BLACK.mix(0.4))
+            .label_font((FONT, 11))
+            .position(if r.uses_psnr {
+                SeriesLabelPosition::LowerRight
+            } else {
+                SeriesLabelPosition::UpperRight
+            })
+            .draw()
+            .map_err(e)?;
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::Axis;
+
+    #[test]
+    fn axes_go_log_only_for_positive_values_spanning_a_factor_above_20() {
+        assert!(Axis::fit(&[1.0, 100.0], true).log);
+        assert!(!Axis::fit(&[1.0, 10.0], true).log);
+        assert!(!Axis::fit(&[0.0, 100.0], true).log);
+        assert!(!Axis::fit(&[1.0, 100.0], false).log);
+        let a = Axis::fit(&[1.0, 1000.0], true);
+        assert!(a.lo < 0.0 && a.hi > 3.0);
+        assert_eq!(a.label(2.0), "100");
+        // One value: a non-empty range around it.
+        let b = Axis::fit(&[5.0], true);
+        assert!(b.lo < 5.0 && b.hi > 5.0);
+    }
+}

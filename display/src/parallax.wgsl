@@ -470,7 +470,10 @@ fn wall_at(k: u32, j: u32, i: u32, x: real, co: real, si: real, ko: u32, cko: re
         w.hit.ok = true;
         w.hit.texel = lower;
         w.hit.right = right;
-        w.hit.t = select(0.0, 1.0, right);
+        w.hit.t = 0.0;
+        if right {
+            w.hit.t = 1.0;
+        }
         w.hit.z_e = z_e;
     }
     return w;

@@ -32,6 +32,8 @@ enum Command {
     Precompute(cli::precompute::PrecomputeArgs),
     /// Pyramids: mip/rip/fip/EWA error and time against supersampled truth, filters, fusion PSNR.
     Pyramid(cli::pyramid::PyramidArgs),
+    /// Pyramids benchmark: lookup error/time table and RGBA8 sRGB mip-chain build speed vs image and fast_image_resize.
+    PyramidBench(cli::pyramid_bench::PyramidBenchArgs),
     /// Volumetric textures as slices: merge rules, levels and directions vs a ray-marched volume.
     Slices(cli::slices::SlicesArgs),
 }
@@ -47,6 +49,7 @@ fn main() {
         Command::Parallax(args) => cli::parallax::run(args),
         Command::Precompute(args) => cli::precompute::run(args),
         Command::Pyramid(args) => cli::pyramid::run(args),
+        Command::PyramidBench(args) => cli::pyramid_bench::run(args),
         Command::Slices(args) => cli::slices::run(args),
     };
     if let Err(e) = result {

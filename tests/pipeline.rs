@@ -125,7 +125,11 @@ fn pyramid_files_read_back_bit_for_bit_and_measure_well() {
         wrap: [WrapMode::Repeat; 2],
         ..PyramidParams::default()
     };
-    for (grazing, kind) in [(20.0, PyramidKind::Mip), (75.0, PyramidKind::Rip)] {
+    for (grazing, kind) in [
+        (20.0, PyramidKind::Mip),
+        (75.0, PyramidKind::Rip),
+        (85.0, PyramidKind::Fip),
+    ] {
         let needs = Needs {
             grazing_deg: grazing,
             screen_px: [4.0, 16.0],
@@ -206,7 +210,8 @@ fn pyramid_planner_skips_unused_levels_with_reasons() {
             "level {level}: {skipped:?}"
         );
     }
-    // Grazing views: a ripmap, the fipmap noted as not written, grazing keeps coarser levels.
+    // Grazing views of a texture that does not wrap: a ripmap (fipmaps shear periodic textures
+    // only, and the plan says so), grazing keeps coarser levels.
     let grazing = Needs {
         grazing_deg: 85.0,
         ..needs
@@ -215,8 +220,96 @@ fn pyramid_planner_skips_unused_levels_with_reasons() {
     assert_eq!(dec.kind, PyramidKind::Rip);
     // 16 px at 85° from the normal: 16·cos 85° = 1.4 px, so every level down to 1 texel.
     assert_eq!(dec.levels_u, [3, 8]);
-    assert!(plan.skipped().any(|i| i.what.starts_with("fipmap")
-        && i.skipped.as_deref().unwrap().contains("not written yet")));
+    assert!(plan.skipped().any(|i| {
+        i.what.starts_with("fipmap")
+            && i.skipped
+                .as_deref()
+                .unwrap()
+                .contains("periodic textures only")
+    }));
+    // The same views of a periodic texture: the fipmap, with its own mipmap levels.
+    let periodic = PyramidParams {
+        wrap: [WrapMode::Repeat; 2],
+        ..PyramidParams::default()
+    };
+    let (_, dec) = PyramidRepr::plan(&periodic, &grazing, &src).unwrap();
+    assert_eq!(dec.kind, PyramidKind::Fip);
+    assert_eq!(dec.levels_u, [3, 8]);
+    assert_eq!(dec.levels_mip, [3, 8]);
+    // Within the ripmap's range (below fip_min_tilt_deg): no fipmap.
+    let oblique = Needs {
+        grazing_deg: 60.0,
+        ..needs
+    };
+    let (_, dec) = PyramidRepr::plan(&periodic, &oblique, &src).unwrap();
+    assert_eq!(dec.kind, PyramidKind::Rip);
+}
+
+#[test]
+fn fipmap_files_hold_every_shear_and_damaged_metadata_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let tex = altrep::pyramid::truth::test_texture(32, 5);
+    let src = texture_source(&tex);
+    let spec = PyramidParams {
+        wrap: [WrapMode::Repeat; 2],
+        ..PyramidParams::default()
+    };
+    let needs = Needs {
+        grazing_deg: 88.0,
+        screen_px: [4.0, 12.0],
+        ..Needs::default()
+    };
+    let (_, dec) = PyramidRepr::plan(&spec, &needs, &src).unwrap();
+    let (data, _) = PyramidRepr::build(&spec, &needs, &dec, &src).unwrap();
+    let PyramidData::Fip(f) = &data.data else {
+        panic!("a fipmap was planned")
+    };
+    // 12 px at most on screen: the 32-texel levels are skipped everywhere.
+    assert_eq!(data.first, [1, 1]);
+    assert_eq!(data.first_mip, 1);
+    assert_eq!(f.shears().len(), 8);
+    let (loaded, desc) = round_trip::<PyramidRepr>(dir.path(), "fip", &data);
+    let names: Vec<String> = desc.files.iter().map(|f| f.path.clone()).collect();
+    assert!(
+        names.iter().any(|n| n == "fip_v-1over2_u1_v1.exr"),
+        "{names:?}"
+    );
+    assert!(!names.iter().any(|n| n.contains("_u0_")), "{names:?}");
+    let PyramidData::Fip(g) = &loaded.data else {
+        panic!("read back as a fipmap")
+    };
+    assert_eq!(g.shears(), f.shears());
+    // Lookups through the loaded database equal the built one's, bit for bit, for every
+    // scheme the decision can pick.
+    let mut a = vec![0.0f32; tex.channels];
+    let mut b = a.clone();
+    for (i, dir) in [
+        [0.0, 1.0, 0.0],
+        [0.99, 0.1, 0.0],
+        [0.7, 0.05, 0.7],
+        [0.3, 0.02, -0.95],
+    ]
+    .into_iter()
+    .enumerate()
+    {
+        let (u, v) = (0.1 + 0.2 * i as f64, 0.7 - 0.1 * i as f64);
+        let d = [0.05, 0.01, -0.02, 0.3];
+        data.sample_dir_into(u, v, d, dir, &mut a);
+        loaded.sample_dir_into(u, v, d, dir, &mut b);
+        assert_eq!(a, b, "dir {dir:?}");
+    }
+    // A description whose shears do not match fip_shear_steps is refused with a typed error.
+    let path = dir.path().join("fip/pyramid").join(DESCRIPTION_FILE);
+    let text = std::fs::read_to_string(&path).unwrap();
+    let mut doc: serde_json::Value = serde_json::from_str(&text).unwrap();
+    doc["metadata"]["shears"] = serde_json::json!([]);
+    std::fs::write(&path, serde_json::to_string(&doc).unwrap()).unwrap();
+    let r = AssetReader::open(&dir.path().join("fip/pyramid"));
+    let refused = match r {
+        Ok(r) => PyramidRepr::read(&r).is_err(),
+        Err(_) => true,
+    };
+    assert!(refused, "damaged fipmap metadata must be refused");
 }
 
 #[test]

@@ -60,6 +60,7 @@ pub fn sections() -> Vec<(&'static str, SectionFn)> {
         ("cylinder", super::cylinder::demo_section),
         ("parallax", super::parallax::demo_section),
         ("ellipsoid", super::ellipsoid_bench::demo_section),
+        ("pyramids", super::pyramid::demo_section),
     ]
 }
 

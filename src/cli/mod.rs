@@ -9,6 +9,7 @@ pub mod fit_bench;
 pub mod parallax;
 pub mod precompute;
 pub mod pyramid;
+pub mod pyramid_bench;
 pub mod slices;
 
 /// Error type of the command-line layer: a message for the user, already formatted.

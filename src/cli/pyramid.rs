@@ -11,8 +11,8 @@ use super::CliResult;
 use crate::pyramid::fusion::fusion_experiment;
 use crate::pyramid::truth::{METHODS, test_texture};
 use crate::pyramid::{
-    AlphaMode, ColourSpace, Filter, Pyramid, PyramidParams, SweepParams, Texture, WrapMode,
-    measure_sweep,
+    AlphaMode, ColourSpace, Filter, Pyramid, PyramidParams, SweepParams, SweepReport, Texture,
+    WrapMode, measure_sweep,
 };
 
 /// Arguments of `altrep pyramid`.
@@ -41,7 +41,8 @@ pub struct PyramidArgs {
     pub json: Option<PathBuf>,
 }
 
-fn parse_filter(s: &str) -> Result<Filter, String> {
+/// Parses a filter name (box, triangle, kaiser, lanczos; any case).
+pub fn parse_filter(s: &str) -> Result<Filter, String> {
     match s.to_ascii_lowercase().as_str() {
         "box" => Ok(Filter::Box),
         "triangle" => Ok(Filter::Triangle),
@@ -72,53 +73,7 @@ pub fn run(args: PyramidArgs) -> CliResult {
     };
     let tex = test_texture(args.size as usize, 7);
     let report = measure_sweep(&tex, &params, &sweep)?;
-    println!(
-        "pyramid sweep: {0}×{0} grey test texture, {1:?} prefilter, {2}×{2} pixels per view; \
-         RMS error against the supersampled truth (texel-value units) and ns per lookup \
-         (one thread); truth noise = RMS noise of the reference",
-        args.size, filter, args.pixels
-    );
-    println!(
-        "{:>6} {:>6} {:>5} {:>9} | {:>8} {:>8} {:>8} {:>8} | {:>6} {:>6} {:>6} {:>6} | decision",
-        "D0", "tilt", "az", "truth±", "mip", "rip", "fip", "ewa", "ns mip", "rip", "fip", "ewa",
-    );
-    for r in &report.rows {
-        println!(
-            "{:>6.1} {:>6.1} {:>5.1} {:>9.5} | {:>8.5} {:>8.5} {:>8.5} {:>8.5} | {:>6.0} {:>6.0} {:>6.0} {:>6.0} | {:?}",
-            r.view.texels_per_pixel,
-            r.view.tilt_deg,
-            r.view.azimuth_deg,
-            r.truth_noise,
-            r.rms[0],
-            r.rms[1],
-            r.rms[2],
-            r.rms[3],
-            r.ns_per_sample[0],
-            r.ns_per_sample[1],
-            r.ns_per_sample[2],
-            r.ns_per_sample[3],
-            r.scheme
-        );
-    }
-    let wins = |k: usize| {
-        report
-            .rows
-            .iter()
-            .filter(|r| (0..4).all(|j| r.rms[k] <= r.rms[j]))
-            .count()
-    };
-    println!(
-        "best per row: mip {}, rip {}, fip {}, ewa {} of {}; bytes (f32): mip {}, rip {}, fip database {}; fip build {:.2} s",
-        wins(0),
-        wins(1),
-        wins(2),
-        wins(3),
-        report.rows.len(),
-        report.mip_bytes,
-        report.rip_bytes,
-        report.fip_bytes,
-        report.build_seconds
-    );
+    print_sweep(&report, args.size, filter, args.pixels);
 
     // Build time of an RGBA sRGB straight-alpha mip chain per filter.
     let mut builds = Vec::new();
@@ -220,4 +175,142 @@ pub fn run(args: PyramidArgs) -> CliResult {
         std::fs::write(path, serde_json::to_string_pretty(&doc)?)?;
     }
     Ok(())
+}
+
+/// Prints the sweep table of [`measure_sweep`] (RMS error against the supersampled truth and ns
+/// per lookup of mip, rip, fip and EWA per view) and the per-method win counts.
+pub fn print_sweep(report: &SweepReport, size: u32, filter: Filter, pixels: u32) {
+    let args_size = size;
+    let args_pixels = pixels;
+    println!(
+        "pyramid sweep: {0}×{0} grey test texture, {1:?} prefilter, {2}×{2} pixels per view; \
+         RMS error against the supersampled truth (texel-value units) and ns per lookup \
+         (one thread); truth noise = RMS noise of the reference",
+        args_size, filter, args_pixels
+    );
+    println!(
+        "{:>6} {:>6} {:>5} {:>9} | {:>8} {:>8} {:>8} {:>8} | {:>6} {:>6} {:>6} {:>6} | decision",
+        "D0", "tilt", "az", "truth±", "mip", "rip", "fip", "ewa", "ns mip", "rip", "fip", "ewa",
+    );
+    for r in &report.rows {
+        println!(
+            "{:>6.1} {:>6.1} {:>5.1} {:>9.5} | {:>8.5} {:>8.5} {:>8.5} {:>8.5} | {:>6.0} {:>6.0} {:>6.0} {:>6.0} | {:?}",
+            r.view.texels_per_pixel,
+            r.view.tilt_deg,
+            r.view.azimuth_deg,
+            r.truth_noise,
+            r.rms[0],
+            r.rms[1],
+            r.rms[2],
+            r.rms[3],
+            r.ns_per_sample[0],
+            r.ns_per_sample[1],
+            r.ns_per_sample[2],
+            r.ns_per_sample[3],
+            r.scheme
+        );
+    }
+    let wins = |k: usize| {
+        report
+            .rows
+            .iter()
+            .filter(|r| (0..4).all(|j| r.rms[k] <= r.rms[j]))
+            .count()
+    };
+    println!(
+        "best per row: mip {}, rip {}, fip {}, ewa {} of {}; bytes (f32): mip {}, rip {}, fip database {}; fip build {:.2} s",
+        wins(0),
+        wins(1),
+        wins(2),
+        wins(3),
+        report.rows.len(),
+        report.mip_bytes,
+        report.rip_bytes,
+        report.fip_bytes,
+        report.build_seconds
+    );
+}
+
+/// A black/white checkerboard of `n × n` texels with squares of `square` texels (one channel,
+/// linear values 0 and 1, periodic).
+pub fn checkerboard(n: usize, square: usize) -> Result<Texture, crate::pyramid::MipError> {
+    let data = (0..n * n)
+        .map(|k| (((k % n) / square + (k / n) / square) % 2) as f32)
+        .collect();
+    Texture::new(n, n, 1, data)
+}
+
+/// Demo section: a checkerboard plane seen at grazing angles, mip, rip and fip lookups side by
+/// side with the supersampled truth (one PNG per tilt: truth | mip | rip | fip), and the RMS
+/// error of each against the truth.
+pub fn demo_section(
+    ctx: &super::demo::DemoContext,
+) -> Result<super::demo::DemoSection, Box<dyn std::error::Error + Send + Sync>> {
+    use crate::pyramid::FipMap;
+    use crate::pyramid::truth::{
+        Method, PlaneView, footprints, lookup_all, rms, supersampled_truth,
+    };
+    let dir = ctx.out.join("pyramids");
+    std::fs::create_dir_all(&dir)?;
+    let (pixels, samples) = if ctx.quick { (32, 256) } else { (64, 1024) };
+    let tex = checkerboard(64, 8)?;
+    let params = PyramidParams {
+        wrap: [WrapMode::Repeat; 2],
+        ..Default::default()
+    };
+    let fip = FipMap::build(tex.clone(), params)?;
+    let mut rows = Vec::new();
+    let mut md = format!(
+        "A 64² black/white checkerboard (8-texel squares, periodic) on a plane seen at grazing \
+         angles, azimuth 30° from the `u` axis, {pixels}² px, 2 texels per pixel face on; each \
+         image: supersampled truth (≤ {samples} samples/px) | trilinear mipmap | ripmap | fipmap \
+         (per-pixel mip/rip/fip decision). RMS error against the truth (values in [0, 1]).\n\n\
+         | tilt | mip | rip | fip | fip's choice at the centre |\n|---|---|---|---|---|\n"
+    );
+    let grey = |v: &[f64]| altrep_data_gen::RgbaImage {
+        width: pixels,
+        height: pixels,
+        pixels: v
+            .iter()
+            .map(|&g| {
+                let g = g.clamp(0.0, 1.0) as f32;
+                [g, g, g, 1.0]
+            })
+            .collect(),
+    };
+    for tilt in [75.0, 85.0, 89.0] {
+        let view = PlaneView {
+            texels_per_pixel: 2.0,
+            tilt_deg: tilt,
+            azimuth_deg: 30.0,
+        };
+        let truth = supersampled_truth(&view, &tex, pixels, samples, 1);
+        let fps = footprints(&view, &tex, pixels);
+        let mut errs = Vec::new();
+        let mut images = vec![grey(&truth)];
+        for m in [Method::Mip, Method::Rip, Method::Fip] {
+            let (vals, _) = lookup_all(&fip, m, &fps, 1);
+            errs.push(rms(&vals, &truth));
+            images.push(grey(&vals));
+        }
+        let centre = fps[(pixels / 2) * pixels + pixels / 2].map(|f| fip.decide(f.dir));
+        let file = format!("checker-tilt{tilt:.0}.png");
+        altrep_data_gen::RgbaImage::side_by_side(&images.iter().collect::<Vec<_>>())
+            .write_png(&dir.join(&file))?;
+        md += &format!(
+            "| {tilt:.0}° | {:.4} | {:.4} | {:.4} | {centre:?} |\n",
+            errs[0], errs[1], errs[2]
+        );
+        rows.push(json!({ "tilt_deg": tilt, "rms": { "mip": errs[0], "rip": errs[1], "fip": errs[2] },
+                          "centre_scheme": format!("{centre:?}"), "image": format!("pyramids/{file}") }));
+    }
+    md += "\n";
+    for tilt in [75, 85, 89] {
+        md += &format!("![checkerboard at {tilt}°](pyramids/checker-tilt{tilt}.png)\n\n");
+    }
+    Ok(super::demo::DemoSection {
+        name: "pyramids".into(),
+        json: json!(rows),
+        markdown: md,
+    })
 }

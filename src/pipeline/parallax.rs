@@ -7,7 +7,9 @@
 //! levels the screen sizes need, straight alpha = coverage), and per bound kind
 //! `view{k}-bounds-{kind}-c.png` (L16 or LA16 per slot: 0 = empty, 1 = `c = −1`, 2 = `c = +1`,
 //! `q + 3` = `c0 + q·step`) with `view{k}-bounds-{kind}-v.png` (`v_min`, `v_max` per slot, 8 or
-//! 16 bits, `v = lo + q·step` per channel as listed in `asset.json`).
+//! 16 bits, `v = lo + q·step` per channel as listed in `asset.json`). The present views also
+//! form an impostor atlas with gutters, `atlas-mip{l}.png` for level 0 and the kept mip levels
+//! ([`crate::pyramid::atlas`]; layout in `asset.json`), checked against the views on reading.
 
 use std::time::Instant;
 
@@ -438,7 +440,9 @@ impl Representation for Parallax {
                 write_bounds(w, b, k, wd, ht)?;
             }
         }
+        let atlas = write_atlas(data, w)?;
         Ok(json!({
+            "atlas": atlas,
             "views": p.views,
             "width": p.width,
             "height": p.height,
@@ -528,6 +532,7 @@ impl Representation for Parallax {
             }
         }
         let images = ParallaxImages::from_codes(&params, &codes)?;
+        verify_atlas(r, &images, &decisions)?;
         let mut bounds = Vec::new();
         let list = m["bounds"]
             .as_array()
@@ -802,4 +807,159 @@ fn read_bounds(
         }
     }
     Ok((px, store))
+}
+
+/// Colour of an 8-channel view level (premultiplied linear albedo and coverage, channels 0–3)
+/// as a 4-channel texture.
+fn colour_of(t: &crate::pyramid::Texture) -> crate::pyramid::Texture {
+    crate::pyramid::Texture {
+        width: t.width,
+        height: t.height,
+        channels: 4,
+        data: t
+            .data
+            .chunks_exact(t.channels)
+            .flat_map(|c| [c[0], c[1], c[2], c[3]])
+            .collect(),
+    }
+}
+
+/// A premultiplied linear RGBA level as RGBA8: straight sRGB colour, coverage in alpha.
+fn rgba8_of(t: &crate::pyramid::Texture) -> CodeImage<u8> {
+    let mut img = CodeImage::<u8>::new(t.width, t.height, 4);
+    for idx in 0..t.width * t.height {
+        let px = &t.data[idx * t.channels..idx * t.channels + 4];
+        let a = px[3].clamp(0.0, 1.0);
+        let out = img.pixel_mut(idx);
+        for c in 0..3 {
+            let straight = if a > 0.0 { px[c] / a } else { 0.0 };
+            out[c] = (linear_to_srgb(straight.clamp(0.0, 1.0)) * 255.0).round() as u8;
+        }
+        out[3] = (a * 255.0).round() as u8;
+    }
+    img
+}
+
+/// The impostor atlas of the present views of `images` and its pyramid: transparent gutters
+/// wide enough that no level up to the coarsest kept mip level bleeds between frames
+/// ([`crate::pyramid::atlas`], box filter, premultiplied linear colour and coverage).
+fn atlas_pyramid(
+    images: &ParallaxImages,
+    d: &ParallaxDecisions,
+) -> Result<(crate::pyramid::atlas::AtlasLayout, crate::pyramid::Pyramid), PipelineError> {
+    use crate::pyramid::atlas::{AtlasLayout, GutterFill};
+    use crate::pyramid::{Filter, Pyramid, PyramidParams};
+    let p = &images.params;
+    let clean = d.mip_levels.iter().copied().max().unwrap_or(0);
+    let layout = AtlasLayout::new(d.views.len(), p.width, p.height, clean, Filter::Box)?;
+    let frames: Vec<_> = d
+        .views
+        .iter()
+        .map(|&k| colour_of(&images.pyramids()[k].levels()[0]))
+        .collect();
+    let atlas = Pyramid::build(
+        layout.pack(&frames, GutterFill::Transparent)?,
+        PyramidParams::default(),
+    )?;
+    Ok((layout, atlas))
+}
+
+/// Writes the impostor atlas ([`atlas_pyramid`]) at level 0 and at the mip levels the planner
+/// kept: `atlas-mip{l}.png` (RGBA8, straight sRGB colour, coverage). Returns the metadata
+/// (layout and levels), `null` without views.
+fn write_atlas(
+    data: &ParallaxData,
+    w: &mut AssetWriter,
+) -> Result<serde_json::Value, PipelineError> {
+    use crate::pyramid::Filter;
+    use crate::pyramid::atlas::GutterFill;
+    let d = &data.decisions;
+    if d.views.is_empty() {
+        return Ok(serde_json::Value::Null);
+    }
+    let (layout, atlas) = atlas_pyramid(&data.images, d)?;
+    let levels: Vec<usize> = std::iter::once(0)
+        .chain(d.mip_levels.iter().copied())
+        .collect();
+    let ch = |name: &str, encoding: Encoding| Channel {
+        name: name.into(),
+        encoding,
+    };
+    for &l in &levels {
+        w.png8(
+            &format!("atlas/mip{l}"),
+            &format!("atlas-mip{l}.png"),
+            &rgba8_of(&atlas.levels()[l]),
+            vec![
+                ch("colour.r", Encoding::Srgb),
+                ch("colour.g", Encoding::Srgb),
+                ch("colour.b", Encoding::Srgb),
+                ch(
+                    "coverage",
+                    Encoding::Linear {
+                        scale: 1.0 / 255.0,
+                        offset: 0.0,
+                    },
+                ),
+            ],
+        )?;
+    }
+    Ok(json!({
+        "layout": layout,
+        "levels": levels,
+        "frames": d.views,
+        "gutter_fill": GutterFill::Transparent,
+        "filter": Filter::Box,
+    }))
+}
+
+/// Loads the atlas levels written by [`write_atlas`] (if any) and checks them: the layout is
+/// the one the loaded views call for, the levels are level 0 and the kept mip levels, and every
+/// texel of every level is within 2 steps of the atlas rebuilt from the loaded views (colour
+/// where covered, coverage everywhere; the views were quantised to 8 bits in between).
+fn verify_atlas(
+    r: &AssetReader,
+    images: &ParallaxImages,
+    decisions: &ParallaxDecisions,
+) -> Result<(), PipelineError> {
+    use crate::pyramid::atlas::AtlasLayout;
+    let m = &r.description().metadata["atlas"];
+    if m.is_null() || decisions.views.is_empty() {
+        return Ok(());
+    }
+    let layout: AtlasLayout = serde_json::from_value(m["layout"].clone())
+        .map_err(|e| r.content(format!("metadata.atlas.layout: {e}")))?;
+    let levels: Vec<usize> = serde_json::from_value(m["levels"].clone())
+        .map_err(|e| r.content(format!("metadata.atlas.levels: {e}")))?;
+    let (want_layout, atlas) = atlas_pyramid(images, decisions)?;
+    let want_levels: Vec<usize> = std::iter::once(0)
+        .chain(decisions.mip_levels.iter().copied())
+        .collect();
+    if layout != want_layout || levels != want_levels {
+        return Err(r
+            .content("metadata.atlas: the layout or levels do not fit the views".into())
+            .into());
+    }
+    for &l in &levels {
+        let img = r.png8(&format!("atlas/mip{l}"))?;
+        let want = rgba8_of(&atlas.levels()[l]);
+        check_size(r, &img, want.width, want.height, 4, "atlas level")?;
+        for idx in 0..want.width * want.height {
+            let (got, exp) = (img.pixel(idx), want.pixel(idx));
+            let colour_ok = exp[3] == 0
+                || got
+                    .iter()
+                    .zip(exp)
+                    .take(3)
+                    .all(|(a, b)| a.abs_diff(*b) <= 2);
+            if !colour_ok || got[3].abs_diff(exp[3]) > 2 {
+                return Err(r
+                    .content(format!(
+                        "atlas level {l}, texel {idx}: {got:?}, the views give {exp:?}"
+                    ))
+                    .into());
+            }
+        }
+    }
+    Ok(())
 }

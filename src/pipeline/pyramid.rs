@@ -3,9 +3,11 @@
 //!
 //! **Kind.** Views that never tilt beyond `mip_max_tilt_deg` from the polygon normal
 //! (`needs.grazing_deg ≤ mip_max_tilt_deg`) get a mipmap; more grazing views a ripmap, whose
-//! axis-separate levels follow the foreshortened footprint. The fipmap (sheared ripmaps) is not
-//! written yet: the asset format has no loader for sheared levels, so the planner builds the
-//! ripmap instead and says so in the plan (`kind` in the manifest is otherwise ignored).
+//! axis-separate levels follow the foreshortened footprint. Views that reach `fip_min_tilt_deg`
+//! (or `kind = "Fip"` in the manifest, with views beyond the mipmap's range) get the fipmap
+//! database (mipmap, ripmap and the ripmaps of the sheared copies, [`crate::pyramid::fip`]),
+//! chosen per lookup by the camera direction; fipmaps shear periodic textures only, so a texture
+//! that does not wrap on both axes gets the ripmap and the plan says why.
 //!
 //! **Levels.** Level `l` of an axis has `n_l = max(1, ⌊n/2^l⌋)` texels; trilinear (and the
 //! ripmap's bilinear-in-λ) lookups read it while the texture covers between `n_l/2` and `2·n_l`
@@ -15,11 +17,13 @@
 //! (coarser than the smallest) are skipped. For a mipmap `n` is the larger side.
 //!
 //! **Files.** One OpenEXR (32-bit float RGBA, lossless) per kept level, named as
-//! [`crate::pyramid::PyramidData::textures`] names the level in the full pyramid: `mip{l}.exr`
-//! or `rip_u{lu}_v{lv}.exr`; a texture of fewer than 4 channels fills the rest with 0.
+//! [`crate::pyramid::PyramidData::textures`] names the level in the full pyramid: `mip{l}.exr`,
+//! `rip_u{lu}_v{lv}.exr`, and for a fipmap also `fip_{axis}{num}over{den}_u{lu}_v{lv}.exr` per
+//! shear (the same kept level indices as the ripmap: a sheared copy has the texel density of the
+//! original); a texture of fewer than 4 channels fills the rest with 0.
 //!
 //! **Measurement.** The loaded levels are looked up (mip: trilinear with Heckbert's level;
-//! rip: four bilinear levels) at every pixel of the textured plane of
+//! rip: four bilinear levels; fip: the per-pixel mip/rip/fip decision from the camera direction) at every pixel of the textured plane of
 //! [`crate::pyramid::truth`] at tilts `0, g/2, g` (`g = grazing_deg`, azimuth 30°) and screen
 //! sizes `screen_px[1]` and `√(screen_px[0]·screen_px[1])`, against the stratified supersampled
 //! truth of the original texture (periodic). PSNR with peak 1 over pixels and channels.
@@ -33,9 +37,13 @@ use super::manifest::Needs;
 use super::repr::{Measurement, Picture, Representation, Source, fold, secs};
 use super::{PipelineError, Plan};
 use crate::asset::{AssetReader, AssetWriter, Channel, Encoding, FloatImage};
+use crate::pyramid::fip::shear_set;
 use crate::pyramid::rip::halvings;
 use crate::pyramid::truth::{PlaneView, footprints, supersampled_truth};
-use crate::pyramid::{Pyramid, PyramidData, PyramidKind, PyramidParams, RipMap, Texture};
+use crate::pyramid::{
+    FipMap, Pyramid, PyramidData, PyramidKind, PyramidParams, RipMap, Texture, WrapMode,
+    shear_prefix,
+};
 
 /// Side of the measured images (pixels).
 const MEASURE_PIXELS: usize = 16;
@@ -48,12 +56,15 @@ const MEASURE_AZIMUTH_DEG: f64 = 30.0;
 /// What the planner decided for a pyramid.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct PyramidDecisions {
-    /// `Mip` or `Rip`.
+    /// `Mip`, `Rip` or `Fip`.
     pub kind: PyramidKind,
     /// First and last kept level along `u` (for a mipmap: the levels).
     pub levels_u: [usize; 2],
     /// First and last kept level along `v` (for a mipmap: equal to `levels_u`).
     pub levels_v: [usize; 2],
+    /// First and last kept level of a fipmap's mipmap (unused otherwise).
+    #[serde(default)]
+    pub levels_mip: [usize; 2],
 }
 
 /// A pyramid as loaded: the kept levels as a lookup structure and where they start.
@@ -64,6 +75,8 @@ pub struct PyramidAsset {
     pub first: [usize; 2],
     /// Size of the original texture (level 0 of the full pyramid).
     pub base: [usize; 2],
+    /// Index, in the full pyramid, of the first kept level of a fipmap's mipmap (0 otherwise).
+    pub first_mip: usize,
 }
 
 impl PyramidAsset {
@@ -84,7 +97,50 @@ impl PyramidAsset {
                     .map(|(lu, lv)| (format!("rip_u{}_v{}", fu + lu, fv + lv), r.level(lu, lv)))
                     .collect()
             }
-            PyramidData::Fip(_) => Vec::new(),
+            PyramidData::Fip(f) => {
+                fn rip<'a>(
+                    prefix: &str,
+                    r: &'a RipMap,
+                    fu: usize,
+                    fv: usize,
+                ) -> Vec<(String, &'a Texture)> {
+                    let (nu, nv) = r.level_counts();
+                    (0..nv)
+                        .flat_map(|lv| (0..nu).map(move |lu| (lu, lv)))
+                        .map(|(lu, lv)| {
+                            (
+                                format!("{prefix}_u{}_v{}", fu + lu, fv + lv),
+                                r.level(lu, lv),
+                            )
+                        })
+                        .collect()
+                }
+                let mut v: Vec<(String, &Texture)> = f
+                    .mip()
+                    .levels()
+                    .iter()
+                    .enumerate()
+                    .map(|(l, t)| (format!("mip{}", self.first_mip + l), t))
+                    .collect();
+                v.extend(rip("rip", f.rip(), fu, fv));
+                for (i, sh) in f.shears().iter().enumerate() {
+                    v.extend(rip(&shear_prefix(sh), f.sheared(i), fu, fv));
+                }
+                v
+            }
+        }
+    }
+
+    /// Looks up `(u, v)` with screen derivatives and the direction to the camera in the frame
+    /// of the textured polygon (`(r, g, b)`: `u`, normal, `v`) into `out`: a fipmap picks mip,
+    /// rip or a sheared ripmap by [`FipMap::decide`]; a mipmap or ripmap ignores `dir`.
+    pub fn sample_dir_into(&self, u: f64, v: f64, d: [f64; 4], dir: [f64; 3], out: &mut [f32]) {
+        match &self.data {
+            PyramidData::Fip(f) => {
+                let [ux, vx, uy, vy] = d;
+                f.sample_into(f.decide(dir), u, v, ux, vx, uy, vy, None, out);
+            }
+            _ => self.sample_into(u, v, d, out),
         }
     }
 
@@ -176,12 +232,22 @@ impl Representation for PyramidRepr {
         spec.validate(tex.channels)?;
         let mut plan = Plan::default();
         let g = needs.grazing_deg;
+        let wants_fip = spec.kind == PyramidKind::Fip || g >= spec.fip_min_tilt_deg;
+        let periodic = spec.wrap == [WrapMode::Repeat; 2];
         let kind = if g <= spec.mip_max_tilt_deg {
             plan.build(format!(
                 "mipmap: views tilt at most {g}° from the normal (mip_max_tilt_deg {}°)",
                 spec.mip_max_tilt_deg
             ));
             PyramidKind::Mip
+        } else if wants_fip && periodic {
+            plan.build(format!(
+                "fipmap: views tilt up to {g}° from the normal (fip_min_tilt_deg {}°): mipmap, \
+                 ripmap and {} sheared ripmaps, chosen per view",
+                spec.fip_min_tilt_deg,
+                shear_set(spec.fip_shear_steps).len()
+            ));
+            PyramidKind::Fip
         } else {
             plan.build(format!(
                 "ripmap: views tilt up to {g}° from the normal, beyond mip_max_tilt_deg {}°: \
@@ -190,23 +256,35 @@ impl Representation for PyramidRepr {
             ));
             PyramidKind::Rip
         };
-        if spec.kind == PyramidKind::Fip || g >= spec.fip_min_tilt_deg {
+        if wants_fip && kind != PyramidKind::Fip {
             plan.skip(
                 "fipmap (sheared ripmaps)".into(),
-                "not written yet: the asset format has no loader for sheared levels; the \
-                 ripmap serves the skewed grazing views (more blur along the skew)"
-                    .into(),
+                if periodic {
+                    "views stay within mip_max_tilt_deg: the mipmap serves them".into()
+                } else {
+                    "fipmaps shear periodic textures only (wrap is not Repeat on both axes): \
+                     the ripmap serves the skewed grazing views (more blur along the skew)"
+                        .into()
+                },
             );
         }
-        let (levels_u, levels_v) = match kind {
+        let (levels_u, levels_v, levels_mip) = match kind {
             PyramidKind::Mip => {
                 let l = keep_levels(tex.width.max(tex.height), needs, "", &mut plan, true);
-                (l, l)
+                (l, l, l)
             }
-            _ => (
-                keep_levels(tex.width, needs, "u ", &mut plan, true),
-                keep_levels(tex.height, needs, "v ", &mut plan, true),
-            ),
+            _ => {
+                let lm = if kind == PyramidKind::Fip {
+                    keep_levels(tex.width.max(tex.height), needs, "mip ", &mut plan, true)
+                } else {
+                    [0, 0]
+                };
+                (
+                    keep_levels(tex.width, needs, "u ", &mut plan, true),
+                    keep_levels(tex.height, needs, "v ", &mut plan, true),
+                    lm,
+                )
+            }
         };
         Ok((
             plan,
@@ -214,6 +292,7 @@ impl Representation for PyramidRepr {
                 kind,
                 levels_u,
                 levels_v,
+                levels_mip,
             },
         ))
     }
@@ -233,26 +312,38 @@ impl Representation for PyramidRepr {
         let (full, report) = crate::pyramid::build(tex, &params)?;
         let [u0, u1] = d.levels_u;
         let [v0, v1] = d.levels_v;
-        let data = match &full {
-            PyramidData::Mip(p) => {
-                PyramidData::Mip(Pyramid::from_levels(p.levels()[u0..=u1].to_vec(), params)?)
-            }
-            PyramidData::Rip(r) => PyramidData::Rip(RipMap::from_levels(
+        let [m0, m1] = d.levels_mip;
+        let trim = |r: &RipMap| {
+            RipMap::from_levels(
                 (v0..=v1)
                     .map(|lv| (u0..=u1).map(|lu| r.level(lu, lv).clone()).collect())
                     .collect(),
                 params,
-            )?),
-            PyramidData::Fip(_) => {
-                return Err(PipelineError::Spec(
-                    "the planner never builds a fipmap".into(),
-                ));
-            }
+            )
+        };
+        let (data, first_mip) = match &full {
+            PyramidData::Mip(p) => (
+                PyramidData::Mip(Pyramid::from_levels(p.levels()[u0..=u1].to_vec(), params)?),
+                0,
+            ),
+            PyramidData::Rip(r) => (PyramidData::Rip(trim(r)?), 0),
+            PyramidData::Fip(f) => (
+                PyramidData::Fip(FipMap::from_parts(
+                    Pyramid::from_levels(f.mip().levels()[m0..=m1].to_vec(), params)?,
+                    trim(f.rip())?,
+                    (0..f.shears().len())
+                        .map(|i| trim(f.sheared(i)))
+                        .collect::<Result<_, _>>()?,
+                    params,
+                )?),
+                m0,
+            ),
         };
         let asset = PyramidAsset {
             data,
             first: [u0, v0],
             base: [tex.width, tex.height],
+            first_mip,
         };
         let kept = asset.levels().len();
         Ok((
@@ -287,26 +378,36 @@ impl Representation for PyramidRepr {
         let params = match &data.data {
             PyramidData::Mip(p) => *p.params(),
             PyramidData::Rip(r) => *r.params(),
-            PyramidData::Fip(_) => {
-                return Err(PipelineError::Spec("fipmaps are not written".into()));
-            }
+            PyramidData::Fip(f) => *f.params(),
+        };
+        let rip_counts = |r: &RipMap| {
+            let (nu, nv) = r.level_counts();
+            [nu, nv]
         };
         let counts = match &data.data {
-            PyramidData::Rip(r) => {
-                let (nu, nv) = r.level_counts();
-                [nu, nv]
-            }
+            PyramidData::Rip(r) => rip_counts(r),
             PyramidData::Mip(p) => [p.levels().len(), p.levels().len()],
-            PyramidData::Fip(_) => [0, 0],
+            PyramidData::Fip(f) => rip_counts(f.rip()),
         };
-        Ok(json!({
+        let mut meta = json!({
             "kind": params.kind,
             "channels": channels,
             "base_size": data.base,
             "first_level": data.first,
             "level_counts": counts,
             "params": params,
-        }))
+        });
+        if let PyramidData::Fip(f) = &data.data {
+            meta["first_mip_level"] = json!(data.first_mip);
+            meta["mip_level_count"] = json!(f.mip().levels().len());
+            meta["shears"] = json!(f.shears());
+            meta["sheared_level_counts"] = json!(
+                (0..f.shears().len())
+                    .map(|i| rip_counts(f.sheared(i)))
+                    .collect::<Vec<_>>()
+            );
+        }
+        Ok(meta)
     }
 
     fn read(r: &AssetReader) -> Result<PyramidAsset, PipelineError> {
@@ -330,30 +431,68 @@ impl Representation for PyramidRepr {
                 .collect();
             Ok(Texture::new(img.width, img.height, channels, data)?)
         };
-        let data = match params.kind {
-            PyramidKind::Mip => PyramidData::Mip(Pyramid::from_levels(
-                (0..nu)
-                    .map(|l| load(format!("mip{}", first[0] + l)))
-                    .collect::<Result<_, _>>()?,
-                params,
-            )?),
-            PyramidKind::Rip => PyramidData::Rip(RipMap::from_levels(
+        let load_rip = |prefix: &str, [nu, nv]: [usize; 2]| -> Result<RipMap, PipelineError> {
+            Ok(RipMap::from_levels(
                 (0..nv)
                     .map(|lv| {
                         (0..nu)
-                            .map(|lu| load(format!("rip_u{}_v{}", first[0] + lu, first[1] + lv)))
+                            .map(|lu| {
+                                load(format!("{prefix}_u{}_v{}", first[0] + lu, first[1] + lv))
+                            })
                             .collect::<Result<Vec<_>, _>>()
                     })
                     .collect::<Result<_, _>>()?,
                 params,
-            )?),
-            other => {
-                return Err(r
-                    .content(format!("metadata.kind {other:?} is not stored"))
-                    .into());
+            )?)
+        };
+        let load_mip = |first: usize, n: usize| -> Result<Pyramid, PipelineError> {
+            Ok(Pyramid::from_levels(
+                (0..n)
+                    .map(|l| load(format!("mip{}", first + l)))
+                    .collect::<Result<_, _>>()?,
+                params,
+            )?)
+        };
+        let mut first_mip = 0;
+        let data = match params.kind {
+            PyramidKind::Mip => PyramidData::Mip(load_mip(first[0], nu)?),
+            PyramidKind::Rip => PyramidData::Rip(load_rip("rip", [nu, nv])?),
+            PyramidKind::Fip => {
+                first_mip = meta(r, "first_mip_level")?;
+                let n_mip: usize = meta(r, "mip_level_count")?;
+                let shears: Vec<crate::pyramid::Shear> = meta(r, "shears")?;
+                let counts: Vec<[usize; 2]> = meta(r, "sheared_level_counts")?;
+                if shears != shear_set(params.fip_shear_steps)
+                    || counts.len() != shears.len()
+                    || n_mip == 0
+                    || n_mip > 64
+                    || counts.iter().flatten().any(|&n| n == 0 || n > 64)
+                {
+                    return Err(r
+                        .content(
+                            "metadata: the shears or level counts do not match fip_shear_steps"
+                                .into(),
+                        )
+                        .into());
+                }
+                PyramidData::Fip(FipMap::from_parts(
+                    load_mip(first_mip, n_mip)?,
+                    load_rip("rip", [nu, nv])?,
+                    shears
+                        .iter()
+                        .zip(&counts)
+                        .map(|(sh, &c)| load_rip(&shear_prefix(sh), c))
+                        .collect::<Result<_, _>>()?,
+                    params,
+                )?)
             }
         };
-        Ok(PyramidAsset { data, first, base })
+        Ok(PyramidAsset {
+            data,
+            first,
+            base,
+            first_mip,
+        })
     }
 
     fn measure(
@@ -381,7 +520,7 @@ impl Representation for PyramidRepr {
                 let mut buf = vec![0.0f32; ch];
                 for (k, fp) in fps.iter().enumerate() {
                     let Some(fp) = fp else { continue };
-                    data.sample_into(fp.uv[0], fp.uv[1], fp.derivs, &mut buf);
+                    data.sample_dir_into(fp.uv[0], fp.uv[1], fp.derivs, fp.dir, &mut buf);
                     for (o, x) in got[k * ch..(k + 1) * ch].iter_mut().zip(&buf) {
                         *o = f64::from(*x);
                     }

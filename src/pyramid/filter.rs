@@ -152,17 +152,29 @@ pub fn weights(filter: Filter, n: usize, m: usize, wrap: WrapMode) -> Vec<Vec<(u
     (0..m)
         .map(|i| {
             let c = (i as f64 + 0.5) * s;
-            let mut acc: Vec<(usize, f64)> = Vec::new();
             let (k0, k1) = ((c - r).floor() as i64, (c + r).ceil() as i64);
+            let mut acc: Vec<(usize, f64)> = Vec::with_capacity((k1 - k0).max(0) as usize);
+            // Taps that fold over an edge may meet a source texel twice: their weights add up
+            // (in tap order); `slot[idx]` is where texel `idx` sits in `acc`.
+            let inside = k0 >= 0 && k1 <= n as i64;
+            let mut slot = if inside {
+                Vec::new()
+            } else {
+                vec![usize::MAX; n]
+            };
             for k in k0..k1 {
                 let w = kernel_integral(filter, (k as f64 - c) / ks, (k as f64 + 1.0 - c) / ks);
                 if w == 0.0 {
                     continue;
                 }
                 let idx = wrap_index(wrap, k, n);
-                match acc.iter_mut().find(|(j, _)| *j == idx) {
-                    Some(e) => e.1 += w,
-                    None => acc.push((idx, w)),
+                if inside {
+                    acc.push((idx, w));
+                } else if slot[idx] == usize::MAX {
+                    slot[idx] = acc.len();
+                    acc.push((idx, w));
+                } else {
+                    acc[slot[idx]].1 += w;
                 }
             }
             let sum: f64 = acc.iter().map(|e| e.1).sum();

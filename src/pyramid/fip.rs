@@ -285,6 +285,53 @@ impl FipMap {
         })
     }
 
+    /// A database from stored parts (e.g. read back from files, possibly only the levels a
+    /// scene needs): the mipmap, the plain ripmap and one ripmap per shear of
+    /// [`shear_set`]`(params.fip_shear_steps)`, in that order. Errors: wrap not `Repeat` on both
+    /// axes, another number of sheared ripmaps, a part with another channel count, invalid
+    /// parameters.
+    pub fn from_parts(
+        mip: Pyramid,
+        rip: RipMap,
+        sheared: Vec<RipMap>,
+        params: PyramidParams,
+    ) -> Result<Self, MipError> {
+        let channels = rip.level(0, 0).channels;
+        params.validate(channels)?;
+        if params.wrap != [WrapMode::Repeat; 2] {
+            return Err(MipError::Unsupported(
+                "fipmaps shear periodic textures only: use WrapMode::Repeat on both axes",
+            ));
+        }
+        let shears = shear_set(params.fip_shear_steps);
+        if sheared.len() != shears.len() {
+            return Err(MipError::InvalidParams {
+                name: "fip_shear_steps",
+                reason: "the number of sheared ripmaps differs from the shear set's",
+            });
+        }
+        if mip.levels()[0].channels != channels
+            || sheared.iter().any(|r| r.level(0, 0).channels != channels)
+        {
+            return Err(MipError::InvalidParams {
+                name: "channels",
+                reason: "the parts of a fipmap differ in channel count",
+            });
+        }
+        Ok(Self {
+            mip,
+            rip,
+            shears,
+            sheared,
+            params,
+        })
+    }
+
+    /// The parameters the database was built with.
+    pub fn params(&self) -> &PyramidParams {
+        &self.params
+    }
+
     /// The mipmap.
     pub fn mip(&self) -> &Pyramid {
         &self.mip

@@ -21,13 +21,16 @@
 //!   rip, fip and EWA over distances and tilts (the `altrep pyramid` table).
 //! * [`fusion::fuse`]: quad-tree fusion of registered views with median rejection.
 
+pub mod atlas;
 pub mod ewa;
+pub mod fast;
 pub mod filter;
 pub mod fip;
 pub mod fusion;
 pub mod levels;
 pub mod mip;
 pub mod rip;
+pub mod speed;
 pub mod truth;
 
 pub use ewa::ewa_into;
@@ -65,12 +68,7 @@ impl PyramidData {
                 let mut v = mip_names(f.mip());
                 v.extend(rip_names("rip", f.rip()));
                 for (i, s) in f.shears().iter().enumerate() {
-                    let axis = match s.axis {
-                        ShearAxis::U => "u",
-                        ShearAxis::V => "v",
-                    };
-                    let prefix = format!("fip_{axis}{}over{}", s.num, s.den);
-                    v.extend(rip_names(&prefix, f.sheared(i)));
+                    v.extend(rip_names(&shear_prefix(s), f.sheared(i)));
                 }
                 v
             }
@@ -85,6 +83,15 @@ impl PyramidData {
             Self::Fip(f) => f.bytes(bytes_per_channel),
         }
     }
+}
+
+/// File-stem prefix of the ripmap of shear `s`: `fip_{axis}{num}over{den}` (e.g. `fip_v-1over2`).
+pub fn shear_prefix(s: &Shear) -> String {
+    let axis = match s.axis {
+        ShearAxis::U => "u",
+        ShearAxis::V => "v",
+    };
+    format!("fip_{axis}{}over{}", s.num, s.den)
 }
 
 fn mip_names(p: &Pyramid) -> Vec<(String, &Texture)> {

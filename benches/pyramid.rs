@@ -1,0 +1,33 @@
+//! RGBA8 sRGB mip-chain builds (linear light, straight alpha premultiplied for filtering, every
+//! level from level 0), box and Kaiser: ours against `image` and `fast_image_resize` configured
+//! alike ([`altrep::pyramid::speed`]). `cargo bench --bench pyramid`; the 4096² figures with the
+//! exactness check come from `altrep pyramid-bench`.
+
+use altrep::pyramid::Filter;
+use altrep::pyramid::fast::mip_chain_rgba8;
+use altrep::pyramid::speed::{bench_params, fir_chain, image_chain, test_image};
+use criterion::{Criterion, Throughput, criterion_group, criterion_main};
+
+fn chains(c: &mut Criterion) {
+    let n = 1024;
+    let src = test_image(n);
+    for filter in [Filter::Box, Filter::Kaiser] {
+        let mut g = c.benchmark_group(format!("mip_chain_rgba8_{n}_{filter:?}"));
+        g.sample_size(10);
+        g.throughput(Throughput::Bytes((n * n * 4) as u64));
+        let p = bench_params(filter);
+        g.bench_function("ours", |b| {
+            b.iter(|| mip_chain_rgba8(&src, n, n, &p).unwrap())
+        });
+        g.bench_function("image", |b| {
+            b.iter(|| image_chain(&src, n, filter).unwrap())
+        });
+        g.bench_function("fast_image_resize", |b| {
+            b.iter(|| fir_chain(&src, n, filter).unwrap())
+        });
+        g.finish();
+    }
+}
+
+criterion_group!(benches, chains);
+criterion_main!(benches);

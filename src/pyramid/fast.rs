@@ -82,8 +82,8 @@ fn dot4(a: &[f32], b: &[f32]) -> [f32; 4] {
     let (ca, cb) = (a.chunks_exact(16), b.chunks_exact(16));
     let (ra, rb) = (ca.remainder(), cb.remainder());
     for (x, y) in ca.zip(cb) {
-        for k in 0..16 {
-            acc[k] += x[k] * y[k];
+        for ((a, xv), yv) in acc.iter_mut().zip(x).zip(y) {
+            *a += xv * yv;
         }
     }
     let mut out = [0.0f32; 4];
@@ -187,21 +187,21 @@ impl Codec {
             let a = f32::from(s[3]) / 255.0;
             match self.alpha {
                 AlphaMode::None => {
-                    for c in 0..3 {
-                        o[c] = self.decode[s[c] as usize];
+                    for (oc, sc) in o.iter_mut().zip(s).take(3) {
+                        *oc = self.decode[usize::from(*sc)];
                     }
                     o[3] = a;
                 }
                 AlphaMode::Straight => {
-                    for c in 0..3 {
-                        o[c] = self.decode[s[c] as usize] * a;
+                    for (oc, sc) in o.iter_mut().zip(s).take(3) {
+                        *oc = self.decode[usize::from(*sc)] * a;
                     }
                     o[3] = a;
                 }
                 AlphaMode::Premultiplied => {
-                    for c in 0..3 {
+                    for (oc, sc) in o.iter_mut().zip(s).take(3) {
                         let straight = if a > 0.0 {
-                            f32::from(s[c]) / 255.0 / a
+                            f32::from(*sc) / 255.0 / a
                         } else {
                             0.0
                         };
@@ -210,7 +210,7 @@ impl Codec {
                         } else {
                             straight
                         };
-                        o[c] = lin * a;
+                        *oc = lin * a;
                     }
                     o[3] = a;
                 }
@@ -225,28 +225,24 @@ impl Codec {
             let a0 = s[3].clamp(0.0, 1.0);
             match self.alpha {
                 AlphaMode::None => {
-                    for c in 0..3 {
-                        o[c] = self.encode(s[c]);
+                    for (oc, sc) in o.iter_mut().zip(s).take(3) {
+                        *oc = self.encode(*sc);
                     }
                 }
                 AlphaMode::Straight => {
-                    for c in 0..3 {
-                        o[c] = if a0 > 1e-12 {
-                            self.encode(s[c] / a0)
-                        } else {
-                            0
-                        };
+                    for (oc, sc) in o.iter_mut().zip(s).take(3) {
+                        *oc = if a0 > 1e-12 { self.encode(sc / a0) } else { 0 };
                     }
                 }
                 AlphaMode::Premultiplied => {
-                    for c in 0..3 {
-                        let straight = if a0 > 1e-12 { s[c] / a0 } else { 0.0 };
+                    for (oc, sc) in o.iter_mut().zip(s).take(3) {
+                        let straight = if a0 > 1e-12 { sc / a0 } else { 0.0 };
                         let e = if self.srgb {
                             linear_to_srgb(straight.clamp(0.0, 1.0))
                         } else {
                             straight
                         };
-                        o[c] = ((e * a0).clamp(0.0, 1.0) * 255.0).round() as u8;
+                        *oc = ((e * a0).clamp(0.0, 1.0) * 255.0).round() as u8;
                     }
                 }
             }
@@ -444,9 +440,8 @@ mod tests {
                 if alpha == AlphaMode::Premultiplied {
                     // Premultiplied input: colour ≤ alpha.
                     src.chunks_exact_mut(4).for_each(|t| {
-                        for c in 0..3 {
-                            t[c] = t[c].min(t[3]);
-                        }
+                        let a = t[3];
+                        t.iter_mut().take(3).for_each(|x| *x = (*x).min(a));
                     });
                 }
                 let p = PyramidParams {

@@ -118,6 +118,7 @@ fn run(args: &Args) -> Result<(), String> {
                         width: w,
                         height: h,
                         light: Light::default(),
+                        rec: Reconstruction::DEFAULT,
                     },
                 )
                 .map(|f| f.image)

@@ -884,6 +884,9 @@ fn best_c(h: &mut SlotHull, x: f64, c_limit: f64) {
     h.c_star = best.1;
 }
 
+/// The largest `q` of a stored `c` (the asset format's 16-bit code is `q + 3`).
+const MAX_C_LEVEL: i64 = 65532;
+
 /// The storage grid of `c` for one view: `c = c0 + q·step`, `q ∈ [0, L]`, with `±1` on the grid.
 #[derive(Clone, Copy, Debug)]
 struct CGrid {
@@ -894,7 +897,9 @@ struct CGrid {
 
 impl CGrid {
     fn new(c_min: f64, c_max: f64, bits: u32) -> Self {
-        let levels = (1i64 << bits) - 1;
+        // A file stores `q + 3` in 16 bits (codes 0, 1, 2: no bound, −1, +1), so `q` stops at
+        // 65532; below 16 bits every level fits.
+        let levels = ((1i64 << bits) - 1).min(MAX_C_LEVEL);
         let span = (c_max - c_min).max(2.0);
         let m = ((2.0 * (levels - 1) as f64 / span).floor()).max(1.0);
         let step = 2.0 / m;

@@ -156,7 +156,7 @@ fn run(args: &Args) -> Result<(), String> {
     let e = |e: &dyn std::fmt::Display| e.to_string();
     let tex = checkerboard(args.size)?;
     let mip = precompute(args, &tex, 0.0)?;
-    let rip = precompute(args, &tex, 89.0)?;
+    let rip = precompute(args, &tex, 79.0)?; // 80° and more: the planner writes a fipmap
     if !matches!(mip.data, PyramidData::Mip(_)) || !matches!(rip.data, PyramidData::Rip(_)) {
         return Err("the planner chose other pyramid kinds than expected".into());
     }

@@ -27,6 +27,7 @@ pub mod pyramid;
 pub use pyramid::mip;
 pub mod report;
 pub mod slices;
+pub mod sphere;
 pub mod stats;
 
 pub use altrep_data_gen as data_gen;

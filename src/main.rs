@@ -38,6 +38,8 @@ enum Command {
     Report(cli::report::ReportArgs),
     /// Volumetric textures as slices: merge rules, levels and directions vs a ray-marched volume.
     Slices(cli::slices::SlicesArgs),
+    /// Images with parallax from any direction: exact warp of octahedral frames vs the engines' impostor, memory vs PSNR.
+    Sphere(cli::sphere::SphereArgs),
 }
 
 fn main() {
@@ -54,6 +56,7 @@ fn main() {
         Command::PyramidBench(args) => cli::pyramid_bench::run(args),
         Command::Report(args) => cli::report::run(args),
         Command::Slices(args) => cli::slices::run(args),
+        Command::Sphere(args) => cli::sphere::run(args),
     };
     if let Err(e) = result {
         eprintln!("altrep: error: {e}");

@@ -27,6 +27,7 @@
 mod analytic;
 mod capture;
 mod error;
+mod frame;
 mod geometry;
 mod image_io;
 mod mesh;
@@ -41,6 +42,7 @@ pub use capture::{
     CylinderParams, Projection, Sample, SampleGrid, ViewParams, capture_cylinder, capture_view,
 };
 pub use error::DataGenError;
+pub use frame::{FrameCapture, OrthoFrame, capture_frame, render_truth_frame};
 pub use geometry::{BoundingCylinder, Hit, PixelGrid, Ray, direction, screen_right};
 pub use image_io::{RgbaImage, linear_to_srgb, srgb_to_linear};
 pub use mesh::{Mesh, MeshLoadOptions};

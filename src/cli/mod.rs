@@ -12,6 +12,7 @@ pub mod pyramid;
 pub mod pyramid_bench;
 pub mod report;
 pub mod slices;
+pub mod sphere;
 
 /// Error type of the command-line layer: a message for the user, already formatted.
 pub type CliResult = Result<(), Box<dyn std::error::Error + Send + Sync>>;

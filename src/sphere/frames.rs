@@ -1,0 +1,316 @@
+//! The stored frames: capture, quantisation and the surface model of each texel.
+
+use std::time::{Duration, Instant};
+
+use altrep_data_gen::{OrthoFrame, Shape, capture_frame, linear_to_srgb, srgb_to_linear};
+use glam::{DVec2, DVec3, Vec3};
+use rayon::prelude::*;
+
+use super::bounds::ConeBounds;
+use super::{SphereError, ViewSet, check};
+use crate::parallax::normal_code;
+
+/// The surface a texel stands for (module docs).
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub enum SurfaceModel {
+    /// A flat top at the stored depth over the texel's cell (columns).
+    Flat,
+    /// The plane through the stored depth with the stored normal's slope, each slope component
+    /// clamped to `±max_slope`.
+    Tangent {
+        /// Largest slope `|∂Z/∂X|`, `|∂Z/∂Y|` kept.
+        max_slope: f64,
+    },
+}
+
+impl SurfaceModel {
+    /// The default: tangent planes with slopes up to 4 (as the parallax views' brims).
+    pub const DEFAULT: Self = Self::Tangent { max_slope: 4.0 };
+}
+
+/// Parameters of [`SphereImages`].
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct SphereParams {
+    /// The frame directions.
+    pub set: ViewSet,
+    /// Texels per frame side `F`.
+    pub size: usize,
+    /// The surface each texel stands for.
+    pub model: SurfaceModel,
+}
+
+impl SphereParams {
+    /// Stored bytes per texel of a frame: sRGB8 albedo (3), normal 3 × 8 bits (3), depth 16
+    /// bits (2, code 0 = undefined).
+    pub const FRAME_TEXEL_BYTES: usize = 8;
+    /// Bytes per texel of the cone bounds: `zmin`, `zmax` in 8 bits each.
+    pub const BOUND_TEXEL_BYTES: usize = 2;
+
+    /// Checks the parameters. Errors: `size` outside `2..=4096`, a slope limit that is not
+    /// finite and positive.
+    pub fn validate(&self) -> Result<(), SphereError> {
+        check(
+            (2..=4096).contains(&self.size),
+            "frame size",
+            self.size,
+            "must be 2 to 4096 texels",
+        )?;
+        ViewSet::new(self.set.coverage, self.set.grid)?;
+        if let SurfaceModel::Tangent { max_slope } = self.model {
+            check(
+                max_slope.is_finite() && max_slope > 0.0,
+                "max slope",
+                max_slope,
+                "must be finite and positive",
+            )?;
+        }
+        Ok(())
+    }
+
+    /// Bytes of the frames alone (what the engine baseline stores).
+    pub fn frame_bytes(&self) -> usize {
+        self.set.len() * self.size * self.size * Self::FRAME_TEXEL_BYTES
+    }
+
+    /// Bytes of the frames and their cone bounds (what the exact warp stores).
+    pub fn total_bytes(&self) -> usize {
+        self.set.len() * self.size * self.size * (Self::FRAME_TEXEL_BYTES + Self::BOUND_TEXEL_BYTES)
+    }
+}
+
+/// One stored frame, decoded from its quantised codes (row-major, row 0 at the top).
+#[derive(Clone, Debug)]
+pub struct Frame {
+    /// The orthographic frame it was captured along.
+    pub frame: OrthoFrame,
+    /// Texels per side `F`.
+    pub size: usize,
+    pub(crate) defined: Vec<bool>,
+    /// Stored depth `Z` at the texel centre (frame units, toward the camera).
+    pub(crate) depth: Vec<f64>,
+    /// Plane slope `(∂Z/∂X, ∂Z/∂Y)` (zero for the flat model).
+    pub(crate) slope: Vec<DVec2>,
+    /// Linear albedo decoded from sRGB8.
+    pub(crate) albedo: Vec<Vec3>,
+    /// Object-frame normal decoded from 8-bit codes and renormalised.
+    pub(crate) normal: Vec<Vec3>,
+}
+
+fn depth_code(z: f64) -> u16 {
+    (1.0 + (z.clamp(-1.0, 1.0) + 1.0) * 0.5 * 65534.0).round() as u16
+}
+
+fn depth_value(code: u16) -> f64 {
+    f64::from(code - 1) / 65534.0 * 2.0 - 1.0
+}
+
+impl Frame {
+    /// Texel pitch `2/F` in frame units.
+    #[inline]
+    pub fn pitch(&self) -> f64 {
+        2.0 / self.size as f64
+    }
+
+    /// Index of texel `(i, j)` if it is inside the frame and defined.
+    #[inline]
+    pub(crate) fn cell(&self, i: i64, j: i64) -> Option<usize> {
+        let f = self.size as i64;
+        if i < 0 || j < 0 || i >= f || j >= f {
+            return None;
+        }
+        let k = (j * f + i) as usize;
+        self.defined[k].then_some(k)
+    }
+
+    /// Frame position `(X, Y)` of the centre of texel `(i, j)`.
+    #[inline]
+    pub(crate) fn centre(&self, i: i64, j: i64) -> DVec2 {
+        let p = self.pitch();
+        DVec2::new(-1.0 + (i as f64 + 0.5) * p, 1.0 - (j as f64 + 0.5) * p)
+    }
+
+    /// Texel coordinates `(u, v)` of frame position `P` (`u = i + ½` at a centre).
+    #[inline]
+    pub(crate) fn texel_coords(&self, p: DVec2) -> DVec2 {
+        DVec2::new((p.x + 1.0) / self.pitch(), (1.0 - p.y) / self.pitch())
+    }
+
+    /// The plane of texel `k = (i, j)` at frame position `P`.
+    #[inline]
+    pub(crate) fn height(&self, k: usize, p: DVec2) -> f64 {
+        let (i, j) = ((k % self.size) as i64, (k / self.size) as i64);
+        self.depth[k] + self.slope[k].dot(p - self.centre(i, j))
+    }
+
+    /// The plane of the texel containing `P`, if it is defined.
+    #[inline]
+    pub(crate) fn height_at(&self, p: DVec2) -> Option<f64> {
+        let t = self.texel_coords(p);
+        let k = self.cell(t.x.floor() as i64, t.y.floor() as i64)?;
+        Some(self.height(k, p))
+    }
+
+    /// Albedo and normal at `P`, bilinear over the defined texels among the four nearest
+    /// centres (renormalised weights); `None` if none of them is defined.
+    pub(crate) fn attributes_at(&self, p: DVec2) -> Option<(Vec3, Vec3)> {
+        let t = self.texel_coords(p) - 0.5;
+        let (i0, j0) = (t.x.floor() as i64, t.y.floor() as i64);
+        let (fx, fy) = ((t.x - i0 as f64) as f32, (t.y - j0 as f64) as f32);
+        let (mut a, mut n, mut w) = (Vec3::ZERO, Vec3::ZERO, 0.0f32);
+        for (di, dj, wt) in [
+            (0, 0, (1.0 - fx) * (1.0 - fy)),
+            (1, 0, fx * (1.0 - fy)),
+            (0, 1, (1.0 - fx) * fy),
+            (1, 1, fx * fy),
+        ] {
+            if let Some(k) = self.cell(i0 + di, j0 + dj)
+                && wt > 0.0
+            {
+                a += self.albedo[k] * wt;
+                n += self.normal[k] * wt;
+                w += wt;
+            }
+        }
+        if w <= 0.0 {
+            // The nearest texel itself (the hit may sit in a texel whose neighbours are all
+            // undefined and whose own bilinear weight is zero at the very border).
+            let t = self.texel_coords(p);
+            let k = self.cell(t.x.floor() as i64, t.y.floor() as i64)?;
+            return Some((self.albedo[k], self.normal[k]));
+        }
+        Some((a / w, (n / w).normalize_or_zero()))
+    }
+
+    /// The stored (decoded) depth `Z`, linear albedo and unit normal of texel `(i, j)`,
+    /// `None` if it is undefined or outside the frame.
+    pub fn texel(&self, i: usize, j: usize) -> Option<(f64, Vec3, Vec3)> {
+        let k = self.cell(i as i64, j as i64)?;
+        Some((self.depth[k], self.albedo[k], self.normal[k]))
+    }
+
+    /// Share of defined texels.
+    pub fn coverage(&self) -> f64 {
+        self.defined.iter().filter(|d| **d).count() as f64 / self.defined.len().max(1) as f64
+    }
+}
+
+/// An object stored as frames over the sphere or hemisphere, with their cone bounds: the
+/// representation the exact warp draws (and the engine baseline, from the frames alone).
+#[derive(Clone, Debug)]
+pub struct SphereImages {
+    /// The parameters it was built with.
+    pub params: SphereParams,
+    /// The frames, in the order of [`ViewSet::direction`].
+    pub frames: Vec<Frame>,
+    /// Per frame, the half-angle of its cone (radians).
+    pub cones: Vec<f64>,
+    /// Per frame, its bounds for its cone.
+    pub bounds: Vec<ConeBounds>,
+    /// Wall time of the capture and quantisation.
+    pub capture_time: Duration,
+    /// Wall time of the bounds.
+    pub bounds_time: Duration,
+}
+
+impl SphereImages {
+    /// Captures the frames of `shape` over its bounding sphere (`G²·F²` rays), quantises them
+    /// and builds their cone bounds. Errors: invalid parameters, capture errors, or
+    /// [`SphereError::NothingVisible`] when every frame is empty.
+    pub fn capture(shape: &dyn Shape, params: &SphereParams) -> Result<Self, SphereError> {
+        params.validate()?;
+        let t0 = Instant::now();
+        let (centre, radius) = OrthoFrame::bounding_sphere(shape);
+        let f = params.size;
+        let frames = params
+            .set
+            .directions()
+            .into_par_iter()
+            .map(|d| -> Result<Frame, SphereError> {
+                let frame = OrthoFrame::new(centre, radius, d)?;
+                let cap = capture_frame(shape, &frame, f, f)?;
+                Ok(quantise(&frame, f, &cap.samples, params.model))
+            })
+            .collect::<Result<Vec<_>, _>>()?;
+        if frames.iter().all(|fr| fr.coverage() == 0.0) {
+            return Err(SphereError::NothingVisible {
+                frames: frames.len(),
+            });
+        }
+        let capture_time = t0.elapsed();
+        let t1 = Instant::now();
+        let cones: Vec<f64> = (0..params.set.len())
+            .into_par_iter()
+            .map(|k| params.set.cone_angle(k))
+            .collect();
+        let bounds = frames
+            .iter()
+            .zip(&cones)
+            .map(|(fr, &beta)| ConeBounds::build(fr, beta))
+            .collect();
+        Ok(Self {
+            params: *params,
+            frames,
+            cones,
+            bounds,
+            capture_time,
+            bounds_time: t1.elapsed(),
+        })
+    }
+}
+
+/// Quantises one capture to the stored codes and decodes it back (what a file would hold).
+fn quantise(
+    frame: &OrthoFrame,
+    f: usize,
+    samples: &[Option<altrep_data_gen::Sample>],
+    model: SurfaceModel,
+) -> Frame {
+    let n = f * f;
+    let mut fr = Frame {
+        frame: *frame,
+        size: f,
+        defined: vec![false; n],
+        depth: vec![0.0; n],
+        slope: vec![DVec2::ZERO; n],
+        albedo: vec![Vec3::ZERO; n],
+        normal: vec![Vec3::ZERO; n],
+    };
+    for (k, s) in samples.iter().enumerate() {
+        let Some(s) = s else { continue };
+        fr.defined[k] = true;
+        fr.depth[k] = depth_value(depth_code(f64::from(s.depth)));
+        let srgb = |c: f32| (linear_to_srgb(c.clamp(0.0, 1.0)) * 255.0).round() / 255.0;
+        fr.albedo[k] = Vec3::new(
+            srgb_to_linear(srgb(s.albedo.x)),
+            srgb_to_linear(srgb(s.albedo.y)),
+            srgb_to_linear(srgb(s.albedo.z)),
+        );
+        let dec = |c: f32| f32::from(normal_code(c)) / 255.0 * 2.0 - 1.0;
+        let nrm = Vec3::new(dec(s.normal.x), dec(s.normal.y), dec(s.normal.z)).normalize_or_zero();
+        fr.normal[k] = nrm;
+        if let SurfaceModel::Tangent { max_slope } = model {
+            let nd = nrm.as_dvec3();
+            let nf = DVec3::new(nd.dot(frame.right), nd.dot(frame.up), nd.dot(frame.dir));
+            let nz = nf.z.max(1e-6);
+            fr.slope[k] = DVec2::new(
+                (-nf.x / nz).clamp(-max_slope, max_slope),
+                (-nf.y / nz).clamp(-max_slope, max_slope),
+            );
+        }
+    }
+    fr
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn depth_codes_round_trip_within_half_a_step() {
+        for z in [-1.0, -0.3, 0.0, 0.123456, 1.0] {
+            let back = depth_value(depth_code(z));
+            assert!((back - z).abs() <= 1.0 / 65534.0 + 1e-15, "{z} -> {back}");
+        }
+        assert!(depth_code(-1.0) >= 1);
+    }
+}

@@ -1,0 +1,249 @@
+//! Measurement against the ray-cast ground truth over many directions, and the memory-against-
+//! PSNR table.
+
+use std::time::Instant;
+
+use altrep_data_gen::{OrthoFrame, RgbaImage, Shape, render_truth_frame};
+use glam::DVec3;
+
+use super::baseline::render_engine_baseline;
+use super::warp::{RenderOutput, RenderParams, render};
+use super::{Coverage, SphereError, SphereImages, SphereParams, check};
+use crate::metrics::{psnr, silhouette_iou};
+
+/// `n` directions spread evenly over the upper hemisphere or the sphere (Fibonacci spiral:
+/// heights uniform, azimuths stepped by the golden angle). Elevations stay strictly inside
+/// `(0°, 90°)` for the hemisphere.
+pub fn fibonacci_directions(n: usize, coverage: Coverage) -> Vec<DVec3> {
+    let golden = std::f64::consts::PI * (3.0 - 5f64.sqrt());
+    (0..n)
+        .map(|i| {
+            let u = (i as f64 + 0.5) / n as f64;
+            let y = match coverage {
+                Coverage::Hemisphere => u,
+                Coverage::Sphere => 1.0 - 2.0 * u,
+            };
+            let r = (1.0 - y * y).max(0.0).sqrt();
+            let phi = golden * i as f64;
+            DVec3::new(r * phi.cos(), y, r * phi.sin())
+        })
+        .collect()
+}
+
+/// What is measured and how.
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
+pub struct MeasureParams {
+    /// Test directions (Fibonacci spiral over the view set's coverage).
+    pub directions: usize,
+    /// How both methods draw (size, samples per pixel, thresholds, light).
+    pub render: RenderParams,
+    /// `k × k` rays per pixel of the ground truth.
+    pub truth_supersample: usize,
+}
+
+impl Default for MeasureParams {
+    /// 100 directions, 128² with 2 × 2 rays per pixel, truth 4 × 4.
+    fn default() -> Self {
+        Self {
+            directions: 100,
+            render: RenderParams {
+                samples: 2,
+                ..RenderParams::default()
+            },
+            truth_supersample: 4,
+        }
+    }
+}
+
+/// Error and cost of one method over the test directions.
+#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]
+pub struct MethodStats {
+    /// Mean PSNR (dB) over the directions.
+    pub psnr_mean: f64,
+    /// Lowest PSNR of a direction.
+    pub psnr_min: f64,
+    /// Mean silhouette IoU (alpha > ½).
+    pub iou_mean: f64,
+    /// Mean texel fetches per ray (all enclosing frames together).
+    pub steps_mean: f64,
+    /// Largest texel fetches of one ray.
+    pub steps_max: u32,
+    /// Mean wall time of one image (ms, CPU, all cores).
+    pub ms_per_image: f64,
+    /// Rays whose surface point no frame sees, per ray (exact warp only).
+    pub hole_share: f64,
+    /// Rays unresolved after the carving rounds, per ray (exact warp only).
+    pub unresolved_share: f64,
+}
+
+/// One configuration (grid and frame size) measured for both methods.
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct SphereMeasurement {
+    /// Frames per side `G`.
+    pub grid: usize,
+    /// Texels per frame side `F`.
+    pub size: usize,
+    /// Bytes of the exact warp (frames and bounds).
+    pub bytes_ours: usize,
+    /// Bytes of the engine baseline (frames only).
+    pub bytes_baseline: usize,
+    /// Capture and quantisation time (s).
+    pub capture_s: f64,
+    /// Cone bounds time (s).
+    pub bounds_s: f64,
+    /// Mean stored bound interval (frame depth units, texels where an event is possible).
+    pub bound_interval: f64,
+    /// The exact warp.
+    pub ours: MethodStats,
+    /// The engine baseline.
+    pub baseline: MethodStats,
+}
+
+/// The ground truth of `shape` along each direction (`size²`, `k × k` rays per pixel), over the
+/// same bounding sphere as the frames. Cost: `directions × size² × k²` rays.
+pub fn truth_images(
+    shape: &dyn Shape,
+    directions: &[DVec3],
+    size: usize,
+    supersample: usize,
+    light: &altrep_data_gen::Light,
+) -> Result<Vec<RgbaImage>, SphereError> {
+    let (centre, radius) = OrthoFrame::bounding_sphere(shape);
+    directions
+        .iter()
+        .map(|&d| {
+            let f = OrthoFrame::new(centre, radius, d)?;
+            Ok(render_truth_frame(
+                shape,
+                &f,
+                size,
+                size,
+                supersample,
+                light,
+            )?)
+        })
+        .collect()
+}
+
+fn stats(outs: &[(RenderOutput, f64)], truths: &[RgbaImage]) -> Result<MethodStats, SphereError> {
+    let mut s = MethodStats {
+        psnr_min: f64::INFINITY,
+        ..Default::default()
+    };
+    let (mut rays, mut steps, mut holes, mut unresolved) = (0usize, 0.0f64, 0usize, 0usize);
+    for ((out, ms), truth) in outs.iter().zip(truths) {
+        let p = psnr(&out.image, truth)?;
+        s.psnr_mean += p;
+        s.psnr_min = s.psnr_min.min(p);
+        s.iou_mean += silhouette_iou(&out.image, truth, 0.5)?;
+        steps += out.steps.iter().map(|&v| f64::from(v)).sum::<f64>();
+        rays += out.steps.len();
+        s.steps_max = s.steps_max.max(out.max_steps());
+        s.ms_per_image += ms;
+        holes += out.holes;
+        unresolved += out.unresolved;
+    }
+    let n = outs.len().max(1) as f64;
+    s.psnr_mean /= n;
+    s.iou_mean /= n;
+    s.ms_per_image /= n;
+    s.steps_mean = steps / rays.max(1) as f64;
+    s.hole_share = holes as f64 / rays.max(1) as f64;
+    s.unresolved_share = unresolved as f64 / rays.max(1) as f64;
+    Ok(s)
+}
+
+/// Measures `images` (exact warp) and the engine baseline built from the same frames along
+/// `directions`, against `truths` (from [`truth_images`] at `params.render.size`).
+///
+/// Errors: mismatched lengths or sizes, a direction the view set does not cover, or an empty
+/// picture (both the drawing and the truth empty: nothing to compare).
+pub fn measure(
+    images: &SphereImages,
+    directions: &[DVec3],
+    truths: &[RgbaImage],
+    params: &MeasureParams,
+) -> Result<SphereMeasurement, SphereError> {
+    check(
+        directions.len() == truths.len() && !directions.is_empty(),
+        "truth images",
+        truths.len(),
+        "need one per direction, and at least one direction",
+    )?;
+    let timed = |f: &dyn Fn(DVec3) -> Result<RenderOutput, SphereError>| {
+        directions
+            .iter()
+            .map(|&d| {
+                let t = Instant::now();
+                let out = f(d)?;
+                Ok((out, t.elapsed().as_secs_f64() * 1e3))
+            })
+            .collect::<Result<Vec<_>, SphereError>>()
+    };
+    let ours = timed(&|d| render(images, d, &params.render))?;
+    let base = timed(&|d| render_engine_baseline(images, d, &params.render))?;
+    let p = &images.params;
+    let (interval, _) = images
+        .bounds
+        .iter()
+        .map(|b| b.stats())
+        .fold((0.0, 0.0), |acc, s| (acc.0 + s.0, acc.1 + s.1));
+    Ok(SphereMeasurement {
+        grid: p.set.grid,
+        size: p.size,
+        bytes_ours: p.total_bytes(),
+        bytes_baseline: p.frame_bytes(),
+        capture_s: images.capture_time.as_secs_f64(),
+        bounds_s: images.bounds_time.as_secs_f64(),
+        bound_interval: interval / images.bounds.len().max(1) as f64,
+        ours: stats(&ours, truths)?,
+        baseline: stats(&base, truths)?,
+    })
+}
+
+/// One memory budget: the best mean PSNR each method reaches within it, and with which
+/// configuration `(G, F, PSNR)`.
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct BudgetRow {
+    /// The budget (MiB).
+    pub budget_mib: f64,
+    /// The exact warp's best configuration within the budget.
+    pub ours: Option<(usize, usize, f64)>,
+    /// The engine baseline's best configuration within the budget.
+    pub baseline: Option<(usize, usize, f64)>,
+}
+
+/// For each budget (MiB), the best measured configuration of each method that fits in it
+/// (the same selection rule for both).
+pub fn budget_table(rows: &[SphereMeasurement], budgets_mib: &[f64]) -> Vec<BudgetRow> {
+    let best = |budget: f64,
+                bytes: &dyn Fn(&SphereMeasurement) -> usize,
+                psnr: &dyn Fn(&SphereMeasurement) -> f64| {
+        rows.iter()
+            .filter(|r| bytes(r) as f64 <= budget * 1024.0 * 1024.0)
+            .max_by(|a, b| psnr(a).total_cmp(&psnr(b)))
+            .map(|r| (r.grid, r.size, psnr(r)))
+    };
+    budgets_mib
+        .iter()
+        .map(|&b| BudgetRow {
+            budget_mib: b,
+            ours: best(b, &|r| r.bytes_ours, &|r| r.ours.psnr_mean),
+            baseline: best(b, &|r| r.bytes_baseline, &|r| r.baseline.psnr_mean),
+        })
+        .collect()
+}
+
+impl SphereParams {
+    /// The parameters of a `grid × grid` hemisphere set of `size²` frames with the default
+    /// surface model.
+    pub fn hemisphere(grid: usize, size: usize) -> Result<Self, SphereError> {
+        let p = Self {
+            set: super::ViewSet::hemisphere(grid)?,
+            size,
+            model: super::SurfaceModel::DEFAULT,
+        };
+        p.validate()?;
+        Ok(p)
+    }
+}

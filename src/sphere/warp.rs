@@ -1,0 +1,536 @@
+//! The exact inverse warp of the enclosing frames and their combination by carving free space
+//! (module docs).
+
+use altrep_data_gen::{Light, OrthoFrame, RgbaImage};
+use glam::{DVec2, DVec3, Vec3};
+use rayon::prelude::*;
+
+use super::frames::Frame;
+use super::{SphereError, SphereImages, check};
+
+/// Largest number of carving rounds per fragment (module docs); a fragment still unresolved
+/// after them takes the last candidate and is counted in [`RenderOutput::unresolved`].
+pub const MAX_CARVE_ROUNDS: usize = 8;
+
+/// Parameters of [`render`] (and of the engine baseline, which uses `size`, `samples` and
+/// `light`).
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct RenderParams {
+    /// Output width and height in pixels; the image covers the bounding sphere's square.
+    pub size: usize,
+    /// `s × s` stratified rays per pixel (alpha is their coverage).
+    pub samples: usize,
+    /// A frame sees a surface point when its own surface lies within this many texel pitches
+    /// above it.
+    pub visibility: f64,
+    /// Use the cone bounds (`false`: march the whole chord of the bounding sphere).
+    pub use_bounds: bool,
+    /// The light (the one shading function of the project).
+    pub light: Light,
+}
+
+impl Default for RenderParams {
+    /// 128², one ray per pixel, visibility 2, bounds on, the default light.
+    fn default() -> Self {
+        Self {
+            size: 128,
+            samples: 1,
+            visibility: 2.0,
+            use_bounds: true,
+            light: Light::default(),
+        }
+    }
+}
+
+impl RenderParams {
+    /// Checks the parameters. Errors: a zero size or sample count, sizes above 8192 or 16
+    /// samples, thresholds that are not finite and positive.
+    pub fn validate(&self) -> Result<(), SphereError> {
+        check(
+            (1..=8192).contains(&self.size),
+            "output size",
+            self.size,
+            "must be 1 to 8192 pixels",
+        )?;
+        check(
+            (1..=16).contains(&self.samples),
+            "samples per pixel side",
+            self.samples,
+            "must be 1 to 16",
+        )?;
+        check(
+            self.visibility.is_finite() && self.visibility > 0.0,
+            "visibility",
+            self.visibility,
+            "must be finite and positive",
+        )?;
+        Ok(())
+    }
+}
+
+/// An image drawn by [`render`] or the engine baseline, with its costs.
+#[derive(Clone, Debug)]
+pub struct RenderOutput {
+    /// Premultiplied linear RGBA, alpha = coverage of the samples.
+    pub image: RgbaImage,
+    /// Texel fetches of every ray (fragment sample) inside the bounding sphere's disc, all
+    /// frames together.
+    pub steps: Vec<u32>,
+    /// Rays still unresolved after [`MAX_CARVE_ROUNDS`] rounds.
+    pub unresolved: usize,
+    /// Rays whose surface point no frame sees (coloured by the nearest frame surface).
+    pub holes: usize,
+    /// Per pixel, row-major: the display depth `z` (frame units, toward the camera) of the
+    /// surface found by the pixel's first ray, `None` where it found none. Empty for the
+    /// engine baseline, which finds no depth.
+    pub depth: Vec<Option<f64>>,
+}
+
+impl RenderOutput {
+    /// Mean texel fetches per ray (0 when no ray was cast).
+    pub fn mean_steps(&self) -> f64 {
+        self.steps.iter().map(|&s| f64::from(s)).sum::<f64>() / self.steps.len().max(1) as f64
+    }
+    /// Largest texel fetches of one ray.
+    pub fn max_steps(&self) -> u32 {
+        self.steps.iter().copied().max().unwrap_or(0)
+    }
+}
+
+/// The line a display ray makes in one frame (module docs): `Z_k(z) = a + c·z` and
+/// `P_k(Z) = q + Z·t`.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct FrameLine {
+    pub a: f64,
+    pub c: f64,
+    pub q: DVec2,
+    pub t: DVec2,
+}
+
+/// Per display direction and frame: the linear maps from display coordinates to the frame's.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct FrameMap {
+    /// Rows: frame `X`, `Y`, `Z` as functions of display `(x, y, z)`.
+    m: [DVec3; 3],
+}
+
+impl FrameMap {
+    pub fn new(display: &OrthoFrame, frame: &OrthoFrame) -> Self {
+        let row = |axis: DVec3| {
+            DVec3::new(
+                display.right.dot(axis),
+                display.up.dot(axis),
+                display.dir.dot(axis),
+            )
+        };
+        Self {
+            m: [row(frame.right), row(frame.up), row(frame.dir)],
+        }
+    }
+
+    /// `d·d_k` (positive when the frame faces the display direction's hemisphere).
+    pub fn facing(&self) -> f64 {
+        self.m[2].z
+    }
+
+    /// The line of display ray `(x, y)` in the frame.
+    #[inline]
+    pub fn line(&self, x: f64, y: f64) -> FrameLine {
+        let [mx, my, mz] = self.m;
+        let c = mz.z;
+        let a = mz.x * x + mz.y * y;
+        let z0 = -a / c;
+        FrameLine {
+            a,
+            c,
+            q: DVec2::new(
+                mx.x * x + mx.y * y + mx.z * z0,
+                my.x * x + my.y * y + my.z * z0,
+            ),
+            t: DVec2::new(mx.z / c, my.z / c),
+        }
+    }
+}
+
+/// The first point of a march that is not free: frame depth `Z`.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Event {
+    pub z: f64,
+    /// Entered through a side from an undefined cell (or from outside the frame): the ray
+    /// slipped under a silhouette of the frame. Not bounded below by the cone bounds.
+    pub slip: bool,
+}
+
+/// Marches `P(Z) = q + Z·t` through `frame` from `Z = z_hi` down to `z_lo`, one texel fetch per
+/// cell (added to `steps`), and returns the first point that is not free (module docs).
+pub(crate) fn first_event(
+    frame: &Frame,
+    q: DVec2,
+    t: DVec2,
+    z_hi: f64,
+    z_lo: f64,
+    steps: &mut u32,
+) -> Option<Event> {
+    if z_hi < z_lo {
+        return None;
+    }
+    let pitch = frame.pitch();
+    let f = frame.size as f64;
+    // Texel coordinates u(λ) = u0 + du·λ, v(λ) = v0 + dv·λ, λ = z_hi − Z ∈ [0, len].
+    let start = frame.texel_coords(q + z_hi * t);
+    let (du, dv) = (-t.x / pitch, t.y / pitch);
+    let len = z_hi - z_lo;
+    // Clip to the frame square [0, F]²: outside it everything is free.
+    let (mut l0, mut l1) = (0.0f64, len);
+    for (p0, d) in [(start.x, du), (start.y, dv)] {
+        if d.abs() < 1e-300 {
+            if !(0.0..=f).contains(&p0) {
+                return None;
+            }
+        } else {
+            let (a, b) = ((0.0 - p0) / d, (f - p0) / d);
+            l0 = l0.max(a.min(b));
+            l1 = l1.min(a.max(b));
+        }
+    }
+    if l0 > l1 {
+        return None;
+    }
+    let at = |l: f64| DVec2::new(start.x + du * l, start.y + dv * l);
+    let p_in = at(l0);
+    let fs = frame.size as i64;
+    let mut i = (p_in.x.floor() as i64).clamp(0, fs - 1);
+    let mut j = (p_in.y.floor() as i64).clamp(0, fs - 1);
+    let (si, sj) = (if du > 0.0 { 1 } else { -1 }, if dv > 0.0 { 1 } else { -1 });
+    let next = |cell: i64, p: f64, d: f64, s: i64| -> f64 {
+        if d.abs() < 1e-300 {
+            f64::INFINITY
+        } else {
+            let edge = if s > 0 { cell + 1 } else { cell } as f64;
+            l0 + ((edge - p) / d).max(0.0)
+        }
+    };
+    let mut tmax_x = next(i, p_in.x, du, si);
+    let mut tmax_y = next(j, p_in.y, dv, sj);
+    let (dx, dy) = (
+        if du.abs() < 1e-300 {
+            f64::INFINITY
+        } else {
+            1.0 / du.abs()
+        },
+        if dv.abs() < 1e-300 {
+            f64::INFINITY
+        } else {
+            1.0 / dv.abs()
+        },
+    );
+    let to_frame = |l: f64| {
+        let p = at(l);
+        DVec2::new(p.x * pitch - 1.0, 1.0 - p.y * pitch)
+    };
+    let mut l_in = l0;
+    let mut first = true;
+    let mut prev_defined = false;
+    loop {
+        let l_out = tmax_x.min(tmax_y).min(l1);
+        *steps += 1;
+        if let Some(k) = frame.cell(i, j) {
+            let (p_a, p_b) = (to_frame(l_in), to_frame(l_out));
+            let f_in = frame.height(k, p_a) - (z_hi - l_in);
+            let f_out = frame.height(k, p_b) - (z_hi - l_out);
+            if f_in >= 0.0 {
+                return Some(Event {
+                    z: z_hi - l_in,
+                    slip: !first && !prev_defined,
+                });
+            }
+            if f_out >= 0.0 {
+                let l = l_in + (l_out - l_in) * (-f_in) / (f_out - f_in);
+                return Some(Event {
+                    z: z_hi - l,
+                    slip: false,
+                });
+            }
+            prev_defined = true;
+        } else {
+            prev_defined = false;
+        }
+        first = false;
+        if l_out >= l1 {
+            return None;
+        }
+        if tmax_x <= tmax_y {
+            i += si;
+            tmax_x += dx;
+        } else {
+            j += sj;
+            tmax_y += dy;
+        }
+        if i < 0 || j < 0 || i >= fs || j >= fs {
+            return None;
+        }
+        l_in = l_out;
+    }
+}
+
+/// Whether frame point `(P, Z)` is hidden from the frame (not free).
+#[inline]
+pub(crate) fn hidden(frame: &Frame, p: DVec2, z: f64) -> bool {
+    frame.height_at(p).is_some_and(|h| h >= z - 1e-9)
+}
+
+/// The enclosing frames of `dir` with a positive weight: `(frame, weight, map)`.
+pub(crate) fn enclosing_maps(
+    images: &SphereImages,
+    display: &OrthoFrame,
+) -> Result<Vec<(usize, f64, FrameMap)>, SphereError> {
+    let w = images.params.set.enclosing(display.dir)?;
+    let total: f64 = w.iter().filter(|x| x.1 > 1e-12).map(|x| x.1).sum();
+    Ok(w.iter()
+        .filter(|x| x.1 > 1e-12)
+        .map(|&(k, wt)| {
+            (
+                k,
+                wt / total,
+                FrameMap::new(display, &images.frames[k].frame),
+            )
+        })
+        .filter(|(_, _, m)| m.facing() > 1e-9)
+        .collect())
+}
+
+/// The display frame along `dir` over the images' bounding sphere.
+pub(crate) fn display_frame(images: &SphereImages, dir: DVec3) -> Result<OrthoFrame, SphereError> {
+    let f = &images.frames[0].frame;
+    Ok(OrthoFrame::new(f.centre, f.radius, dir)?)
+}
+
+/// Outcome of one display ray.
+enum RayResult {
+    Miss,
+    Surface {
+        colour: Vec3,
+        z: f64,
+        hole: bool,
+        unresolved: bool,
+    },
+}
+
+/// Draws the object along display direction `dir` (unit, toward the camera) by the exact warp
+/// of its enclosing frames (module docs). Cost: per ray, per enclosing frame, the cells between
+/// its bounds plus one fetch per carving check; pixels in parallel.
+///
+/// Errors: invalid parameters, or a direction the view set does not cover.
+pub fn render(
+    images: &SphereImages,
+    dir: DVec3,
+    params: &RenderParams,
+) -> Result<RenderOutput, SphereError> {
+    params.validate()?;
+    let display = display_frame(images, dir)?;
+    let maps = enclosing_maps(images, &display)?;
+    let (w, s) = (params.size, params.samples);
+    let rows: Vec<(Vec<[f32; 4]>, Vec<u32>, usize, usize, Vec<Option<f64>>)> = (0..w)
+        .into_par_iter()
+        .map(|j| {
+            let mut row = vec![[0.0f32; 4]; w];
+            let mut depth = vec![None; w];
+            let (mut steps, mut unresolved, mut holes) = (Vec::new(), 0, 0);
+            for (i, px) in row.iter_mut().enumerate() {
+                let mut acc = [0.0f32; 4];
+                for a in 0..s {
+                    for b in 0..s {
+                        let (x, y) = OrthoFrame::screen_at(
+                            i as f64 + (a as f64 + 0.5) / s as f64,
+                            j as f64 + (b as f64 + 0.5) / s as f64,
+                            w,
+                            w,
+                        );
+                        let r2 = x * x + y * y;
+                        if r2 >= 1.0 {
+                            continue;
+                        }
+                        let mut n = 0u32;
+                        let res = trace(images, &maps, x, y, r2, params, &mut n);
+                        steps.push(n);
+                        if let RayResult::Surface {
+                            colour,
+                            z,
+                            hole,
+                            unresolved: u,
+                        } = res
+                        {
+                            if a == 0 && b == 0 {
+                                depth[i] = Some(z);
+                            }
+                            acc[0] += colour.x;
+                            acc[1] += colour.y;
+                            acc[2] += colour.z;
+                            acc[3] += 1.0;
+                            holes += usize::from(hole);
+                            unresolved += usize::from(u);
+                        }
+                    }
+                }
+                let inv = 1.0 / (s * s) as f32;
+                *px = acc.map(|v| v * inv);
+            }
+            (row, steps, unresolved, holes, depth)
+        })
+        .collect();
+    let mut out = RenderOutput {
+        image: RgbaImage::new(w, w),
+        steps: Vec::new(),
+        unresolved: 0,
+        holes: 0,
+        depth: Vec::with_capacity(w * w),
+    };
+    for (j, (row, steps, u, h, depth)) in rows.into_iter().enumerate() {
+        out.image.pixels[j * w..(j + 1) * w].copy_from_slice(&row);
+        out.depth.extend(depth);
+        out.steps.extend(steps);
+        out.unresolved += u;
+        out.holes += h;
+    }
+    Ok(out)
+}
+
+/// One display ray through `(x, y)` (inside the unit disc): carve, then colour.
+fn trace(
+    images: &SphereImages,
+    maps: &[(usize, f64, FrameMap)],
+    x: f64,
+    y: f64,
+    r2: f64,
+    params: &RenderParams,
+    steps: &mut u32,
+) -> RayResult {
+    let zs = (1.0 - r2).sqrt();
+    // Per frame: the line and its march interval in frame depth.
+    let mut lines = [(
+        FrameLine {
+            a: 0.0,
+            c: 1.0,
+            q: DVec2::ZERO,
+            t: DVec2::ZERO,
+        },
+        0.0f64,
+        0.0f64,
+    ); 3];
+    for (slot, &(k, _, ref map)) in lines.iter_mut().zip(maps) {
+        let line = map.line(x, y);
+        let (mut hi, mut lo) = (line.a + line.c * zs, line.a - line.c * zs);
+        if params.use_bounds {
+            match images.bounds[k].interval(&images.frames[k], line.q) {
+                Some(Some((zmin, zmax))) => {
+                    hi = hi.min(zmax);
+                    lo = lo.max(zmin);
+                }
+                // No event is possible for any direction of the cone: the ray is free here.
+                Some(None) => return RayResult::Miss,
+                None => {}
+            }
+        }
+        *slot = (line, lo, hi);
+    }
+    let nf = maps.len();
+    let mut z_cur = zs;
+    let mut z_c = zs;
+    let mut unresolved = true;
+    for _ in 0..MAX_CARVE_ROUNDS {
+        // Per frame, the display depth of its next event, or of the end of its bounded march
+        // (a tail: free down to there, and only slips under a silhouette can follow).
+        let mut deepest = f64::INFINITY;
+        let mut tails: [Option<f64>; 3] = [None; 3];
+        for f in 0..nf {
+            let (line, lo, hi) = lines[f];
+            let frame = &images.frames[maps[f].0];
+            let zf = line.a + line.c * z_cur;
+            // Hidden where the march resumes (or where the ray enters the sphere): the event is
+            // here. Transitions start below `zmax` only, so this is checked before the bounds.
+            *steps += 1;
+            if hidden(frame, line.q + zf * line.t, zf) {
+                deepest = deepest.min(z_cur);
+                continue;
+            }
+            let exit = line.a - line.c * zs;
+            let to = lo.max(exit).min(zf);
+            match first_event(frame, line.q, line.t, zf.min(hi), to, steps) {
+                Some(ev) => deepest = deepest.min((ev.z - line.a) / line.c),
+                // Free down to the sphere's exit: the whole rest of the ray is free.
+                None if to <= exit => return RayResult::Miss,
+                None => tails[f] = Some(to),
+            }
+        }
+        if deepest == f64::INFINITY {
+            // Every frame ended on a tail: march the tails on to the exit, one frame at a time;
+            // the first that stays free frees the ray.
+            for f in 0..nf {
+                let Some(from) = tails[f] else { continue };
+                let (line, _, _) = lines[f];
+                let exit = line.a - line.c * zs;
+                match first_event(&images.frames[maps[f].0], line.q, line.t, from, exit, steps) {
+                    None => return RayResult::Miss,
+                    Some(ev) => deepest = deepest.min((ev.z - line.a) / line.c),
+                }
+            }
+        }
+        z_c = deepest;
+        let mut all = true;
+        for f in 0..nf {
+            let (line, _, _) = lines[f];
+            let frame = &images.frames[maps[f].0];
+            let zf = line.a + line.c * z_c;
+            *steps += 1;
+            if !hidden(frame, line.q + zf * line.t, zf) {
+                all = false;
+            }
+        }
+        if all {
+            unresolved = false;
+            break;
+        }
+        z_cur = z_c;
+    }
+    // Colour: the frames that see the point, by weight; else the nearest surface above it.
+    let (mut col, mut wsum) = (Vec3::ZERO, 0.0f64);
+    let mut nearest: Option<(f64, Vec3)> = None;
+    for f in 0..nf {
+        let (line, _, _) = lines[f];
+        let frame = &images.frames[maps[f].0];
+        let zf = line.a + line.c * z_c;
+        let p = line.q + zf * line.t;
+        let Some(h) = frame.height_at(p) else {
+            continue;
+        };
+        let Some((albedo, normal)) = frame.attributes_at(p) else {
+            continue;
+        };
+        let c = params.light.shade(albedo, normal);
+        let gap = h - zf;
+        if gap <= params.visibility * frame.pitch() {
+            col += c * maps[f].1 as f32;
+            wsum += maps[f].1;
+        }
+        if nearest.is_none_or(|(g, _)| gap.abs() < g) {
+            nearest = Some((gap.abs(), c));
+        }
+    }
+    if wsum > 0.0 {
+        RayResult::Surface {
+            colour: col / wsum as f32,
+            z: z_c,
+            hole: false,
+            unresolved,
+        }
+    } else if let Some((_, c)) = nearest {
+        RayResult::Surface {
+            colour: c,
+            z: z_c,
+            hole: true,
+            unresolved,
+        }
+    } else {
+        RayResult::Miss
+    }
+}

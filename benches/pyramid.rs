@@ -4,7 +4,7 @@
 //! exactness check come from `altrep pyramid-bench`.
 
 use altrep::pyramid::Filter;
-use altrep::pyramid::fast::mip_chain_rgba8;
+use altrep::pyramid::fast::{FastOptions, mip_chain_rgba8, mip_chain_rgba8_with};
 use altrep::pyramid::speed::{bench_params, fir_chain, image_chain, test_image};
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
 
@@ -19,6 +19,23 @@ fn chains(c: &mut Criterion) {
         g.bench_function("ours", |b| {
             b.iter(|| mip_chain_rgba8(&src, n, n, &p).unwrap())
         });
+        // The same builder without the SIMD kernels, and (box) without the 2×2 cascade.
+        g.bench_function("ours_portable", |b| {
+            let o = FastOptions {
+                simd: false,
+                ..Default::default()
+            };
+            b.iter(|| mip_chain_rgba8_with(&src, n, n, &p, o).unwrap())
+        });
+        if filter == Filter::Box {
+            g.bench_function("ours_every_level_from_0", |b| {
+                let o = FastOptions {
+                    box_cascade: false,
+                    ..Default::default()
+                };
+                b.iter(|| mip_chain_rgba8_with(&src, n, n, &p, o).unwrap())
+            });
+        }
         g.bench_function("image", |b| {
             b.iter(|| image_chain(&src, n, filter).unwrap())
         });

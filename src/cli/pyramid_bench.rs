@@ -9,6 +9,7 @@ use std::path::PathBuf;
 use serde_json::json;
 
 use super::CliResult;
+use crate::pyramid::fast::simd_available;
 use crate::pyramid::fusion::fusion_experiment;
 use crate::pyramid::speed::{BUILDERS, compare_builds};
 use crate::pyramid::truth::{METHODS, test_texture};
@@ -79,7 +80,7 @@ pub fn run(args: PyramidBenchArgs) -> CliResult {
         let n = args.build_size as usize;
         println!(
             "\nmip chain build, {n}×{n} RGBA8 sRGB, linear light, straight alpha premultiplied for filtering, \
-             every level from level 0; median of {} runs (s), all cores ({} threads); \
+             median of {} runs (s), all cores ({} threads); \
              difference from the exact definition (f64) in 8-bit steps, max / mean",
             args.repeats,
             rayon::current_num_threads()
@@ -116,8 +117,16 @@ pub fn run(args: PyramidBenchArgs) -> CliResult {
             builds.push(row);
         }
         println!(
-            "(image: thumbnail for box, Lanczos3 for Kaiser, f32 linear, levels in parallel; \
-             fir = fast_image_resize: 16-bit linear via its sRGB mapper, Box / custom Kaiser)"
+            "(ours: {} kernels, box by exact 2×2 halving on power-of-two sizes, Kaiser every level from level 0; \
+             image: thumbnail (its +½ float bias removed) for box, Lanczos3 for Kaiser, f32 linear, \
+             every level from level 0, levels in parallel; \
+             fir = fast_image_resize: 16-bit linear via its sRGB mapper, Box / custom Kaiser, \
+             every level from level 0, levels in parallel)",
+            if simd_available() {
+                "AVX2+FMA"
+            } else {
+                "portable"
+            }
         );
     }
 
@@ -135,6 +144,7 @@ pub fn run(args: PyramidBenchArgs) -> CliResult {
             "builders": BUILDERS,
             "builds": builds,
             "threads": rayon::current_num_threads(),
+            "simd": simd_available(),
             "fusion": fusion,
         });
         std::fs::write(path, serde_json::to_string_pretty(&doc)?)?;

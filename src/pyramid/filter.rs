@@ -146,44 +146,79 @@ pub fn weights(filter: Filter, n: usize, m: usize, wrap: WrapMode) -> Vec<Vec<(u
     if m == n {
         return (0..n).map(|i| vec![(i, 1.0)]).collect();
     }
+    (0..m)
+        .map(|i| output_weights(filter, n, m, wrap, i))
+        .collect()
+}
+
+/// The unwrapped source range `[k0, k1)` scanned for output texel `i` of a resampling `n → m`
+/// (`m < n`): the kernel's support around the centre `(i + ½)·n/m`. When `0 ≤ k0` and `k1 ≤ n`
+/// no tap folds over an edge.
+pub fn tap_range(filter: Filter, n: usize, m: usize, i: usize) -> (i64, i64) {
     let s = n as f64 / m as f64;
     let r = radius(filter) * s.max(1.0);
+    let c = (i as f64 + 0.5) * s;
+    ((c - r).floor() as i64, (c + r).ceil() as i64)
+}
+
+/// The weights of output texel `i` of a resampling `n → m` (`m ≠ n`): what [`weights`] returns
+/// at index `i`. Cost: one kernel integral per source texel in [`tap_range`].
+pub fn output_weights(
+    filter: Filter,
+    n: usize,
+    m: usize,
+    wrap: WrapMode,
+    i: usize,
+) -> Vec<(usize, f64)> {
+    let s = n as f64 / m as f64;
     let ks = s.max(1.0);
-    (0..m)
-        .map(|i| {
-            let c = (i as f64 + 0.5) * s;
-            let (k0, k1) = ((c - r).floor() as i64, (c + r).ceil() as i64);
-            let mut acc: Vec<(usize, f64)> = Vec::with_capacity((k1 - k0).max(0) as usize);
-            // Taps that fold over an edge may meet a source texel twice: their weights add up
-            // (in tap order); `slot[idx]` is where texel `idx` sits in `acc`.
-            let inside = k0 >= 0 && k1 <= n as i64;
-            let mut slot = if inside {
-                Vec::new()
-            } else {
-                vec![usize::MAX; n]
-            };
-            for k in k0..k1 {
-                let w = kernel_integral(filter, (k as f64 - c) / ks, (k as f64 + 1.0 - c) / ks);
-                if w == 0.0 {
-                    continue;
-                }
-                let idx = wrap_index(wrap, k, n);
-                if inside {
-                    acc.push((idx, w));
-                } else if slot[idx] == usize::MAX {
-                    slot[idx] = acc.len();
-                    acc.push((idx, w));
-                } else {
-                    acc[slot[idx]].1 += w;
-                }
-            }
-            let sum: f64 = acc.iter().map(|e| e.1).sum();
-            if sum.abs() > 1e-12 {
-                acc.iter_mut().for_each(|e| e.1 /= sum);
-            }
-            acc
-        })
-        .collect()
+    let c = (i as f64 + 0.5) * s;
+    let (k0, k1) = tap_range(filter, n, m, i);
+    fold_weights(n, wrap, k0, k1, |k| {
+        kernel_integral(filter, (k as f64 - c) / ks, (k as f64 + 1.0 - c) / ks)
+    })
+}
+
+/// The second half of [`output_weights`]: the raw weights `raw(k)` of the unwrapped taps
+/// `k0..k1` (zeros dropped) folded into `[0, n)` by `wrap` (a texel met twice adds up, in tap
+/// order) and divided by their sum. Callers that know `raw` already (the same offsets from the
+/// centre recur) get bit for bit what [`output_weights`] gives.
+pub fn fold_weights(
+    n: usize,
+    wrap: WrapMode,
+    k0: i64,
+    k1: i64,
+    raw: impl Fn(i64) -> f64,
+) -> Vec<(usize, f64)> {
+    let mut acc: Vec<(usize, f64)> = Vec::with_capacity((k1 - k0).max(0) as usize);
+    // Taps that fold over an edge may meet a source texel twice: their weights add up
+    // (in tap order); `slot[idx]` is where texel `idx` sits in `acc`.
+    let inside = k0 >= 0 && k1 <= n as i64;
+    let mut slot = if inside {
+        Vec::new()
+    } else {
+        vec![usize::MAX; n]
+    };
+    for k in k0..k1 {
+        let w = raw(k);
+        if w == 0.0 {
+            continue;
+        }
+        let idx = wrap_index(wrap, k, n);
+        if inside {
+            acc.push((idx, w));
+        } else if slot[idx] == usize::MAX {
+            slot[idx] = acc.len();
+            acc.push((idx, w));
+        } else {
+            acc[slot[idx]].1 += w;
+        }
+    }
+    let sum: f64 = acc.iter().map(|e| e.1).sum();
+    if sum.abs() > 1e-12 {
+        acc.iter_mut().for_each(|e| e.1 /= sum);
+    }
+    acc
 }
 
 /// `t` resampled to `w2 × h2` by `filter` (separable: rows, then columns; f64 accumulation).

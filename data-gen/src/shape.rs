@@ -31,6 +31,16 @@ pub trait Shape: Send + Sync {
     fn sdf(&self, _p: DVec3) -> Option<f64> {
         None
     }
+    /// Inside tests of the row of points `(xs[i], y, z)`, written to `inside[i]` (pairs beyond
+    /// the shorter slice are left alone). The answers are exactly those of [`Shape::contains`]
+    /// point by point, which is what the default does; a shape overrides it where one row of
+    /// points can share work ([`crate::Mesh`] tests only the triangles near the row's parity
+    /// ray). Used by voxelisation.
+    fn contains_row(&self, y: f64, z: f64, xs: &[f64], inside: &mut [bool]) {
+        for (x, o) in xs.iter().zip(inside.iter_mut()) {
+            *o = self.contains(DVec3::new(*x, y, z));
+        }
+    }
 }
 
 /// Surface colour of a procedural part (linear RGB).

@@ -115,7 +115,8 @@ pub fn voxelize(shape: &dyn Shape, params: &VoxelParams) -> Result<Volume, DataG
     let [nx, ny, nz] = params.dims;
     let voxel = extent / DVec3::new(nx as f64, ny as f64, nz as f64);
     let periodic = params.periodic;
-    let inside = |p: DVec3| images(p, extent, periodic).any(|q| shape.contains(q));
+    // The periodic images to test, as offsets in periods (the point itself first).
+    let offsets: Vec<DVec3> = images(DVec3::ZERO, DVec3::ONE, periodic).collect();
     let n = nx * ny * nz;
     let mut density = vec![0.0f32; n];
     let mut color = vec![[0.0f32; 3]; n];
@@ -125,21 +126,51 @@ pub fn voxelize(shape: &dyn Shape, params: &VoxelParams) -> Result<Volume, DataG
         .zip(color.par_chunks_mut(slab))
         .enumerate()
         .for_each(|(z, (dens, col))| {
+            // One row of sub-samples at a time (fixed y and z: every x of every voxel of the
+            // voxel row), so that shapes can share work along it (`Shape::contains_row`); each
+            // point is the same number as `corner + f·voxel` per voxel and sub-sample.
+            let row_len = nx * s;
+            let mut xs = vec![0.0f64; row_len];
+            let mut qx = vec![0.0f64; row_len];
+            let mut inside = vec![false; row_len];
+            let mut part = vec![false; row_len];
+            let mut hits = vec![0usize; nx];
             for y in 0..ny {
-                for x in 0..nx {
-                    let corner = params.min + DVec3::new(x as f64, y as f64, z as f64) * voxel;
-                    let mut hits = 0usize;
-                    for a in 0..s {
-                        for b in 0..s {
-                            for c in 0..s {
+                hits.iter_mut().for_each(|h| *h = 0);
+                for b in 0..s {
+                    for c in 0..s {
+                        let mut yz = DVec3::ZERO;
+                        for x in 0..nx {
+                            let corner =
+                                params.min + DVec3::new(x as f64, y as f64, z as f64) * voxel;
+                            for a in 0..s {
                                 let f = (DVec3::new(a as f64, b as f64, c as f64) + 0.5) / s as f64;
-                                hits += usize::from(inside(corner + f * voxel));
+                                let p = corner + f * voxel;
+                                xs[x * s + a] = p.x;
+                                yz = p;
                             }
                         }
+                        inside.iter_mut().for_each(|v| *v = false);
+                        for o in &offsets {
+                            let shift = *o * extent;
+                            for (q, x) in qx.iter_mut().zip(&xs) {
+                                *q = x + shift.x;
+                            }
+                            shape.contains_row(yz.y + shift.y, yz.z + shift.z, &qx, &mut part);
+                            for (v, p) in inside.iter_mut().zip(&part) {
+                                *v |= *p;
+                            }
+                        }
+                        for (x, h) in hits.iter_mut().enumerate() {
+                            *h += inside[x * s..(x + 1) * s].iter().filter(|v| **v).count();
+                        }
                     }
+                }
+                for (x, &h) in hits.iter().enumerate() {
                     let i = x + nx * y;
-                    dens[i] = hits as f32 / (s * s * s) as f32;
-                    if hits > 0 {
+                    dens[i] = h as f32 / (s * s * s) as f32;
+                    if h > 0 {
+                        let corner = params.min + DVec3::new(x as f64, y as f64, z as f64) * voxel;
                         let centre = corner + 0.5 * voxel;
                         let q = nearest_image(shape, centre, extent, periodic);
                         col[i] = shape.albedo_at(q).to_array();

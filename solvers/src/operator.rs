@@ -56,8 +56,9 @@ pub trait LinearOperator: Sync {
 /// measured 77 µs per PCG iteration split against about 30 µs for a serial loop. The split pays
 /// once each thread gets a few hundred µs of work, hence 2^18 entries (about 0.1–0.2 ms serially
 /// on the project's machine). `cargo bench --bench solvers` (group `csr_product_split`: serial
-/// and split products on 27-point stencils of 97 k to 1.2 M entries) is the measurement to
-/// revisit it with; it was taken only on a heavily loaded machine so far (bench/RESULTS.md).
+/// and split products on 27-point stencils of 97 k to 1.2 M entries) chose it: on 2 cores the
+/// split lost at 97 k entries (230 vs 154 µs), tied at 262 k (496 vs 487 µs) and won at 551 k
+/// (0.63 vs 1.30 ms), measured under a load average of 4–7 (bench/RESULTS.md).
 pub const PAR_MIN_NNZ: usize = 262_144;
 /// Rows per parallel task in a CSR product.
 const ROW_CHUNK: usize = 512;

@@ -425,6 +425,12 @@ const EPS: f64 = 1e-12;
 
 #[inline]
 fn wrap(a: f64) -> f64 {
+    // Within one turn `rem_euclid` returns its argument unchanged: skip its `fmod` (same value).
+    let t = a + PI;
+    if (0.0..2.0 * PI).contains(&t) {
+        let w = t - PI;
+        return if w <= -PI { w + 2.0 * PI } else { w };
+    }
     let w = (a + PI).rem_euclid(2.0 * PI) - PI;
     if w <= -PI { w + 2.0 * PI } else { w }
 }
@@ -800,10 +806,10 @@ fn push_piece_boxes(
 
 /// Upper (`upper = true`) or lower convex hull of points sorted by τ (monotone chain; of points
 /// with equal τ only the extreme one is kept).
-fn hull(points: &[(f64, f64)], upper: bool) -> Vec<(f64, f64)> {
+fn hull(points: impl IntoIterator<Item = (f64, f64)>, upper: bool) -> Vec<(f64, f64)> {
     let better = |p: f64, q: f64| if upper { p > q } else { p < q };
     let mut h: Vec<(f64, f64)> = Vec::with_capacity(16);
-    for &p in points {
+    for p in points {
         if let Some(&last) = h.last()
             && last.0 == p.0
         {
@@ -836,16 +842,6 @@ fn v_range(upper: &[(f64, f64)], lower: &[(f64, f64)], a: f64) -> (f64, f64) {
         .iter()
         .fold(f64::INFINITY, |m, p| m.min(p.1 + a * p.0));
     (lo, hi)
-}
-
-/// Corner points of the half ranges that a bound covers, concatenated in τ order.
-fn gather(halves: &[HalfPoints; 2], which: &[usize]) -> HalfPoints {
-    let mut out = HalfPoints::default();
-    for &h in which {
-        out.upper.extend_from_slice(&halves[h].upper);
-        out.lower.extend_from_slice(&halves[h].lower);
-    }
-    out
 }
 
 /// Hulls of one slot of one pixel, with its continuous best `c`.
@@ -1017,13 +1013,21 @@ pub fn build_bounds(
                                     &mut halves,
                                 );
                                 let slot = |which: &[usize]| -> Option<SlotHull> {
-                                    let pts = gather(&halves, which);
-                                    if pts.is_empty() {
+                                    // The half ranges' points in τ order, read in place.
+                                    if which.iter().all(|&h| halves[h].is_empty()) {
                                         return None;
                                     }
+                                    let hs = &halves;
+                                    let points = |upper: bool| {
+                                        which.iter().flat_map(move |&h| {
+                                            let hp = &hs[h];
+                                            let v = if upper { &hp.upper } else { &hp.lower };
+                                            v.iter().copied()
+                                        })
+                                    };
                                     let mut sh = SlotHull {
-                                        upper: hull(&pts.upper, true),
-                                        lower: hull(&pts.lower, false),
+                                        upper: hull(points(true), true),
+                                        lower: hull(points(false), false),
                                         c_star: -1.0,
                                     };
                                     if matches!(kind, BoundKind::BestC | BoundKind::BestCSplit) {
@@ -1633,10 +1637,10 @@ mod tests {
     #[test]
     fn hulls_keep_extremes() {
         let pts = [(0.0, 0.0), (1.0, 2.0), (2.0, 1.0), (3.0, 3.0), (3.0, 0.5)];
-        let up = hull(&pts, true);
+        let up = hull(pts, true);
         assert_eq!(up, vec![(0.0, 0.0), (1.0, 2.0), (3.0, 3.0)]);
         let low_pts = [(0.0, 0.0), (1.0, -2.0), (2.0, 1.0), (3.0, 0.5)];
-        let lo = hull(&low_pts, false);
+        let lo = hull(low_pts, false);
         assert_eq!(lo, vec![(0.0, 0.0), (1.0, -2.0), (3.0, 0.5)]);
         for a in [-3.0, -0.5, 0.0, 0.7, 4.0] {
             let full = v_range(&pts, &low_pts, a);

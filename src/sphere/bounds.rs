@@ -88,7 +88,7 @@ impl ConeBounds {
                 if frame.defined[k] {
                     let t = &mut tiles[((j / TILE) * nt + i / TILE) as usize];
                     t.0 = t.0.max(hi[k]);
-                    t.1 = t.1.min(lo_surf[k]);
+                    t.1 = t.1.min(lo_ext[k]);
                     t.2 = t.2.max(hi[k].abs().max(lo_ext[k].abs()));
                 }
             }
@@ -130,7 +130,8 @@ impl ConeBounds {
                                     }
                                     let gx = ((i - iq).abs() - 1).max(0) as f64;
                                     let need = pitch * (gx * gx + gy * gy).sqrt() / tan;
-                                    let (l, ls, h) = (lo_ext[k], lo_surf[k], hi[k]);
+                                    // zmin also bounds slips (the split of surface events from slips is not used yet).
+                                    let (l, ls, h) = (lo_ext[k], lo_ext[k], hi[k]);
                                     // Largest Z in [l, h] (any event) and smallest in [ls, h]
                                     // (surface events) with |Z| ≥ need.
                                     if h >= need {
@@ -271,7 +272,7 @@ pub fn check_bounds(
                                 let _ = e;
                             }
                             (Some(e), Some((lo, hi))) => {
-                                let below = if e.slip { f64::NEG_INFINITY } else { lo - e.z };
+                                let below = lo - e.z;
                                 let excess = below.max(e.z - hi);
                                 if excess > 1e-9 {
                                     bad += 1;
@@ -322,11 +323,11 @@ mod tests {
                             match frame.cell(i + di, j + dj) {
                                 Some(n) => {
                                     l = l.min(range(n).0);
-                                    ls = ls.min(range(n).0);
                                 }
                                 None => l = -1.0,
                             }
                         }
+                        ls = l;
                         let gx = ((i - iq).abs() - 1).max(0) as f64;
                         let gy = ((j - jq).abs() - 1).max(0) as f64;
                         let need = pitch * (gx * gx + gy * gy).sqrt() / tan;

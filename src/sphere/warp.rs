@@ -462,17 +462,19 @@ fn trace(
                 None => tails[f] = Some(to),
             }
         }
-        if deepest == f64::INFINITY {
-            // Every frame ended on a tail: march the tails on to the exit, one frame at a time;
-            // the first that stays free frees the ray.
-            for f in 0..nf {
-                let Some(from) = tails[f] else { continue };
-                let (line, _, _) = lines[f];
-                let exit = line.a - line.c * zs;
-                match first_event(&images.frames[maps[f].0], line.q, line.t, from, exit, steps) {
-                    None => return RayResult::Miss,
-                    Some(ev) => deepest = deepest.min((ev.z - line.a) / line.c),
-                }
+        // A tail frame is free down to its tail; where the candidate lies at or below the tail
+        // (or every frame ended on one), its next event is needed: march it on to the exit. A
+        // tail that stays free frees the ray.
+        for f in 0..nf {
+            let Some(from) = tails[f] else { continue };
+            let (line, _, _) = lines[f];
+            if deepest < f64::INFINITY && deepest > (from - line.a) / line.c {
+                continue;
+            }
+            let exit = line.a - line.c * zs;
+            match first_event(&images.frames[maps[f].0], line.q, line.t, from, exit, steps) {
+                None => return RayResult::Miss,
+                Some(ev) => deepest = deepest.min((ev.z - line.a) / line.c),
             }
         }
         z_c = deepest;

@@ -17,7 +17,7 @@
 //!
 //! [`screen_right`]: crate::screen_right
 
-use glam::{DVec3, Vec3};
+use glam::DVec3;
 use rayon::prelude::*;
 
 use crate::capture::Sample;
@@ -25,7 +25,7 @@ use crate::error::{DataGenError, finite, nonzero};
 use crate::geometry::Ray;
 use crate::image_io::RgbaImage;
 use crate::shape::Shape;
-use crate::truth::Light;
+use crate::truth::{Light, supersampled};
 
 /// An orthographic frame along any direction, over a bounding sphere (see the module docs).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -186,34 +186,18 @@ pub fn render_truth_frame(
     nonzero(width, "truth width")?;
     nonzero(height, "truth height")?;
     let k = nonzero(supersample, "supersampling factor")?;
-    let inv = 1.0 / (k * k) as f32;
     let mut pixels = vec![[0.0f32; 4]; width * height];
     pixels
         .par_chunks_mut(width)
         .enumerate()
         .for_each(|(j, row)| {
             for (i, px) in row.iter_mut().enumerate() {
-                let mut acc = [0.0f32; 4];
-                for a in 0..k {
-                    for b in 0..k {
-                        let (x, y) = OrthoFrame::screen_at(
-                            i as f64 + (a as f64 + 0.5) / k as f64,
-                            j as f64 + (b as f64 + 0.5) / k as f64,
-                            width,
-                            height,
-                        );
-                        if let Some(hit) =
-                            shape.intersect(&frame.ray(x, y), 0.0, 4.0 * frame.radius)
-                        {
-                            let c: Vec3 = light.shade(hit.albedo, hit.normal.as_vec3());
-                            acc[0] += c.x;
-                            acc[1] += c.y;
-                            acc[2] += c.z;
-                            acc[3] += 1.0;
-                        }
-                    }
-                }
-                *px = acc.map(|v| v * inv);
+                *px = supersampled(i, j, k, |u, v| {
+                    let (x, y) = OrthoFrame::screen_at(u, v, width, height);
+                    shape
+                        .intersect(&frame.ray(x, y), 0.0, 4.0 * frame.radius)
+                        .map(|hit| light.shade(hit.albedo, hit.normal.as_vec3()))
+                });
             }
         });
     Ok(RgbaImage {

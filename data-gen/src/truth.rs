@@ -72,29 +72,19 @@ pub fn render_truth(shape: &dyn Shape, params: &TruthParams) -> Result<RgbaImage
     let right = screen_right(params.angle);
     let r = params.cylinder.radius;
     let k = params.supersample;
-    let inv = 1.0 / (k * k) as f32;
     let mut pixels = vec![[0.0f32; 4]; params.width * params.height];
     pixels
         .par_chunks_mut(params.width)
         .enumerate()
         .for_each(|(j, row)| {
             for (i, px) in row.iter_mut().enumerate() {
-                let mut acc = [0.0f32; 4];
-                for a in 0..k {
-                    for b in 0..k {
-                        let x = grid.x_at(i as f64 + (a as f64 + 0.5) / k as f64);
-                        let y = grid.y_at(j as f64 + (b as f64 + 0.5) / k as f64);
-                        let ray = Ray::new(x * right + DVec3::Y * y + 2.0 * r * d, -d);
-                        if let Some(hit) = shape.intersect(&ray, 0.0, 4.0 * r) {
-                            let c = params.light.shade(hit.albedo, hit.normal.as_vec3());
-                            acc[0] += c.x;
-                            acc[1] += c.y;
-                            acc[2] += c.z;
-                            acc[3] += 1.0;
-                        }
-                    }
-                }
-                *px = acc.map(|v| v * inv);
+                *px = supersampled(i, j, k, |u, v| {
+                    let (x, y) = (grid.x_at(u), grid.y_at(v));
+                    let ray = Ray::new(x * right + DVec3::Y * y + 2.0 * r * d, -d);
+                    shape
+                        .intersect(&ray, 0.0, 4.0 * r)
+                        .map(|hit| params.light.shade(hit.albedo, hit.normal.as_vec3()))
+                });
             }
         });
     Ok(RgbaImage {
@@ -102,4 +92,30 @@ pub fn render_truth(shape: &dyn Shape, params: &TruthParams) -> Result<RgbaImage
         height: params.height,
         pixels,
     })
+}
+
+/// Premultiplied linear RGBA of pixel `(i, j)` from `k × k` stratified rays: `shade_at(u, v)`
+/// gives the shaded colour at fractional pixel position `(u, v)` (`u = i + ½` at the centre), or
+/// `None` for a miss; alpha is the share of hits. Shared by every ground-truth renderer.
+pub(crate) fn supersampled(
+    i: usize,
+    j: usize,
+    k: usize,
+    shade_at: impl Fn(f64, f64) -> Option<Vec3>,
+) -> [f32; 4] {
+    let mut acc = [0.0f32; 4];
+    for a in 0..k {
+        for b in 0..k {
+            let u = i as f64 + (a as f64 + 0.5) / k as f64;
+            let v = j as f64 + (b as f64 + 0.5) / k as f64;
+            if let Some(c) = shade_at(u, v) {
+                acc[0] += c.x;
+                acc[1] += c.y;
+                acc[2] += c.z;
+                acc[3] += 1.0;
+            }
+        }
+    }
+    let inv = 1.0 / (k * k) as f32;
+    acc.map(|v| v * inv)
 }

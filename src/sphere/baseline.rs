@@ -7,12 +7,10 @@
 //! weights: `α = Σ w_k α_k`, colour `Σ w_k α_k c_k / α`, and alpha-tested at ½. Four bilinear
 //! fetches of two textures per frame; no march.
 
-use altrep_data_gen::{OrthoFrame, RgbaImage};
 use glam::{DVec2, Vec3};
-use rayon::prelude::*;
 
 use super::frames::Frame;
-use super::warp::{RenderOutput, RenderParams, display_frame, enclosing_maps};
+use super::warp::{RaySample, RenderOutput, RenderParams, display_frame, draw, enclosing_maps};
 use super::{SphereError, SphereImages};
 
 /// Bilinear depth (undefined texels read as 0) and coverage at frame position `P`.
@@ -37,7 +35,8 @@ fn depth_and_coverage(frame: &Frame, p: DVec2) -> (f64, f64) {
 
 /// Draws the object along `dir` as an engine octahedral impostor does (module docs of
 /// `baseline`). Cost: per ray, 2 bilinear lookups in each of the (up to) three frames.
-/// [`RenderOutput::steps`] counts texel lookups (8 per frame).
+/// [`RenderOutput::steps`] counts texel lookups (8 per frame); it finds no depth
+/// ([`RenderOutput::depth`] is `None` everywhere).
 ///
 /// Errors: invalid parameters, or a direction the view set does not cover.
 pub fn render_engine_baseline(
@@ -48,68 +47,28 @@ pub fn render_engine_baseline(
     params.validate()?;
     let display = display_frame(images, dir)?;
     let maps = enclosing_maps(images, &display)?;
-    let (w, s) = (params.size, params.samples);
     let lookups = 8 * maps.len() as u32;
-    let rows: Vec<(Vec<[f32; 4]>, usize)> = (0..w)
-        .into_par_iter()
-        .map(|j| {
-            let mut row = vec![[0.0f32; 4]; w];
-            let mut rays = 0;
-            for (i, px) in row.iter_mut().enumerate() {
-                let mut acc = [0.0f32; 4];
-                for a in 0..s {
-                    for b in 0..s {
-                        let (x, y) = OrthoFrame::screen_at(
-                            i as f64 + (a as f64 + 0.5) / s as f64,
-                            j as f64 + (b as f64 + 0.5) / s as f64,
-                            w,
-                            w,
-                        );
-                        if x * x + y * y >= 1.0 {
-                            continue;
-                        }
-                        rays += 1;
-                        let (mut alpha, mut col) = (0.0f64, Vec3::ZERO);
-                        for &(k, wt, ref map) in &maps {
-                            let frame = &images.frames[k];
-                            let line = map.line(x, y);
-                            let (depth, _) = depth_and_coverage(frame, line.q);
-                            let p = line.q + depth * line.t;
-                            let (_, cov) = depth_and_coverage(frame, p);
-                            if cov <= 0.0 {
-                                continue;
-                            }
-                            if let Some((albedo, normal)) = frame.attributes_at(p) {
-                                let c = params.light.shade(albedo, normal);
-                                alpha += wt * cov;
-                                col += c * (wt * cov) as f32;
-                            }
-                        }
-                        if alpha >= 0.5 {
-                            let c = col / alpha as f32;
-                            acc[0] += c.x;
-                            acc[1] += c.y;
-                            acc[2] += c.z;
-                            acc[3] += 1.0;
-                        }
-                    }
-                }
-                let inv = 1.0 / (s * s) as f32;
-                *px = acc.map(|v| v * inv);
+    Ok(draw(params, |x, y, _| {
+        let (mut alpha, mut col) = (0.0f64, Vec3::ZERO);
+        for &(k, wt, ref map) in &maps {
+            let frame = &images.frames[k];
+            let line = map.line(x, y);
+            let (depth, _) = depth_and_coverage(frame, line.q);
+            let p = line.q + depth * line.t;
+            let (_, cov) = depth_and_coverage(frame, p);
+            if cov <= 0.0 {
+                continue;
             }
-            (row, rays)
-        })
-        .collect();
-    let mut out = RenderOutput {
-        image: RgbaImage::new(w, w),
-        steps: Vec::new(),
-        unresolved: 0,
-        holes: 0,
-        depth: Vec::new(),
-    };
-    for (j, (row, rays)) in rows.into_iter().enumerate() {
-        out.image.pixels[j * w..(j + 1) * w].copy_from_slice(&row);
-        out.steps.extend(std::iter::repeat_n(lookups, rays));
-    }
-    Ok(out)
+            if let Some((albedo, normal)) = frame.attributes_at(p) {
+                let c = params.light.shade(albedo, normal);
+                alpha += wt * cov;
+                col += c * (wt * cov) as f32;
+            }
+        }
+        RaySample {
+            colour: (alpha >= 0.5).then(|| col / alpha as f32),
+            steps: lookups,
+            ..RaySample::default()
+        }
+    }))
 }

@@ -10,11 +10,9 @@ use super::{SphereError, SphereImages};
 use altrep_data_gen::OrthoFrame;
 
 /// The bounds of one frame for its cone (module docs): per texel `Q`, for every ray through `Q`
-/// (at `Z = 0`) with a direction of the cone, `zmax` lies above every event and `zmin` below
-/// every surface event (a slip under a silhouette may lie lower). Stored as 8-bit codes
-/// `round_out((Z + 1)/2 · 255)` (`zmin` rounded down, `zmax` up). A texel where no event is
-/// possible stores `zmin = 255`, `zmax = 0`; one where only slips are possible stores
-/// `zmin = zmax`.
+/// (at `Z = 0`) with a direction of the cone, every event lies in `[zmin, zmax]`. Stored as
+/// 8-bit codes `round_out((Z + 1)/2 · 255)` (`zmin` rounded down, `zmax` up). A texel where no
+/// event is possible stores `zmin = 255`, `zmax = 0`.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct ConeBounds {
     /// Texels per side.
@@ -58,7 +56,6 @@ impl ConeBounds {
             }
         }
         let mut lo_ext = lo.clone();
-        let mut lo_surf = lo.clone();
         for j in 0..fi {
             for i in 0..fi {
                 let k = (j * fi + i) as usize;
@@ -67,10 +64,7 @@ impl ConeBounds {
                 }
                 for (di, dj) in [(1, 0), (-1, 0), (0, 1), (0, -1)] {
                     match frame.cell(i + di, j + dj) {
-                        Some(n) => {
-                            lo_ext[k] = lo_ext[k].min(lo[n]);
-                            lo_surf[k] = lo_surf[k].min(lo[n]);
-                        }
+                        Some(n) => lo_ext[k] = lo_ext[k].min(lo[n]),
                         None => lo_ext[k] = -1.0,
                     }
                 }
@@ -130,27 +124,24 @@ impl ConeBounds {
                                     }
                                     let gx = ((i - iq).abs() - 1).max(0) as f64;
                                     let need = pitch * (gx * gx + gy * gy).sqrt() / tan;
-                                    // zmin also bounds slips (the split of surface events from slips is not used yet).
-                                    let (l, ls, h) = (lo_ext[k], lo_ext[k], hi[k]);
-                                    // Largest Z in [l, h] (any event) and smallest in [ls, h]
-                                    // (surface events) with |Z| ≥ need.
+                                    let (l, h) = (lo_ext[k], hi[k]);
+                                    // Largest and smallest Z in [l, h] with |Z| ≥ need.
                                     if h >= need {
                                         zmax = zmax.max(h);
                                     } else if l <= -need {
                                         zmax = zmax.max(h.min(-need));
                                     }
-                                    if ls <= -need {
-                                        zmin = zmin.min(ls);
+                                    if l <= -need {
+                                        zmin = zmin.min(l);
                                     } else if h >= need {
-                                        zmin = zmin.min(ls.max(need));
+                                        zmin = zmin.min(l.max(need));
                                     }
                                 }
                             }
                         }
                     }
-                    if zmax > f64::NEG_INFINITY {
-                        // Only slips possible: an empty surface range at zmax.
-                        zmin_row[iq as usize] = code_down(zmin.min(zmax));
+                    if zmin <= zmax {
+                        zmin_row[iq as usize] = code_down(zmin);
                         zmax_row[iq as usize] = code_up(zmax);
                     }
                 }
@@ -209,8 +200,8 @@ pub struct BoundsCheck {
     pub directions: usize,
     /// Frame marches checked (rays × enclosing frames, rays crossing `Z = 0` inside the frame).
     pub marches: usize,
-    /// Marches whose first event (found by marching the whole chord) lies above `zmax`, or is a
-    /// surface event below `zmin`, or exists where the bounds say none is possible.
+    /// Marches whose first event (found by marching the whole chord) lies outside the stored
+    /// interval, or that have an event where the bounds say none is possible.
     pub violations: usize,
     /// Largest distance of a violating event outside its interval (frame depth units).
     pub worst_excess: f64,
@@ -266,14 +257,12 @@ pub fn check_bounds(
                         );
                         match (ev, iv) {
                             (None, _) => {}
-                            (Some(e), None) => {
+                            (Some(_), None) => {
                                 bad += 1;
                                 worst = worst.max(2.0);
-                                let _ = e;
                             }
-                            (Some(e), Some((lo, hi))) => {
-                                let below = lo - e.z;
-                                let excess = below.max(e.z - hi);
+                            (Some(z), Some((lo, hi))) => {
+                                let excess = (lo - z).max(z - hi);
                                 if excess > 1e-9 {
                                     bad += 1;
                                     worst = worst.max(excess);
@@ -318,33 +307,25 @@ mod tests {
                     for i in 0..f {
                         let Some(k) = frame.cell(i, j) else { continue };
                         let (mut l, h) = range(k);
-                        let mut ls = l;
                         for (di, dj) in [(1, 0), (-1, 0), (0, 1), (0, -1)] {
                             match frame.cell(i + di, j + dj) {
-                                Some(n) => {
-                                    l = l.min(range(n).0);
-                                }
+                                Some(n) => l = l.min(range(n).0),
                                 None => l = -1.0,
                             }
                         }
-                        ls = l;
                         let gx = ((i - iq).abs() - 1).max(0) as f64;
                         let gy = ((j - jq).abs() - 1).max(0) as f64;
                         let need = pitch * (gx * gx + gy * gy).sqrt() / tan;
                         for z in [h, h.min(-need), l, l.max(need)] {
                             if z >= l && z <= h && z.abs() >= need {
                                 zmax = zmax.max(z);
-                            }
-                        }
-                        for z in [h, h.min(-need), ls, ls.max(need)] {
-                            if z >= ls && z <= h && z.abs() >= need {
                                 zmin = zmin.min(z);
                             }
                         }
                     }
                 }
-                if zmax > f64::NEG_INFINITY {
-                    zmin_c[(jq * f + iq) as usize] = code_down(zmin.min(zmax));
+                if zmin <= zmax {
+                    zmin_c[(jq * f + iq) as usize] = code_down(zmin);
                     zmax_c[(jq * f + iq) as usize] = code_up(zmax);
                 }
             }

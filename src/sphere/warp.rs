@@ -81,8 +81,8 @@ pub struct RenderOutput {
     /// Rays whose surface point no frame sees (coloured by the nearest frame surface).
     pub holes: usize,
     /// Per pixel, row-major: the display depth `z` (frame units, toward the camera) of the
-    /// surface found by the pixel's first ray, `None` where it found none. Empty for the
-    /// engine baseline, which finds no depth.
+    /// surface found by the pixel's first ray, `None` where it found none (everywhere for the
+    /// engine baseline, which finds no depth).
     pub depth: Vec<Option<f64>>,
 }
 
@@ -152,17 +152,9 @@ impl FrameMap {
     }
 }
 
-/// The first point of a march that is not free: frame depth `Z`.
-#[derive(Clone, Copy, Debug)]
-pub(crate) struct Event {
-    pub z: f64,
-    /// Entered through a side from an undefined cell (or from outside the frame): the ray
-    /// slipped under a silhouette of the frame. Not bounded below by the cone bounds.
-    pub slip: bool,
-}
-
 /// Marches `P(Z) = q + Z·t` through `frame` from `Z = z_hi` down to `z_lo`, one texel fetch per
-/// cell (added to `steps`), and returns the first point that is not free (module docs).
+/// cell (added to `steps`), and returns the frame depth `Z` of the first point that is not free
+/// (module docs).
 pub(crate) fn first_event(
     frame: &Frame,
     q: DVec2,
@@ -170,7 +162,7 @@ pub(crate) fn first_event(
     z_hi: f64,
     z_lo: f64,
     steps: &mut u32,
-) -> Option<Event> {
+) -> Option<f64> {
     if z_hi < z_lo {
         return None;
     }
@@ -229,8 +221,6 @@ pub(crate) fn first_event(
         DVec2::new(p.x * pitch - 1.0, 1.0 - p.y * pitch)
     };
     let mut l_in = l0;
-    let mut first = true;
-    let mut prev_defined = false;
     loop {
         let l_out = tmax_x.min(tmax_y).min(l1);
         *steps += 1;
@@ -239,23 +229,12 @@ pub(crate) fn first_event(
             let f_in = frame.height(k, p_a) - (z_hi - l_in);
             let f_out = frame.height(k, p_b) - (z_hi - l_out);
             if f_in >= 0.0 {
-                return Some(Event {
-                    z: z_hi - l_in,
-                    slip: !first && !prev_defined,
-                });
+                return Some(z_hi - l_in);
             }
             if f_out >= 0.0 {
-                let l = l_in + (l_out - l_in) * (-f_in) / (f_out - f_in);
-                return Some(Event {
-                    z: z_hi - l,
-                    slip: false,
-                });
+                return Some(z_hi - (l_in + (l_out - l_in) * (-f_in) / (f_out - f_in)));
             }
-            prev_defined = true;
-        } else {
-            prev_defined = false;
         }
-        first = false;
         if l_out >= l1 {
             return None;
         }
@@ -305,15 +284,83 @@ pub(crate) fn display_frame(images: &SphereImages, dir: DVec3) -> Result<OrthoFr
     Ok(OrthoFrame::new(f.centre, f.radius, dir)?)
 }
 
-/// Outcome of one display ray.
-enum RayResult {
-    Miss,
-    Surface {
-        colour: Vec3,
-        z: f64,
-        hole: bool,
-        unresolved: bool,
-    },
+/// What one ray of a drawing found.
+#[derive(Clone, Copy, Debug, Default)]
+pub(crate) struct RaySample {
+    /// Shaded colour of the surface found, `None` for a miss.
+    pub colour: Option<Vec3>,
+    /// Display depth of that surface, when the method finds one.
+    pub depth: Option<f64>,
+    /// Texel fetches.
+    pub steps: u32,
+    /// No frame sees the surface point.
+    pub hole: bool,
+    /// Still unresolved after [`MAX_CARVE_ROUNDS`].
+    pub unresolved: bool,
+}
+
+/// Draws a `size²` image over the unit disc of the display frame: `samples²` stratified rays
+/// per pixel, each traced by `trace(x, y, x² + y²)` (rays outside the disc are not traced),
+/// rows in parallel. Alpha is the share of rays that found a surface; the depth of a pixel is
+/// that of its first ray.
+pub(crate) fn draw(
+    params: &RenderParams,
+    trace: impl Fn(f64, f64, f64) -> RaySample + Sync,
+) -> RenderOutput {
+    let (w, s) = (params.size, params.samples);
+    let inv = 1.0 / (s * s) as f32;
+    // Per row: pixels, depths, and every ray traced.
+    type Row = (Vec<[f32; 4]>, Vec<Option<f64>>, Vec<RaySample>);
+    let rows: Vec<Row> = (0..w)
+        .into_par_iter()
+        .map(|j| {
+            let (mut row, mut depth, mut rays) = (vec![[0.0f32; 4]; w], vec![None; w], Vec::new());
+            for i in 0..w {
+                let mut acc = [0.0f32; 4];
+                for a in 0..s {
+                    for b in 0..s {
+                        let (x, y) = OrthoFrame::screen_at(
+                            i as f64 + (a as f64 + 0.5) / s as f64,
+                            j as f64 + (b as f64 + 0.5) / s as f64,
+                            w,
+                            w,
+                        );
+                        let r2 = x * x + y * y;
+                        if r2 >= 1.0 {
+                            continue;
+                        }
+                        let ray = trace(x, y, r2);
+                        if let Some(c) = ray.colour {
+                            acc = [acc[0] + c.x, acc[1] + c.y, acc[2] + c.z, acc[3] + 1.0];
+                            if a == 0 && b == 0 {
+                                depth[i] = ray.depth;
+                            }
+                        }
+                        rays.push(ray);
+                    }
+                }
+                row[i] = acc.map(|v| v * inv);
+            }
+            (row, depth, rays)
+        })
+        .collect();
+    let mut out = RenderOutput {
+        image: RgbaImage::new(w, w),
+        steps: Vec::new(),
+        unresolved: 0,
+        holes: 0,
+        depth: Vec::with_capacity(w * w),
+    };
+    for (j, (row, depth, rays)) in rows.into_iter().enumerate() {
+        out.image.pixels[j * w..(j + 1) * w].copy_from_slice(&row);
+        out.depth.extend(depth);
+        for r in rays {
+            out.steps.push(r.steps);
+            out.unresolved += usize::from(r.unresolved);
+            out.holes += usize::from(r.hole);
+        }
+    }
+    out
 }
 
 /// Draws the object along display direction `dir` (unit, toward the camera) by the exact warp
@@ -329,70 +376,9 @@ pub fn render(
     params.validate()?;
     let display = display_frame(images, dir)?;
     let maps = enclosing_maps(images, &display)?;
-    let (w, s) = (params.size, params.samples);
-    let rows: Vec<(Vec<[f32; 4]>, Vec<u32>, usize, usize, Vec<Option<f64>>)> = (0..w)
-        .into_par_iter()
-        .map(|j| {
-            let mut row = vec![[0.0f32; 4]; w];
-            let mut depth = vec![None; w];
-            let (mut steps, mut unresolved, mut holes) = (Vec::new(), 0, 0);
-            for (i, px) in row.iter_mut().enumerate() {
-                let mut acc = [0.0f32; 4];
-                for a in 0..s {
-                    for b in 0..s {
-                        let (x, y) = OrthoFrame::screen_at(
-                            i as f64 + (a as f64 + 0.5) / s as f64,
-                            j as f64 + (b as f64 + 0.5) / s as f64,
-                            w,
-                            w,
-                        );
-                        let r2 = x * x + y * y;
-                        if r2 >= 1.0 {
-                            continue;
-                        }
-                        let mut n = 0u32;
-                        let res = trace(images, &maps, x, y, r2, params, &mut n);
-                        steps.push(n);
-                        if let RayResult::Surface {
-                            colour,
-                            z,
-                            hole,
-                            unresolved: u,
-                        } = res
-                        {
-                            if a == 0 && b == 0 {
-                                depth[i] = Some(z);
-                            }
-                            acc[0] += colour.x;
-                            acc[1] += colour.y;
-                            acc[2] += colour.z;
-                            acc[3] += 1.0;
-                            holes += usize::from(hole);
-                            unresolved += usize::from(u);
-                        }
-                    }
-                }
-                let inv = 1.0 / (s * s) as f32;
-                *px = acc.map(|v| v * inv);
-            }
-            (row, steps, unresolved, holes, depth)
-        })
-        .collect();
-    let mut out = RenderOutput {
-        image: RgbaImage::new(w, w),
-        steps: Vec::new(),
-        unresolved: 0,
-        holes: 0,
-        depth: Vec::with_capacity(w * w),
-    };
-    for (j, (row, steps, u, h, depth)) in rows.into_iter().enumerate() {
-        out.image.pixels[j * w..(j + 1) * w].copy_from_slice(&row);
-        out.depth.extend(depth);
-        out.steps.extend(steps);
-        out.unresolved += u;
-        out.holes += h;
-    }
-    Ok(out)
+    Ok(draw(params, |x, y, r2| {
+        trace(images, &maps, x, y, r2, params)
+    }))
 }
 
 /// One display ray through `(x, y)` (inside the unit disc): carve, then colour.
@@ -403,93 +389,65 @@ fn trace(
     y: f64,
     r2: f64,
     params: &RenderParams,
-    steps: &mut u32,
-) -> RayResult {
+) -> RaySample {
+    let mut ray = RaySample::default();
     let zs = (1.0 - r2).sqrt();
-    // Per frame: the line and its march interval in frame depth.
-    let mut lines = [(
-        FrameLine {
-            a: 0.0,
-            c: 1.0,
-            q: DVec2::ZERO,
-            t: DVec2::ZERO,
-        },
-        0.0f64,
-        0.0f64,
-    ); 3];
-    for (slot, &(k, _, ref map)) in lines.iter_mut().zip(maps) {
+    // Per frame: the frame, the line and its march interval `[lo, hi]` in frame depth (the
+    // sphere's chord, cut by the bounds).
+    let mut lines = Vec::with_capacity(3);
+    for &(k, _, ref map) in maps {
         let line = map.line(x, y);
-        let (mut hi, mut lo) = (line.a + line.c * zs, line.a - line.c * zs);
+        let (mut lo, mut hi) = (line.a - line.c * zs, line.a + line.c * zs);
         if params.use_bounds {
             match images.bounds[k].interval(&images.frames[k], line.q) {
                 Some(Some((zmin, zmax))) => {
-                    hi = hi.min(zmax);
                     lo = lo.max(zmin);
+                    hi = hi.min(zmax);
                 }
                 // No event is possible for any direction of the cone: the ray is free here.
-                Some(None) => return RayResult::Miss,
+                Some(None) => return ray,
                 None => {}
             }
         }
-        *slot = (line, lo, hi);
+        lines.push((&images.frames[k], line, lo, hi));
     }
-    let nf = maps.len();
+    let at = |line: &FrameLine, z: f64| {
+        let zf = line.a + line.c * z;
+        (line.q + zf * line.t, zf)
+    };
     let mut z_cur = zs;
     let mut z_c = zs;
-    let mut unresolved = true;
+    ray.unresolved = true;
     for _ in 0..MAX_CARVE_ROUNDS {
-        // Per frame, the display depth of its next event, or of the end of its bounded march
-        // (a tail: free down to there, and only slips under a silhouette can follow).
+        // The deepest of the frames' next events below `z_cur` (display depth).
         let mut deepest = f64::INFINITY;
-        let mut tails: [Option<f64>; 3] = [None; 3];
-        for f in 0..nf {
-            let (line, lo, hi) = lines[f];
-            let frame = &images.frames[maps[f].0];
-            let zf = line.a + line.c * z_cur;
+        for &(frame, ref line, lo, hi) in &lines {
+            let (p, zf) = at(line, z_cur);
             // Hidden where the march resumes (or where the ray enters the sphere): the event is
             // here. Transitions start below `zmax` only, so this is checked before the bounds.
-            *steps += 1;
-            if hidden(frame, line.q + zf * line.t, zf) {
+            ray.steps += 1;
+            if hidden(frame, p, zf) {
                 deepest = deepest.min(z_cur);
                 continue;
             }
-            let exit = line.a - line.c * zs;
-            let to = lo.max(exit).min(zf);
-            match first_event(frame, line.q, line.t, zf.min(hi), to, steps) {
-                Some(ev) => deepest = deepest.min((ev.z - line.a) / line.c),
-                // Free down to the sphere's exit: the whole rest of the ray is free.
-                None if to <= exit => return RayResult::Miss,
-                None => tails[f] = Some(to),
-            }
-        }
-        // A tail frame is free down to its tail; where the candidate lies at or below the tail
-        // (or every frame ended on one), its next event is needed: march it on to the exit. A
-        // tail that stays free frees the ray.
-        for f in 0..nf {
-            let Some(from) = tails[f] else { continue };
-            let (line, _, _) = lines[f];
-            if deepest < f64::INFINITY && deepest > (from - line.a) / line.c {
-                continue;
-            }
-            let exit = line.a - line.c * zs;
-            match first_event(&images.frames[maps[f].0], line.q, line.t, from, exit, steps) {
-                None => return RayResult::Miss,
-                Some(ev) => deepest = deepest.min((ev.z - line.a) / line.c),
+            match first_event(frame, line.q, line.t, zf.min(hi), lo, &mut ray.steps) {
+                Some(z) => deepest = deepest.min((z - line.a) / line.c),
+                // Free from here on, and no event below `lo`: the whole rest of the ray is free.
+                None => {
+                    return RaySample {
+                        unresolved: false,
+                        ..ray
+                    };
+                }
             }
         }
         z_c = deepest;
-        let mut all = true;
-        for f in 0..nf {
-            let (line, _, _) = lines[f];
-            let frame = &images.frames[maps[f].0];
-            let zf = line.a + line.c * z_c;
-            *steps += 1;
-            if !hidden(frame, line.q + zf * line.t, zf) {
-                all = false;
-            }
-        }
-        if all {
-            unresolved = false;
+        ray.steps += lines.len() as u32;
+        if lines.iter().all(|&(frame, ref line, _, _)| {
+            let (p, zf) = at(line, z_c);
+            hidden(frame, p, zf)
+        }) {
+            ray.unresolved = false;
             break;
         }
         z_cur = z_c;
@@ -497,42 +455,30 @@ fn trace(
     // Colour: the frames that see the point, by weight; else the nearest surface above it.
     let (mut col, mut wsum) = (Vec3::ZERO, 0.0f64);
     let mut nearest: Option<(f64, Vec3)> = None;
-    for f in 0..nf {
-        let (line, _, _) = lines[f];
-        let frame = &images.frames[maps[f].0];
-        let zf = line.a + line.c * z_c;
-        let p = line.q + zf * line.t;
-        let Some(h) = frame.height_at(p) else {
-            continue;
-        };
-        let Some((albedo, normal)) = frame.attributes_at(p) else {
+    for (&(frame, ref line, _, _), &(_, weight, _)) in lines.iter().zip(maps) {
+        let (p, zf) = at(line, z_c);
+        let (Some(h), Some((albedo, normal))) = (frame.height_at(p), frame.attributes_at(p)) else {
             continue;
         };
         let c = params.light.shade(albedo, normal);
         let gap = h - zf;
         if gap <= params.visibility * frame.pitch() {
-            col += c * maps[f].1 as f32;
-            wsum += maps[f].1;
+            col += c * weight as f32;
+            wsum += weight;
         }
         if nearest.is_none_or(|(g, _)| gap.abs() < g) {
             nearest = Some((gap.abs(), c));
         }
     }
     if wsum > 0.0 {
-        RayResult::Surface {
-            colour: col / wsum as f32,
-            z: z_c,
-            hole: false,
-            unresolved,
-        }
+        ray.colour = Some(col / wsum as f32);
     } else if let Some((_, c)) = nearest {
-        RayResult::Surface {
-            colour: c,
-            z: z_c,
-            hole: true,
-            unresolved,
-        }
+        ray.colour = Some(c);
+        ray.hole = true;
     } else {
-        RayResult::Miss
+        ray.unresolved = false;
+        return ray;
     }
+    ray.depth = Some(z_c);
+    ray
 }

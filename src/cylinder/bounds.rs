@@ -465,18 +465,12 @@ fn build_codes(texture: &CylindricalTexture, params: &BoundsParams) -> (Vec<u16>
                         widen_cells(reach, s, l, (alpha0, alpha1), bx, &mut lo, &mut hi);
                     }
                 }
-                let (start, stop) = (
+                store_codes(
+                    (&lo, &hi),
+                    (a, bx, ba, l),
                     &mut start[r * bx..(r + 1) * bx],
                     &mut stop[r * bx..(r + 1) * bx],
                 );
-                for i in 0..bx {
-                    if lo[i] <= hi[i] {
-                        let base = code_base(a, i, bx, ba, l);
-                        // Codes are ≥ 1 by construction (see `code_base`); 0 marks an empty cell.
-                        start[i] = (lo[i] - base).clamp(1, i64::from(u16::MAX)) as u16;
-                        stop[i] = (hi[i] - base).clamp(1, i64::from(u16::MAX)) as u16;
-                    }
-                }
             }
         });
     (start, stop)
@@ -555,14 +549,7 @@ fn build_codes_reference(
                     widen_cells(reach, s, l, (alpha0, alpha1), bx, &mut lo, &mut hi);
                 }
             }
-            for i in 0..bx {
-                if lo[i] <= hi[i] {
-                    let base = code_base(a, i, bx, ba, l);
-                    // Codes are ≥ 1 by construction (see `code_base`); 0 marks an empty cell.
-                    start[i] = (lo[i] - base).clamp(1, i64::from(u16::MAX)) as u16;
-                    stop[i] = (hi[i] - base).clamp(1, i64::from(u16::MAX)) as u16;
-                }
-            }
+            store_codes((&lo, &hi), (a, bx, ba, l), start, stop);
         });
     (start, stop)
 }
@@ -608,6 +595,23 @@ fn cell_angles(a: usize, ba: usize) -> (f64, f64) {
 /// sectors lie, on the right half, in `[⌊α₀/dα⌋ − L/2 − 3, ⌊α₁/dα⌋ + 1]` and, on the left half,
 /// in `[⌊α₀/dα⌋ − 2, ⌊α₁/dα⌋ + L/2 + 2]`, so the codes are ≥ 1 and below `L/2 + w + 6`
 /// (`w` = sectors per angle cell): one byte at the defaults.
+/// Writes the codes of one row of cells of angle cell `a` from their step ranges `lo..=hi`
+/// (`lo > hi`: empty cell, code left 0). Codes are ≥ 1 by construction (see [`code_base`]).
+fn store_codes(
+    (lo, hi): (&[i64], &[i64]),
+    (a, bx, ba, l): (usize, usize, usize, usize),
+    start: &mut [u16],
+    stop: &mut [u16],
+) {
+    for i in 0..bx {
+        if lo[i] <= hi[i] {
+            let base = code_base(a, i, bx, ba, l);
+            start[i] = (lo[i] - base).clamp(1, i64::from(u16::MAX)) as u16;
+            stop[i] = (hi[i] - base).clamp(1, i64::from(u16::MAX)) as u16;
+        }
+    }
+}
+
 fn code_base(a: usize, i: usize, bx: usize, ba: usize, l: usize) -> i64 {
     let a_ref = (cell_angles(a, ba).0 / angular_pitch(l)).floor() as i64;
     if i >= bx / 2 {

@@ -55,6 +55,14 @@ pub struct SphereArgs {
     /// Memory budgets (MiB) of the summary table.
     #[arg(long, value_delimiter = ',', default_value = "0.5,1,2,4,8,16,32")]
     pub budgets: Vec<f64>,
+    /// Instead of `--sizes`, measure for each grid and budget the largest frame size that fits
+    /// the budget, once for the exact warp's bytes and once for the baseline's (equal memory),
+    /// capped at `--max-size`.
+    #[arg(long)]
+    pub fit_budgets: bool,
+    /// Largest frame size `--fit-budgets` may choose.
+    #[arg(long, default_value_t = 256, value_parser = clap::value_parser!(u32).range(8..=4096))]
+    pub max_size: u32,
     /// Write the tables as JSON here.
     #[arg(long)]
     pub json: Option<PathBuf>,
@@ -137,47 +145,46 @@ pub fn run(args: SphereArgs) -> CliResult {
         "bnd s",
         "holes"
     );
+    let configs = configurations(&args, coverage)?;
     let mut rows: Vec<SphereMeasurement> = Vec::new();
     let mut checks = Vec::new();
-    for &g in &args.grids {
-        for &f in &args.sizes {
-            let sp = SphereParams {
-                set: ViewSet::new(coverage, g)?,
-                size: f,
-                model,
-            };
-            let images = SphereImages::capture(shape.as_ref(), &sp)?;
-            let m = measure(&images, &dirs, &truths, &params)?;
-            let mib = |b: usize| b as f64 / (1024.0 * 1024.0);
+    for &(g, f) in &configs {
+        let sp = SphereParams {
+            set: ViewSet::new(coverage, g)?,
+            size: f,
+            model,
+        };
+        let images = SphereImages::capture(shape.as_ref(), &sp)?;
+        let m = measure(&images, &dirs, &truths, &params)?;
+        let mib = |b: usize| b as f64 / (1024.0 * 1024.0);
+        println!(
+            "{:>3} {:>4} | {:>9.3} {:>7.2} {:>7.2} {:>6.3} {:>6.1} {:>5} | {:>9.3} {:>7.2} {:>7.2} {:>6.3} | {:>6.2} {:>6.2} {:>6.4}",
+            g,
+            f,
+            mib(m.bytes_ours),
+            m.ours.psnr_mean,
+            m.ours.psnr_min,
+            m.ours.iou_mean,
+            m.ours.steps_mean,
+            m.ours.steps_max,
+            mib(m.bytes_baseline),
+            m.baseline.psnr_mean,
+            m.baseline.psnr_min,
+            m.baseline.iou_mean,
+            m.capture_s,
+            m.bounds_s,
+            m.ours.hole_share
+        );
+        if args.check_factor > 0 {
+            let fine = fibonacci_directions(dirs.len() * args.check_factor as usize, coverage);
+            let c = check_bounds(&images, &fine, (params.render.size / 4).max(8))?;
             println!(
-                "{:>3} {:>4} | {:>9.3} {:>7.2} {:>7.2} {:>6.3} {:>6.1} {:>5} | {:>9.3} {:>7.2} {:>7.2} {:>6.3} | {:>6.2} {:>6.2} {:>6.4}",
-                g,
-                f,
-                mib(m.bytes_ours),
-                m.ours.psnr_mean,
-                m.ours.psnr_min,
-                m.ours.iou_mean,
-                m.ours.steps_mean,
-                m.ours.steps_max,
-                mib(m.bytes_baseline),
-                m.baseline.psnr_mean,
-                m.baseline.psnr_min,
-                m.baseline.iou_mean,
-                m.capture_s,
-                m.bounds_s,
-                m.ours.hole_share
+                "        bounds check: {} directions, {} marches, {} violations (worst excess {:.2e})",
+                c.directions, c.marches, c.violations, c.worst_excess
             );
-            if args.check_factor > 0 {
-                let fine = fibonacci_directions(dirs.len() * args.check_factor as usize, coverage);
-                let c = check_bounds(&images, &fine, (params.render.size / 4).max(8))?;
-                println!(
-                    "        bounds check: {} directions, {} marches, {} violations (worst excess {:.2e})",
-                    c.directions, c.marches, c.violations, c.worst_excess
-                );
-                checks.push(json!({"grid": g, "size": f, "check": c}));
-            }
-            rows.push(m);
+            checks.push(json!({"grid": g, "size": f, "check": c}));
         }
+        rows.push(m);
     }
     let budgets = budget_table(&rows, &args.budgets);
     println!("\nbest mean PSNR within each memory budget (same selection rule for both):");
@@ -215,4 +222,36 @@ pub fn run(args: SphereArgs) -> CliResult {
         println!("wrote {}", path.display());
     }
     Ok(())
+}
+
+/// The `(G, F)` pairs to measure: `--grids × --sizes`, or with `--fit-budgets` the largest size
+/// of each grid that fits each budget for either method (sorted, without repeats).
+fn configurations(args: &SphereArgs, coverage: Coverage) -> Result<Vec<(usize, usize)>, String> {
+    let mut v = Vec::new();
+    for &g in &args.grids {
+        if !args.fit_budgets {
+            v.extend(args.sizes.iter().map(|&f| (g, f)));
+            continue;
+        }
+        let frames = ViewSet::new(coverage, g).map_err(|e| e.to_string())?.len();
+        for &b in &args.budgets {
+            if !(b.is_finite() && b > 0.0) {
+                return Err(format!("budget {b} MiB must be finite and positive"));
+            }
+            let bytes = b * 1024.0 * 1024.0;
+            for per_texel in [
+                SphereParams::FRAME_TEXEL_BYTES + SphereParams::BOUND_TEXEL_BYTES,
+                SphereParams::FRAME_TEXEL_BYTES,
+            ] {
+                let f = (bytes / (frames * per_texel) as f64).sqrt().floor() as usize;
+                let f = f.min(args.max_size as usize);
+                if f >= 8 {
+                    v.push((g, f));
+                }
+            }
+        }
+    }
+    v.sort_unstable();
+    v.dedup();
+    Ok(v)
 }

@@ -19,6 +19,8 @@
 //! columns = 256
 //! [asset.octree]
 //! resolution = 64
+//! [asset.sphere]              # images with parallax from any direction (views from above)
+//! grid = 8
 //!
 //! [[asset]]
 //! name = "bark"
@@ -44,6 +46,7 @@ use super::PipelineError;
 use super::cylinder::CylinderSpec;
 use super::octree::OctreeSpec as OctreeParams;
 use super::parallax::ParallaxSpec as ParallaxParams;
+use super::sphere::SphereSpec;
 use crate::pyramid::PyramidParams;
 
 /// Scene-wide settings.
@@ -141,6 +144,8 @@ struct RawAsset {
     octree: Option<Spanned<OctreeParams>>,
     #[serde(default)]
     pyramid: Option<Spanned<PyramidParams>>,
+    #[serde(default)]
+    sphere: Option<Spanned<SphereSpec>>,
 }
 
 /// A procedural test texture ([`crate::pyramid::truth::test_texture`]): periodic grey
@@ -202,6 +207,8 @@ pub struct AssetSpec {
     pub octree: Option<OctreeParams>,
     /// Texture pyramid, if wanted (texture assets only).
     pub pyramid: Option<PyramidParams>,
+    /// Images with parallax from any direction, if wanted.
+    pub sphere: Option<SphereSpec>,
 }
 
 /// A parsed, checked manifest.
@@ -335,6 +342,7 @@ impl Manifest {
                 ("parallax", a.parallax.as_ref().map(|p| p.span())),
                 ("cylinder", a.cylinder.as_ref().map(|p| p.span())),
                 ("octree", a.octree.as_ref().map(|p| p.span())),
+                ("sphere", a.sphere.as_ref().map(|p| p.span())),
             ];
             if source.is_texture() {
                 if let Some((key, Some(span))) = geometry_only.iter().find(|(_, s)| s.is_some()) {
@@ -370,10 +378,12 @@ impl Manifest {
             let cylinder = a.cylinder.map(Spanned::into_inner);
             let octree = a.octree.map(Spanned::into_inner);
             let pyramid = a.pyramid.map(Spanned::into_inner);
+            let sphere = a.sphere.map(Spanned::into_inner);
             for check in [
                 parallax.as_ref().map(|p| p.validate()),
                 cylinder.as_ref().map(|p| p.validate()),
                 octree.as_ref().map(|p| p.validate()),
+                sphere.as_ref().map(|p| p.validate()),
                 // Channels are known once the texture is read; RGBA is checked here.
                 pyramid
                     .as_ref()
@@ -392,6 +402,7 @@ impl Manifest {
                 cylinder,
                 octree,
                 pyramid,
+                sphere,
             });
         }
         if assets.is_empty() {

@@ -18,6 +18,7 @@ pub mod parallax;
 pub mod pyramid;
 pub mod repr;
 mod run;
+pub mod sphere;
 
 use std::path::PathBuf;
 

@@ -16,6 +16,7 @@ use super::octree::OctreeRepr;
 use super::parallax::Parallax;
 use super::pyramid::PyramidRepr;
 use super::repr::{Measurement, Representation, Source};
+use super::sphere::SphereRepr;
 use super::{PipelineError, Plan};
 use crate::asset::{
     AssetReader, AssetWriter, Conventions, DESCRIPTION_FILE, FORMAT_MAJOR, STAGING_DIR,
@@ -342,6 +343,13 @@ pub fn plan_scene(
                 PyramidRepr::plan(p, &needs, &source)?.0,
             ));
         }
+        if let Some(p) = &spec.sphere {
+            out.push((
+                spec.name.clone(),
+                SphereRepr::NAME.into(),
+                SphereRepr::plan(p, &needs, &source)?.0,
+            ));
+        }
     }
     Ok(out)
 }
@@ -452,6 +460,19 @@ pub fn run_scene(manifest: &Manifest, options: &RunOptions) -> Result<RunSummary
                         ),
                     );
                 }
+                if let Some(p) = &spec.sphere {
+                    go(
+                        SphereRepr::NAME,
+                        run_one::<SphereRepr>(
+                            p,
+                            &needs,
+                            &source,
+                            &input_hash,
+                            options,
+                            profile.as_ref(),
+                        ),
+                    );
+                }
             }
         }
         v
@@ -488,6 +509,9 @@ fn wanted(spec: &AssetSpec) -> Vec<&'static str> {
     }
     if spec.pyramid.is_some() {
         v.push(PyramidRepr::NAME);
+    }
+    if spec.sphere.is_some() {
+        v.push(SphereRepr::NAME);
     }
     v
 }

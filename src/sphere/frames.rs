@@ -202,6 +202,8 @@ pub struct SphereImages {
     pub params: SphereParams,
     /// The frames, in the order of [`ViewSet::direction`].
     pub frames: Vec<Frame>,
+    /// Their stored codes (what the files hold), same order.
+    pub codes: Vec<FrameCodes>,
     /// Per frame, the half-angle of its cone (radians).
     pub cones: Vec<f64>,
     /// Per frame, its bounds for its cone.
@@ -221,16 +223,18 @@ impl SphereImages {
         let t0 = Instant::now();
         let (centre, radius) = OrthoFrame::bounding_sphere(shape);
         let f = params.size;
-        let frames = params
+        let captured = params
             .set
             .directions()
             .into_par_iter()
-            .map(|d| -> Result<Frame, SphereError> {
+            .map(|d| -> Result<(Frame, FrameCodes), SphereError> {
                 let frame = OrthoFrame::new(centre, radius, d)?;
                 let cap = capture_frame(shape, &frame, f, f)?;
-                Ok(quantise(&frame, f, &cap.samples, params.model))
+                let codes = FrameCodes::quantise(f, &cap.samples);
+                Ok((Frame::decode(&frame, &codes, params.model)?, codes))
             })
             .collect::<Result<Vec<_>, _>>()?;
+        let (frames, codes): (Vec<Frame>, Vec<FrameCodes>) = captured.into_iter().unzip();
         if frames.iter().all(|fr| fr.coverage() == 0.0) {
             return Err(SphereError::NothingVisible {
                 frames: frames.len(),
@@ -238,10 +242,7 @@ impl SphereImages {
         }
         let capture_time = t0.elapsed();
         let t1 = Instant::now();
-        let cones: Vec<f64> = (0..params.set.len())
-            .into_par_iter()
-            .map(|k| params.set.cone_angle(k))
-            .collect();
+        let cones = Self::cones(&params.set);
         let bounds = frames
             .iter()
             .zip(&cones)
@@ -250,55 +251,172 @@ impl SphereImages {
         Ok(Self {
             params: *params,
             frames,
+            codes,
             cones,
             bounds,
             capture_time,
             bounds_time: t1.elapsed(),
         })
     }
+
+    /// Rebuilds the representation from stored parts (what a loader reads): the parameters,
+    /// the bounding sphere `(centre, radius)` the frames were captured over, one [`FrameCodes`]
+    /// and one [`ConeBounds`] per frame in the order of [`ViewSet::direction`]. Decoding is the
+    /// same as after a capture, so a loaded set draws bit for bit as the one written. Errors:
+    /// invalid parameters, a frame count or size that does not match them, a radius that is not
+    /// positive, [`SphereError::NothingVisible`].
+    pub fn from_parts(
+        params: &SphereParams,
+        centre: DVec3,
+        radius: f64,
+        codes: Vec<FrameCodes>,
+        bounds: Vec<ConeBounds>,
+    ) -> Result<Self, SphereError> {
+        params.validate()?;
+        let n = params.set.len();
+        check(
+            codes.len() == n && bounds.len() == n,
+            "stored frames",
+            format!("{} frames and {} bounds", codes.len(), bounds.len()),
+            "there must be one frame and one bounds per direction of the grid",
+        )?;
+        let f = params.size;
+        for (c, b) in codes.iter().zip(&bounds) {
+            check(
+                c.size == f && b.size == f && b.zmin.len() == f * f && b.zmax.len() == f * f,
+                "stored frame size",
+                format!("{} (bounds {})", c.size, b.size),
+                "every frame and bounds must have the parameters' size",
+            )?;
+        }
+        let frames = params
+            .set
+            .directions()
+            .into_par_iter()
+            .zip(codes.par_iter())
+            .map(|(d, c)| -> Result<Frame, SphereError> {
+                let frame = OrthoFrame::new(centre, radius, d)?;
+                Frame::decode(&frame, c, params.model)
+            })
+            .collect::<Result<Vec<_>, _>>()?;
+        if frames.iter().all(|fr| fr.coverage() == 0.0) {
+            return Err(SphereError::NothingVisible { frames: n });
+        }
+        Ok(Self {
+            params: *params,
+            frames,
+            codes,
+            cones: Self::cones(&params.set),
+            bounds,
+            capture_time: Duration::ZERO,
+            bounds_time: Duration::ZERO,
+        })
+    }
+
+    /// Per frame, the half-angle of its cone (radians).
+    fn cones(set: &ViewSet) -> Vec<f64> {
+        (0..set.len())
+            .into_par_iter()
+            .map(|k| set.cone_angle(k))
+            .collect()
+    }
 }
 
-/// Quantises one capture to the stored codes and decodes it back (what a file would hold).
-fn quantise(
-    frame: &OrthoFrame,
-    f: usize,
-    samples: &[Option<altrep_data_gen::Sample>],
-    model: SurfaceModel,
-) -> Frame {
-    let n = f * f;
-    let mut fr = Frame {
-        frame: *frame,
-        size: f,
-        defined: vec![false; n],
-        depth: vec![0.0; n],
-        slope: vec![DVec2::ZERO; n],
-        albedo: vec![Vec3::ZERO; n],
-        normal: vec![Vec3::ZERO; n],
-    };
-    for (k, s) in samples.iter().enumerate() {
-        let Some(s) = s else { continue };
-        fr.defined[k] = true;
-        fr.depth[k] = depth_value(depth_code(f64::from(s.depth)));
-        let srgb = |c: f32| (linear_to_srgb(c.clamp(0.0, 1.0)) * 255.0).round() / 255.0;
-        fr.albedo[k] = Vec3::new(
-            srgb_to_linear(srgb(s.albedo.x)),
-            srgb_to_linear(srgb(s.albedo.y)),
-            srgb_to_linear(srgb(s.albedo.z)),
-        );
-        let dec = |c: f32| f32::from(normal_code(c)) / 255.0 * 2.0 - 1.0;
-        let nrm = Vec3::new(dec(s.normal.x), dec(s.normal.y), dec(s.normal.z)).normalize_or_zero();
-        fr.normal[k] = nrm;
-        if let SurfaceModel::Tangent { max_slope } = model {
-            let nd = nrm.as_dvec3();
-            let nf = DVec3::new(nd.dot(frame.right), nd.dot(frame.up), nd.dot(frame.dir));
-            let nz = nf.z.max(1e-6);
-            fr.slope[k] = DVec2::new(
-                (-nf.x / nz).clamp(-max_slope, max_slope),
-                (-nf.y / nz).clamp(-max_slope, max_slope),
-            );
+/// The stored codes of one frame: what the files hold (row-major, row 0 at the top).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct FrameCodes {
+    /// Texels per side `F`.
+    pub size: usize,
+    /// sRGB8 albedo (zero where undefined).
+    pub albedo: Vec<[u8; 3]>,
+    /// Object-frame normal, `code = round((n + 1)/2 · 255)` per component (zero where
+    /// undefined).
+    pub normal: Vec<[u8; 3]>,
+    /// Depth `Z` (frame units), `code = 1 + round((Z + 1)/2 · 65534)`; 0 = undefined.
+    pub depth: Vec<u16>,
+}
+
+impl FrameCodes {
+    /// Quantises one capture (`F × F` samples, row-major) to its codes.
+    pub fn quantise(f: usize, samples: &[Option<altrep_data_gen::Sample>]) -> Self {
+        let n = f * f;
+        let mut c = Self {
+            size: f,
+            albedo: vec![[0; 3]; n],
+            normal: vec![[0; 3]; n],
+            depth: vec![0; n],
+        };
+        for (k, s) in samples.iter().enumerate().take(n) {
+            let Some(s) = s else { continue };
+            c.depth[k] = depth_code(f64::from(s.depth));
+            let srgb = |v: f32| (linear_to_srgb(v.clamp(0.0, 1.0)) * 255.0).round() as u8;
+            c.albedo[k] = [srgb(s.albedo.x), srgb(s.albedo.y), srgb(s.albedo.z)];
+            c.normal[k] = [
+                normal_code(s.normal.x),
+                normal_code(s.normal.y),
+                normal_code(s.normal.z),
+            ];
         }
+        c
     }
-    fr
+}
+
+impl Frame {
+    /// Decodes stored codes into the frame's surface (module docs of [`crate::sphere`]): depth,
+    /// linear albedo, renormalised normal and, for tangent planes, the clamped slope from the
+    /// normal. Errors: `codes` of another size than `codes.size²` texels.
+    pub fn decode(
+        frame: &OrthoFrame,
+        codes: &FrameCodes,
+        model: SurfaceModel,
+    ) -> Result<Self, SphereError> {
+        let f = codes.size;
+        let n = f * f;
+        check(
+            f >= 1 && codes.albedo.len() == n && codes.normal.len() == n && codes.depth.len() == n,
+            "frame codes",
+            format!(
+                "{} / {} / {} texels for size {f}",
+                codes.albedo.len(),
+                codes.normal.len(),
+                codes.depth.len()
+            ),
+            "albedo, normal and depth must each hold size² texels",
+        )?;
+        let mut fr = Frame {
+            frame: *frame,
+            size: f,
+            defined: vec![false; n],
+            depth: vec![0.0; n],
+            slope: vec![DVec2::ZERO; n],
+            albedo: vec![Vec3::ZERO; n],
+            normal: vec![Vec3::ZERO; n],
+        };
+        let lin = |c: u8| srgb_to_linear(f32::from(c) / 255.0);
+        let dec = |c: u8| f32::from(c) / 255.0 * 2.0 - 1.0;
+        for k in 0..n {
+            if codes.depth[k] == 0 {
+                continue;
+            }
+            fr.defined[k] = true;
+            fr.depth[k] = depth_value(codes.depth[k]);
+            let a = codes.albedo[k];
+            fr.albedo[k] = Vec3::new(lin(a[0]), lin(a[1]), lin(a[2]));
+            let c = codes.normal[k];
+            let nrm = Vec3::new(dec(c[0]), dec(c[1]), dec(c[2])).normalize_or_zero();
+            fr.normal[k] = nrm;
+            if let SurfaceModel::Tangent { max_slope } = model {
+                let nd = nrm.as_dvec3();
+                let nf = DVec3::new(nd.dot(frame.right), nd.dot(frame.up), nd.dot(frame.dir));
+                let nz = nf.z.max(1e-6);
+                fr.slope[k] = DVec2::new(
+                    (-nf.x / nz).clamp(-max_slope, max_slope),
+                    (-nf.y / nz).clamp(-max_slope, max_slope),
+                );
+            }
+        }
+        Ok(fr)
+    }
 }
 
 #[cfg(test)]

@@ -104,7 +104,7 @@ mod warp;
 
 pub use baseline::render_engine_baseline;
 pub use bounds::{BoundsCheck, ConeBounds, check_bounds};
-pub use frames::{Frame, SphereImages, SphereParams, SurfaceModel};
+pub use frames::{Frame, FrameCodes, SphereImages, SphereParams, SurfaceModel};
 pub use measure::{
     BudgetRow, MeasureParams, MethodStats, SphereMeasurement, budget_table, fibonacci_directions,
     measure, truth_images,

@@ -1,0 +1,460 @@
+//! Images with parallax from any direction ([`crate::sphere`]) in the pipeline: planning from
+//! the needed elevations and screen sizes, files, loading, measuring.
+//!
+//! The `G × G` frames of `F × F` texels are stored as atlases of `G·F × G·F` texels, frame
+//! `k = j·G + i` (direction [`crate::sphere::ViewSet::direction`]) in tile column `i`, tile row
+//! `j`, each tile row-major with row 0 at the top:
+//! `albedo.png` (RGB8 sRGB albedo), `normal.png` (RGB8, object-frame normal `(n + 1)/2`),
+//! `depth.png` (L16: 0 = undefined, else `Z = (code − 1)/65534 · 2 − 1` in the frame's depth
+//! units, the bounding sphere's radius, toward the camera) and `bounds.png` (LA8: `zmin`, `zmax`
+//! codes of the cone bounds, `Z = code/255 · 2 − 1`; `zmin > zmax` where no event is possible).
+//! `asset.json`'s metadata holds the grid, its coverage, the frame size, the surface model and
+//! the bounding sphere (`centre`, `radius`, world units) every frame was captured over.
+
+use altrep_data_gen::RgbaImage;
+use glam::DVec3;
+use serde::{Deserialize, Serialize};
+use serde_json::json;
+
+use super::manifest::Needs;
+use super::repr::{Measurement, Picture, Representation, Source};
+use super::{PipelineError, Plan};
+use crate::asset::{AssetReader, AssetWriter, Channel, CodeImage, Encoding};
+use crate::sphere::{
+    ConeBounds, Coverage, FrameCodes, MeasureParams, RenderParams, SphereError, SphereImages,
+    SphereParams, SurfaceModel, ViewSet, fibonacci_directions, measure, render,
+    render_engine_baseline, truth_images,
+};
+
+/// Manifest parameters of images with parallax from any direction (`[asset.sphere]`).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct SphereSpec {
+    /// Frames per side `G` of the octahedral grid (2–32, default 8).
+    pub grid: usize,
+    /// Texels per frame side `F` (4–1024, default 64); the planner lowers it to the largest
+    /// screen size.
+    pub size: usize,
+    /// Largest tangent-plane slope kept (default 4); 0 stores flat texel tops.
+    pub max_slope: f64,
+}
+
+impl Default for SphereSpec {
+    fn default() -> Self {
+        Self {
+            grid: 8,
+            size: 64,
+            max_slope: 4.0,
+        }
+    }
+}
+
+impl SphereSpec {
+    /// Checks ranges; the message names the key.
+    pub fn validate(&self) -> Result<(), String> {
+        if !(2..=32).contains(&self.grid) {
+            return Err(format!("sphere.grid = {} must be in 2..=32", self.grid));
+        }
+        if !(4..=1024).contains(&self.size) {
+            return Err(format!("sphere.size = {} must be in 4..=1024", self.size));
+        }
+        if !(self.max_slope.is_finite() && self.max_slope >= 0.0) {
+            return Err(format!(
+                "sphere.max_slope = {} must be finite and ≥ 0 (0: flat texel tops)",
+                self.max_slope
+            ));
+        }
+        Ok(())
+    }
+
+    fn model(&self) -> SurfaceModel {
+        if self.max_slope > 0.0 {
+            SurfaceModel::Tangent {
+                max_slope: self.max_slope,
+            }
+        } else {
+            SurfaceModel::Flat
+        }
+    }
+}
+
+/// What the planner decided.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct SphereDecisions {
+    /// Upper hemisphere or whole sphere.
+    pub coverage: Coverage,
+    /// Frames per side.
+    pub grid: usize,
+    /// Texels per frame side actually captured.
+    pub size: usize,
+}
+
+/// Images with parallax from any direction, for the pipeline.
+pub struct SphereRepr;
+
+/// The unit direction toward the camera at azimuth `a` and elevation `e` (radians):
+/// `(cos e cos a, sin e, cos e sin a)`, the manifest's convention.
+fn direction(a: f64, e: f64) -> DVec3 {
+    DVec3::new(e.cos() * a.cos(), e.sin(), e.cos() * a.sin())
+}
+
+/// Whether `d` lies in the needed azimuth and elevation ranges.
+fn needed(needs: &Needs, d: DVec3) -> bool {
+    let e = d.y.clamp(-1.0, 1.0).asin().to_degrees();
+    let [e0, e1] = needs.elevation_deg;
+    if e < e0 - 1e-9 || e > e1 + 1e-9 {
+        return false;
+    }
+    if needs.all_azimuths() || d.x.hypot(d.z) < 1e-12 {
+        return true;
+    }
+    let a = d.z.atan2(d.x).to_degrees();
+    let [a0, a1] = needs.azimuth_deg;
+    let rel = (a - a0).rem_euclid(360.0);
+    rel <= a1 - a0 + 1e-9
+}
+
+/// `count` test directions in the needed ranges: a Fibonacci spiral over the set's coverage
+/// filtered to the ranges, or, where the ranges are too narrow for it, a grid over them.
+fn measure_directions(needs: &Needs, coverage: Coverage, count: usize) -> Vec<DVec3> {
+    let mut n = count;
+    while n <= 64 * count {
+        let v: Vec<DVec3> = fibonacci_directions(n, coverage)
+            .into_iter()
+            .filter(|&d| needed(needs, d))
+            .collect();
+        if v.len() >= count {
+            return v.into_iter().take(count).collect();
+        }
+        n *= 2;
+    }
+    let [a0, a1] = needs.azimuth_deg;
+    let [e0, e1] = needs.elevation_deg;
+    (0..count)
+        .map(|k| {
+            let u = (k as f64 + 0.37) / count as f64;
+            let v = ((k * 7) % count) as f64 / count as f64;
+            let e = (e0 + (e1 - e0) * v).clamp(-89.5, 89.5);
+            direction((a0 + (a1 - a0).min(360.0) * u).to_radians(), e.to_radians())
+        })
+        .collect()
+}
+
+fn sphere_err(e: SphereError) -> PipelineError {
+    PipelineError::Spec(e.to_string())
+}
+
+impl Representation for SphereRepr {
+    const NAME: &'static str = "sphere";
+    type Spec = SphereSpec;
+    type Data = SphereImages;
+    type Decisions = SphereDecisions;
+
+    fn relevant_needs(needs: &Needs) -> serde_json::Value {
+        json!({ "elevation_deg": needs.elevation_deg, "screen_px_max": needs.screen_px[1] })
+    }
+
+    fn plan(
+        spec: &SphereSpec,
+        needs: &Needs,
+        _source: &Source,
+    ) -> Result<(Plan, SphereDecisions), PipelineError> {
+        let mut plan = Plan::default();
+        let coverage = if needs.elevation_deg[0] >= 0.0 {
+            plan.skip(
+                "frames below the horizon".into(),
+                format!(
+                    "the lowest needed elevation is {}° (≥ 0): the upper hemisphere suffices",
+                    needs.elevation_deg[0]
+                ),
+            );
+            Coverage::Hemisphere
+        } else {
+            Coverage::Sphere
+        };
+        let closest = (needs.screen_px[1].ceil() as usize).max(4);
+        let size = if closest < spec.size {
+            plan.skip(
+                format!("frame texels beyond {closest}²"),
+                format!(
+                    "finer than the closest footprint: the largest screen size is {} px",
+                    needs.screen_px[1]
+                ),
+            );
+            closest
+        } else {
+            spec.size
+        };
+        plan.build(format!(
+            "{g}×{g} {} frames of {size}² (albedo, normal, depth, cone bounds)",
+            match coverage {
+                Coverage::Hemisphere => "hemi-octahedral",
+                Coverage::Sphere => "octahedral",
+            },
+            g = spec.grid
+        ));
+        Ok((
+            plan,
+            SphereDecisions {
+                coverage,
+                grid: spec.grid,
+                size,
+            },
+        ))
+    }
+
+    fn build(
+        spec: &SphereSpec,
+        _needs: &Needs,
+        decisions: &SphereDecisions,
+        source: &Source,
+    ) -> Result<(SphereImages, serde_json::Value), PipelineError> {
+        let params = SphereParams {
+            set: ViewSet::new(decisions.coverage, decisions.grid).map_err(sphere_err)?,
+            size: decisions.size,
+            model: spec.model(),
+        };
+        let images = match SphereImages::capture(source.shape()?, &params) {
+            Err(SphereError::NothingVisible { frames }) => {
+                return Err(PipelineError::Invisible {
+                    asset: source.name.into(),
+                    what: format!("any of the {frames} frames"),
+                });
+            }
+            r => r.map_err(sphere_err)?,
+        };
+        let report = json!({
+            "capture_s": images.capture_time.as_secs_f64(),
+            "bounds_s": images.bounds_time.as_secs_f64(),
+            "frames": params.set.len(),
+            "bytes": params.total_bytes(),
+        });
+        Ok((images, report))
+    }
+
+    fn write(data: &SphereImages, w: &mut AssetWriter) -> Result<serde_json::Value, PipelineError> {
+        let p = &data.params;
+        let (g, f) = (p.set.grid, p.size);
+        let side = g * f;
+        let mut albedo = CodeImage::<u8>::new(side, side, 3);
+        let mut normal = CodeImage::<u8>::new(side, side, 3);
+        let mut depth = CodeImage::<u16>::new(side, side, 1);
+        let mut bounds = CodeImage::<u8>::new(side, side, 2);
+        for (k, (c, b)) in data.codes.iter().zip(&data.bounds).enumerate() {
+            let (ti, tj) = (k % g, k / g);
+            for y in 0..f {
+                for x in 0..f {
+                    let src = y * f + x;
+                    let dst = (tj * f + y) * side + ti * f + x;
+                    albedo.pixel_mut(dst).copy_from_slice(&c.albedo[src]);
+                    normal.pixel_mut(dst).copy_from_slice(&c.normal[src]);
+                    depth.pixel_mut(dst)[0] = c.depth[src];
+                    bounds
+                        .pixel_mut(dst)
+                        .copy_from_slice(&[b.zmin[src], b.zmax[src]]);
+                }
+            }
+        }
+        let ch = |name: &str, encoding: Encoding| Channel {
+            name: name.into(),
+            encoding,
+        };
+        let unorm = |bits: u32| Encoding::Linear {
+            scale: 2.0 / ((1u64 << bits) - 1) as f64,
+            offset: -1.0,
+        };
+        w.png8(
+            "albedo",
+            "albedo.png",
+            &albedo,
+            vec![
+                ch("albedo.r", Encoding::Srgb),
+                ch("albedo.g", Encoding::Srgb),
+                ch("albedo.b", Encoding::Srgb),
+            ],
+        )?;
+        w.png8(
+            "normal",
+            "normal.png",
+            &normal,
+            vec![
+                ch("normal.x", unorm(8)),
+                ch("normal.y", unorm(8)),
+                ch("normal.z", unorm(8)),
+            ],
+        )?;
+        w.png16(
+            "depth",
+            "depth.png",
+            &depth,
+            vec![ch(
+                "depth (0 = undefined)",
+                Encoding::Linear {
+                    scale: 2.0 / 65534.0,
+                    offset: -1.0 - 2.0 / 65534.0,
+                },
+            )],
+        )?;
+        w.png8(
+            "bounds",
+            "bounds.png",
+            &bounds,
+            vec![ch("zmin", unorm(8)), ch("zmax", unorm(8))],
+        )?;
+        let centre = data.frames[0].frame.centre;
+        Ok(json!({
+            "grid": g,
+            "coverage": p.set.coverage,
+            "size": f,
+            "model": p.model,
+            "centre": [centre.x, centre.y, centre.z],
+            "radius": data.frames[0].frame.radius,
+            "cone_half_angles_rad": data.cones,
+            "atlas": "frame k = j·grid + i in tile column i, tile row j",
+        }))
+    }
+
+    fn read(r: &AssetReader) -> Result<SphereImages, PipelineError> {
+        r.expect_representation(Self::NAME)?;
+        let m = &r.description().metadata;
+        let field = |name: &str| {
+            m.get(name)
+                .cloned()
+                .ok_or_else(|| r.content(format!("metadata.{name} missing")))
+        };
+        let bad = |name: &str, e: serde_json::Error| r.content(format!("metadata.{name}: {e}"));
+        let grid: usize = serde_json::from_value(field("grid")?).map_err(|e| bad("grid", e))?;
+        let coverage: Coverage =
+            serde_json::from_value(field("coverage")?).map_err(|e| bad("coverage", e))?;
+        let size: usize = serde_json::from_value(field("size")?).map_err(|e| bad("size", e))?;
+        let model: SurfaceModel =
+            serde_json::from_value(field("model")?).map_err(|e| bad("model", e))?;
+        let centre: [f64; 3] =
+            serde_json::from_value(field("centre")?).map_err(|e| bad("centre", e))?;
+        let radius: f64 = serde_json::from_value(field("radius")?).map_err(|e| bad("radius", e))?;
+        let params = SphereParams {
+            set: ViewSet::new(coverage, grid).map_err(sphere_err)?,
+            size,
+            model,
+        };
+        params.validate().map_err(sphere_err)?;
+        let side = grid * size;
+        let albedo = r.png8("albedo")?;
+        let normal = r.png8("normal")?;
+        let depth = r.png16("depth")?;
+        let bounds = r.png8("bounds")?;
+        for (what, (w, h, c), want) in [
+            ("albedo", (albedo.width, albedo.height, albedo.channels), 3),
+            ("normal", (normal.width, normal.height, normal.channels), 3),
+            ("depth", (depth.width, depth.height, depth.channels), 1),
+            ("bounds", (bounds.width, bounds.height, bounds.channels), 2),
+        ] {
+            if (w, h, c) != (side, side, want) {
+                return Err(r
+                    .content(format!(
+                        "{what} atlas is {w}×{h}×{c}, expected {side}×{side}×{want}"
+                    ))
+                    .into());
+            }
+        }
+        let n = params.set.len();
+        let mut codes = Vec::with_capacity(n);
+        let mut cone = Vec::with_capacity(n);
+        for k in 0..n {
+            let (ti, tj) = (k % grid, k / grid);
+            let mut c = FrameCodes {
+                size,
+                albedo: vec![[0; 3]; size * size],
+                normal: vec![[0; 3]; size * size],
+                depth: vec![0; size * size],
+            };
+            let mut b = ConeBounds {
+                size,
+                zmin: vec![0; size * size],
+                zmax: vec![0; size * size],
+            };
+            for y in 0..size {
+                for x in 0..size {
+                    let dst = y * size + x;
+                    let src = (tj * size + y) * side + ti * size + x;
+                    let a = albedo.pixel(src);
+                    c.albedo[dst] = [a[0], a[1], a[2]];
+                    let nn = normal.pixel(src);
+                    c.normal[dst] = [nn[0], nn[1], nn[2]];
+                    c.depth[dst] = depth.pixel(src)[0];
+                    let bb = bounds.pixel(src);
+                    b.zmin[dst] = bb[0];
+                    b.zmax[dst] = bb[1];
+                }
+            }
+            codes.push(c);
+            cone.push(b);
+        }
+        SphereImages::from_parts(&params, DVec3::from_array(centre), radius, codes, cone)
+            .map_err(|e| r.content(format!("stored frames: {e}")).into())
+    }
+
+    fn measure(
+        data: &SphereImages,
+        needs: &Needs,
+        source: &Source,
+    ) -> Result<(Measurement, Vec<Picture>), PipelineError> {
+        let shape = source.shape()?;
+        let dirs = measure_directions(needs, data.params.set.coverage, 8);
+        let size = data.params.size.clamp(32, 256);
+        let params = MeasureParams {
+            directions: dirs.len(),
+            render: RenderParams {
+                size,
+                samples: 1,
+                light: source.light,
+                ..RenderParams::default()
+            },
+            truth_supersample: 3,
+        };
+        let truths = truth_images(shape, &dirs, size, 3, &source.light).map_err(sphere_err)?;
+        if let Some(k) = truths
+            .iter()
+            .position(|t| t.pixels.iter().all(|p| p[3] <= 0.0))
+        {
+            return Err(PipelineError::Invisible {
+                asset: source.name.into(),
+                what: format!("the ground truth along {:?}", dirs[k]),
+            });
+        }
+        let m = measure(data, &dirs, &truths, &params).map_err(sphere_err)?;
+        let ours = render(data, dirs[0], &params.render).map_err(sphere_err)?;
+        let base = render_engine_baseline(data, dirs[0], &params.render).map_err(sphere_err)?;
+        let e = dirs[0].y.clamp(-1.0, 1.0).asin().to_degrees();
+        let pictures = vec![Picture {
+            file: format!("{}-sphere.png", source.name),
+            caption: format!(
+                "{}: ground truth | exact warp ({:.1} dB) | engine impostor blend ({:.1} dB), elevation {e:.0}°",
+                source.name,
+                crate::metrics::psnr(&ours.image, &truths[0])
+                    .map_err(|e| PipelineError::Spec(e.to_string()))?,
+                crate::metrics::psnr(&base.image, &truths[0])
+                    .map_err(|e| PipelineError::Spec(e.to_string()))?,
+            ),
+            image: RgbaImage::side_by_side(&[&truths[0], &ours.image, &base.image]),
+        }];
+        let method = format!(
+            "exact warp of {g}×{g} frames of {f}² at {n} directions in the needed ranges, {size}² with 1 ray per pixel, vs truth 3×3; engine impostor blend of the same frames {b:.2} dB (IoU {bi:.3})",
+            g = data.params.set.grid,
+            f = data.params.size,
+            n = dirs.len(),
+            b = m.baseline.psnr_mean,
+            bi = m.baseline.iou_mean,
+        );
+        Ok((
+            Measurement {
+                method,
+                psnr_db: m.ours.psnr_mean,
+                worst_psnr_db: m.ours.psnr_min,
+                iou: m.ours.iou_mean,
+                mean_steps: Some(m.ours.steps_mean),
+            },
+            pictures,
+        ))
+    }
+}

@@ -226,6 +226,8 @@ pub struct ParallaxImages {
     pub capture_time: Duration,
     /// See [`Self::march_radius`].
     march_radius: f64,
+    /// See [`Self::row_radius`].
+    row_radius: Vec<f64>,
     /// See [`Self::pyramids`].
     pyramids: Vec<Pyramid>,
     /// See [`Self::brim`].
@@ -569,10 +571,12 @@ impl ParallaxImages {
             views,
             capture_time: Duration::ZERO,
             march_radius: r,
+            row_radius: Vec::new(),
             pyramids,
             brim,
         };
         images.march_radius = images.compute_march_radius();
+        images.row_radius = images.compute_row_radii();
         Ok(images)
     }
 
@@ -679,6 +683,7 @@ impl ParallaxImages {
         }
         out.brim = brim;
         out.march_radius = out.compute_march_radius();
+        out.row_radius = out.compute_row_radii();
         Ok(out)
     }
 
@@ -725,6 +730,42 @@ impl ParallaxImages {
             }
         }
         r2.sqrt() * (1.0 + 1e-12)
+    }
+
+    /// Radius of the stored geometry on view row `j`: the largest distance to the axis of any
+    /// piece end point on row `j` of any view (pieces are segments, so they lie in that disc),
+    /// `0` where no view defines a texel on the row, `∞` for a row outside the views. A ray of
+    /// that row whose offset `|x|` exceeds it meets no piece and no wall of any view: marches
+    /// and wall scans there can be skipped without changing the picture. Cost: none (computed
+    /// with the views).
+    pub fn row_radius(&self, j: usize) -> f64 {
+        self.row_radius.get(j).copied().unwrap_or(f64::INFINITY)
+    }
+
+    fn compute_row_radii(&self) -> Vec<f64> {
+        let grid = self.pixel_grid();
+        let (w, h) = (self.params.width, self.params.height);
+        (0..h)
+            .map(|j| {
+                let mut r2 = 0.0f64;
+                for v in &self.views {
+                    for (i, g) in v.geom[j * w..(j + 1) * w].iter().enumerate() {
+                        if !g.defined {
+                            continue;
+                        }
+                        let (xl, xc, xr) = (
+                            grid.x_at(i as f64),
+                            grid.x_at(i as f64 + 0.5),
+                            grid.x_at(i as f64 + 1.0),
+                        );
+                        for (x, z) in [(xl, g.zl), (xc, g.z), (xr, g.zr)] {
+                            r2 = r2.max(x * x + z * z);
+                        }
+                    }
+                }
+                r2.sqrt() * (1.0 + 1e-12)
+            })
+            .collect()
     }
 
     /// The texel grid of every view (pitch, centres).

@@ -575,12 +575,15 @@ pub(crate) fn first_wall(
     x1: f64,
     x2: f64,
     accept: impl Fn(&Crossing) -> bool,
-) -> Option<Crossing> {
+) -> (Option<Crossing>, u32) {
     if si == 0.0 {
-        return None;
+        return (None, 0);
     }
     let w = grid.width;
+    let steps = std::cell::Cell::new(0u32);
     let test = |i: usize| -> Option<Crossing> {
+        // One step per cell tested (its two texels), one more per fetch of the other view.
+        steps.set(steps.get() + 1);
         let (a, b) = (&row[i], &row[i + 1]);
         if !(a.defined && b.defined) || a.link_r {
             return None;
@@ -600,17 +603,22 @@ pub(crate) fn first_wall(
             x_t: xb,
             z_e: z * co - xb * si,
         };
-        (lo <= z && z < hi && accept(&c)).then_some(c)
+        (lo <= z && z < hi && {
+            steps.set(steps.get() + 1);
+            accept(&c)
+        })
+        .then_some(c)
     };
     let (c1, c2) = (cell(grid, x1), cell(grid, x2));
     let last = w as i64 - 2;
-    if si > 0.0 {
+    let found = if si > 0.0 {
         (c1.max(0)..=c2.min(last)).find_map(|c| test(c as usize))
     } else {
         (c2.max(0)..=c1.min(last))
             .rev()
             .find_map(|c| test(c as usize))
-    }
+    };
+    (found, steps.get())
 }
 
 /// Whether a crossing lies on an unjoined half piece (a brim: silhouette or depth jump).
@@ -836,7 +844,12 @@ pub fn render_with(
                         warp_row_into(images, k, j, theta, method, &xs, &mut far[slot]);
                     }
                 }
-                let wall = |s: usize| hole_fill(images, &pair, j, xs[s], &screen.light);
+                let wall = |s: usize| {
+                    // Beyond the row's stored geometry every wall scan misses.
+                    (xs[s].abs() <= images.row_radius(j))
+                        .then(|| hole_fill(images, &pair, j, xs[s], &screen.light).0)
+                        .flatten()
+                };
                 let pick = |views: &[(usize, f64, f64); 2], c: [&Option<Crossing>; 2]| {
                     combine(images, views, j, c, rec, &screen.light, tol)
                 };
@@ -941,17 +954,20 @@ fn hidden_in(images: &ParallaxImages, k: usize, theta: f64, j: usize, x: f64, z_
 
 /// [`Reconstruction::fill_holes`] for the ray `x` on row `j`: in each view of `pair`, marched
 /// from the cylinder, the first front-facing wall whose crossing the other view also hides; the
-/// nearer of the two, shaded opaque with the texel on the far side of the wall.
+/// nearer of the two, shaded opaque with the texel on the far side of the wall. Also returns
+/// the steps of both scans (cells tested plus fetches of the other view).
 pub(crate) fn hole_fill(
     images: &ParallaxImages,
     pair: &[(usize, f64, f64); 2],
     j: usize,
     x: f64,
     light: &Light,
-) -> Option<Vec4> {
+) -> (Option<Vec4>, u64) {
     let grid = images.pixel_grid();
-    let r = images.march_radius();
+    // Every wall of row `j` lies in the disc of the row's radius.
+    let r = images.march_radius().min(images.row_radius(j));
     let mut best: Option<(usize, Crossing)> = None;
+    let mut steps = 0u64;
     for (slot, &(k, theta, _)) in pair.iter().enumerate() {
         let (co, si) = (theta.cos(), theta.sin());
         let v = &images.views[k];
@@ -959,16 +975,19 @@ pub(crate) fn hole_fill(
         let (x1, x2) = cylinder_range(x, co, si, r);
         let (ko, to) = (pair[1 - slot].0, pair[1 - slot].1);
         let accept = |c: &Crossing| hidden_in(images, ko, to, j, x, c.z_e);
-        if let Some(c) = first_wall(&grid, row, x, co, si, x1, x2, accept)
+        let (found, n) = first_wall(&grid, row, x, co, si, x1, x2, accept);
+        steps += u64::from(n);
+        if let Some(c) = found
             && best.is_none_or(|(_, b)| c.z_e > b.z_e)
         {
             best = Some((k, c));
         }
     }
-    best.map(|(k, c)| {
+    let col = best.map(|(k, c)| {
         let col = shade_crossing(&images.views[k], j, &c, light);
         Vec4::new(col.x, col.y, col.z, 1.0)
-    })
+    });
+    (col, steps)
 }
 
 /// [`render_bounded_with`] under the default reconstruction: the image and the march steps of
@@ -996,6 +1015,10 @@ pub struct BoundedRender {
     /// March steps of the fallback views (two marches from the cylinder per pixel missed by
     /// both bracketing views; 0 without [`Reconstruction::fallback`]).
     pub fallback_steps: u64,
+    /// Steps of the hole-filling wall scans (two scans from the cylinder per pixel every view
+    /// missed, each counting the cells it tests and its fetches of the other view; 0 without
+    /// [`Reconstruction::fill_holes`]).
+    pub hole_steps: u64,
 }
 
 /// Renders at the views' own resolution (one ray per pixel centre, where stored bounds are valid)
@@ -1021,12 +1044,12 @@ pub fn render_bounded_with(
     let tol = p.continuity_texels * grid.pitch_x();
     let r = images.march_radius();
     let mut image = RgbaImage::new(w, h);
-    let (steps, fallback_steps) = image
+    let (steps, fallback_steps, hole_steps) = image
         .pixels
         .par_chunks_mut(w)
         .enumerate()
         .map(|(j, px)| {
-            let (mut steps, mut fsteps) = (0u64, 0u64);
+            let (mut steps, mut fsteps, mut hsteps) = (0u64, 0u64, 0u64);
             for (i, pixel) in px.iter_mut().enumerate() {
                 let x = grid.x_at(i as f64 + 0.5);
                 let mut hits = [None, None];
@@ -1041,32 +1064,90 @@ pub fn render_bounded_with(
                     }
                 }
                 let mut col = combine(images, &pair, j, [&hits[0], &hits[1]], rec, light, tol);
-                if col.is_none() && rec.fallback {
+                // Beyond the row's stored geometry every march and wall scan misses.
+                let reachable = x.abs() <= images.row_radius(j);
+                if col.is_none() && rec.fallback && reachable {
                     let mut far = [None, None];
                     for (slot, &(k, theta, _)) in outer.iter().enumerate() {
                         let (co, si) = (theta.cos(), theta.sin());
                         let view = &images.views[k];
                         let row = &view.geom[j * w..(j + 1) * w];
-                        let (x1, x2) = cylinder_range(x, co, si, r);
+                        // The row's stored geometry lies in the disc of its row radius.
+                        let (x1, x2) = cylinder_range(x, co, si, images.row_radius(j).min(r));
                         let m = march_row(&grid, row, x, co, si, x1, x2);
                         fsteps += u64::from(m.steps);
                         far[slot] = m.hit;
                     }
                     col = combine(images, &outer, j, [&far[0], &far[1]], rec, light, tol);
                 }
-                if col.is_none() && rec.fill_holes {
-                    col = hole_fill(images, &pair, j, x, light);
+                if col.is_none() && rec.fill_holes && reachable {
+                    let (c, n) = hole_fill(images, &pair, j, x, light);
+                    col = c;
+                    hsteps += n;
                 }
                 if let Some(c) = col {
                     *pixel = c.to_array();
                 }
             }
-            (steps, fsteps)
+            (steps, fsteps, hsteps)
         })
-        .reduce(|| (0, 0), |a, b| (a.0 + b.0, a.1 + b.1));
+        .reduce(|| (0, 0, 0), |a, b| (a.0 + b.0, a.1 + b.1, a.2 + b.2));
     Ok(BoundedRender {
         image,
         steps,
         fallback_steps,
+        hole_steps,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::parallax::ParallaxParams;
+    use altrep_data_gen::scene_shape;
+
+    /// The skip of [`render_bounded_with`] and [`render_with`] is exact: beyond a row's stored
+    /// geometry ([`ParallaxImages::row_radius`]) no view's march over the whole cylinder chord
+    /// hits and no wall scan finds a wall, at every pixel and for display angles all around.
+    #[test]
+    fn beyond_the_row_radius_every_march_and_wall_scan_misses() {
+        for name in ["tree", "truck", "chair"] {
+            let shape = scene_shape(name).unwrap();
+            let params = ParallaxParams {
+                views: 8,
+                width: 48,
+                height: 48,
+                ..ParallaxParams::default()
+            };
+            let images = ParallaxImages::capture(&shape, &params).unwrap();
+            let grid = images.pixel_grid();
+            let r = images.march_radius();
+            let (w, h) = (params.width, params.height);
+            let mut skipped = 0usize;
+            for a in 0..24 {
+                let alpha = (a as f64 + 0.29) * std::f64::consts::TAU / 24.0;
+                let pair = images.bracketing(alpha).unwrap();
+                for j in 0..h {
+                    for i in 0..w {
+                        let x = grid.x_at(i as f64 + 0.5);
+                        if x.abs() <= images.row_radius(j) {
+                            continue;
+                        }
+                        skipped += 1;
+                        for k in 0..params.views {
+                            let theta = alpha - k as f64 * std::f64::consts::TAU / 8.0;
+                            let (co, si) = (theta.cos(), theta.sin());
+                            let row = &images.views[k].geom[j * w..(j + 1) * w];
+                            let (x1, x2) = cylinder_range(x, co, si, r);
+                            let m = march_row(&grid, row, x, co, si, x1, x2);
+                            assert!(m.hit.is_none(), "{name} α {alpha} view {k} ({i}, {j})");
+                        }
+                        let (col, _) = hole_fill(&images, &pair, j, x, &Light::default());
+                        assert!(col.is_none(), "{name} α {alpha} ({i}, {j}): a wall");
+                    }
+                }
+            }
+            assert!(skipped > 0, "{name}: no pixel beyond the row radius");
+        }
+    }
 }

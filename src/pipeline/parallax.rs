@@ -26,8 +26,8 @@ use super::repr::{Measurement, Picture, Representation, Source, fold, score, sec
 use super::{PipelineError, Plan};
 use crate::asset::{AssetReader, AssetWriter, Channel, CodeImage, Encoding};
 use crate::parallax::{
-    BoundKind, BoundParams, Bounds, ParallaxImages, ParallaxParams, PixelBound, RenderParams,
-    ViewCodes, ViewStorage, WarpMethod, build_bounds, render, render_bounded,
+    BoundKind, BoundParams, Bounds, ParallaxImages, ParallaxParams, PixelBound, Reconstruction,
+    RenderParams, ViewCodes, ViewStorage, WarpMethod, build_bounds, render, render_bounded_with,
 };
 
 /// Manifest parameters of images with parallax (`[asset.parallax]`).
@@ -582,6 +582,7 @@ impl Representation for Parallax {
         let mut scores = Vec::new();
         let mut pictures = Vec::new();
         let mut steps = 0u64;
+        let mut miss_steps = 0u64;
         let mut fragments = 0u64;
         // Steps are counted with the tightest stored bound (the kinds are ordered (a)–(e)).
         let bounded = data
@@ -600,8 +601,10 @@ impl Representation for Parallax {
             let img = render(images, angle, WarpMethod::Inverse, &screen)?;
             scores.push(score(&img, &reference)?);
             if let Some(b) = bounded {
-                let (_, s) = render_bounded(images, b, angle, &source.light)?;
-                steps += s;
+                let r =
+                    render_bounded_with(images, b, angle, &source.light, &Reconstruction::DEFAULT)?;
+                steps += r.steps;
+                miss_steps += r.fallback_steps + r.hole_steps;
                 fragments += 2 * (size * images.params.height) as u64;
             }
             if i == 0 {
@@ -617,9 +620,17 @@ impl Representation for Parallax {
             }
         }
         let method = format!(
-            "inverse warp of {} views of {size}², 1 ray per pixel, vs truth 3×3 supersampled; steps per warped view with {}",
+            "inverse warp of {} views of {size}², 1 ray per pixel, vs truth 3×3 supersampled; steps per warped view with {}{}",
             images.params.views,
-            bounded.map_or("no stored bound", |b| b.kind.name())
+            bounded.map_or("no stored bound", |b| b.kind.name()),
+            if fragments > 0 {
+                format!(
+                    " (plus {:.3} per pixel for the fallback views and hole filling where the bracketing views miss)",
+                    2.0 * miss_steps as f64 / fragments as f64
+                )
+            } else {
+                String::new()
+            }
         );
         let mean_steps = (fragments > 0).then(|| steps as f64 / fragments as f64);
         Ok((fold(method, &scores, mean_steps), pictures))

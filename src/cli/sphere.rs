@@ -60,6 +60,10 @@ pub struct SphereArgs {
     /// capped at `--max-size`.
     #[arg(long)]
     pub fit_budgets: bool,
+    /// Print, per configuration, the directions where the exact warp scores lowest (elevation,
+    /// azimuth, PSNR of both methods, share of rays no frame sees).
+    #[arg(long, default_value_t = 0)]
+    pub worst: usize,
     /// Largest frame size `--fit-budgets` may choose.
     #[arg(long, default_value_t = 256, value_parser = clap::value_parser!(u32).range(8..=4096))]
     pub max_size: u32,
@@ -175,6 +179,23 @@ pub fn run(args: SphereArgs) -> CliResult {
             m.bounds_s,
             m.ours.hole_share
         );
+        if args.worst > 0 {
+            let mut order: Vec<usize> = (0..m.directions.len()).collect();
+            order.sort_by(|&a, &b| {
+                m.ours.psnr_per_direction[a].total_cmp(&m.ours.psnr_per_direction[b])
+            });
+            for &k in order.iter().take(args.worst) {
+                let [x, y, z] = m.directions[k];
+                println!(
+                    "        worst: elevation {:5.1}° azimuth {:6.1}°: ours {:6.2} dB, baseline {:6.2} dB, rays no frame sees {:.4}",
+                    y.clamp(-1.0, 1.0).asin().to_degrees(),
+                    z.atan2(x).to_degrees(),
+                    m.ours.psnr_per_direction[k],
+                    m.baseline.psnr_per_direction[k],
+                    m.ours.holes_per_direction[k]
+                );
+            }
+        }
         if args.check_factor > 0 {
             let fine = fibonacci_directions(dirs.len() * args.check_factor as usize, coverage);
             let c = check_bounds(&images, &fine, (params.render.size / 4).max(8))?;

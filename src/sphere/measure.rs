@@ -56,7 +56,7 @@ impl Default for MeasureParams {
 }
 
 /// Error and cost of one method over the test directions.
-#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]
+#[derive(Clone, Debug, Default, PartialEq, serde::Serialize)]
 pub struct MethodStats {
     /// Mean PSNR (dB) over the directions.
     pub psnr_mean: f64,
@@ -74,6 +74,10 @@ pub struct MethodStats {
     pub hole_share: f64,
     /// Rays unresolved after the carving rounds, per ray (exact warp only).
     pub unresolved_share: f64,
+    /// PSNR (dB) of each direction, in the order measured.
+    pub psnr_per_direction: Vec<f64>,
+    /// Share of rays whose surface point no frame sees, per direction (exact warp only).
+    pub holes_per_direction: Vec<f64>,
 }
 
 /// One configuration (grid and frame size) measured for both methods.
@@ -97,6 +101,8 @@ pub struct SphereMeasurement {
     pub ours: MethodStats,
     /// The engine baseline.
     pub baseline: MethodStats,
+    /// The directions measured (unit, toward the camera).
+    pub directions: Vec<[f64; 3]>,
 }
 
 /// The ground truth of `shape` along each direction (`size²`, `k × k` rays per pixel), over the
@@ -133,6 +139,9 @@ fn stats(outs: &[(RenderOutput, f64)], truths: &[RgbaImage]) -> Result<MethodSta
     let (mut rays, mut steps, mut holes, mut unresolved) = (0usize, 0.0f64, 0usize, 0usize);
     for ((out, ms), truth) in outs.iter().zip(truths) {
         let p = psnr(&out.image, truth)?;
+        s.psnr_per_direction.push(p);
+        s.holes_per_direction
+            .push(out.holes as f64 / out.steps.len().max(1) as f64);
         s.psnr_mean += p;
         s.psnr_min = s.psnr_min.min(p);
         s.iou_mean += silhouette_iou(&out.image, truth, 0.5)?;
@@ -198,6 +207,7 @@ pub fn measure(
         bound_interval: interval / images.bounds.len().max(1) as f64,
         ours: stats(&ours, truths)?,
         baseline: stats(&base, truths)?,
+        directions: directions.iter().map(|d| d.to_array()).collect(),
     })
 }
 

@@ -713,43 +713,24 @@ impl ParallaxImages {
     }
 
     fn compute_march_radius(&self) -> f64 {
-        let grid = self.pixel_grid();
-        let mut r2 = self.params.cylinder.radius.powi(2);
-        for v in &self.views {
-            for (idx, g) in v.geom.iter().enumerate() {
-                if !g.defined {
-                    continue;
-                }
-                let i = idx % v.width;
-                let xl = grid.x_at(i as f64);
-                let xc = grid.x_at(i as f64 + 0.5);
-                let xr = grid.x_at(i as f64 + 1.0);
-                for (x, z) in [(xl, g.zl), (xc, g.z), (xr, g.zr)] {
-                    r2 = r2.max(x * x + z * z);
-                }
-            }
-        }
+        let r2 = self
+            .row_squared_radii()
+            .into_iter()
+            .fold(self.params.cylinder.radius.powi(2), f64::max);
         r2.sqrt() * (1.0 + 1e-12)
     }
 
-    /// Radius of the stored geometry on view row `j`: the largest distance to the axis of any
-    /// piece end point on row `j` of any view (pieces are segments, so they lie in that disc),
-    /// `0` where no view defines a texel on the row, `∞` for a row outside the views. A ray of
-    /// that row whose offset `|x|` exceeds it meets no piece and no wall of any view: marches
-    /// and wall scans there can be skipped without changing the picture. Cost: none (computed
-    /// with the views).
-    pub fn row_radius(&self, j: usize) -> f64 {
-        self.row_radius.get(j).copied().unwrap_or(f64::INFINITY)
-    }
-
-    fn compute_row_radii(&self) -> Vec<f64> {
+    /// Per view row, the largest squared distance to the axis of any piece end point of any
+    /// view (0 where no texel of the row is defined).
+    fn row_squared_radii(&self) -> Vec<f64> {
         let grid = self.pixel_grid();
-        let (w, h) = (self.params.width, self.params.height);
-        (0..h)
+        let w = self.params.width;
+        (0..self.params.height)
             .map(|j| {
                 let mut r2 = 0.0f64;
                 for v in &self.views {
-                    for (i, g) in v.geom[j * w..(j + 1) * w].iter().enumerate() {
+                    let row = v.geom.get(j * w..(j + 1) * w).unwrap_or(&[]);
+                    for (i, g) in row.iter().enumerate() {
                         if !g.defined {
                             continue;
                         }
@@ -763,8 +744,25 @@ impl ParallaxImages {
                         }
                     }
                 }
-                r2.sqrt() * (1.0 + 1e-12)
+                r2
             })
+            .collect()
+    }
+
+    /// Radius of the stored geometry on view row `j`: the largest distance to the axis of any
+    /// piece end point on row `j` of any view (pieces are segments, so they lie in that disc),
+    /// `0` where no view defines a texel on the row, `∞` for a row outside the views. A ray of
+    /// that row whose offset `|x|` exceeds it meets no piece and no wall of any view: marches
+    /// and wall scans there can be skipped without changing the picture. Cost: none (computed
+    /// with the views).
+    pub fn row_radius(&self, j: usize) -> f64 {
+        self.row_radius.get(j).copied().unwrap_or(f64::INFINITY)
+    }
+
+    fn compute_row_radii(&self) -> Vec<f64> {
+        self.row_squared_radii()
+            .into_iter()
+            .map(|r2| r2.sqrt() * (1.0 + 1e-12))
             .collect()
     }
 

@@ -577,14 +577,7 @@ resolution = 32
 "#;
 
 fn options(out: &Path) -> RunOptions {
-    RunOptions {
-        out: out.to_path_buf(),
-        force: false,
-        shard: None,
-        everything: false,
-        progress: false,
-        profile: false,
-    }
+    RunOptions::new(out)
 }
 
 #[test]

@@ -228,12 +228,8 @@ screen_px = [4, 32]
 
 fn options(out: &Path, profile: bool) -> RunOptions {
     RunOptions {
-        out: out.to_path_buf(),
-        force: false,
-        shard: None,
-        everything: false,
-        progress: false,
         profile,
+        ..RunOptions::new(out)
     }
 }
 

@@ -162,14 +162,7 @@ size = 48
 fn a_scene_seen_from_above_runs_end_to_end_and_is_cached() {
     let dir = tempfile::tempdir().unwrap();
     let m = Manifest::parse(SCENE, Path::new("scene.toml")).unwrap();
-    let opts = RunOptions {
-        out: dir.path().to_path_buf(),
-        force: false,
-        shard: None,
-        everything: false,
-        progress: false,
-        profile: false,
-    };
+    let opts = RunOptions::new(dir.path());
     let first = run_scene(&m, &opts).unwrap();
     assert!(first.ok(), "{}", first.table());
     let o = &first.outcomes[0];

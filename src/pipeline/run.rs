@@ -76,6 +76,21 @@ pub struct RunOptions {
     pub profile: bool,
 }
 
+impl RunOptions {
+    /// A quiet run into `out` that uses the cache and the needs: no forced rebuild, every
+    /// shard, no progress bars, no profile.
+    pub fn new(out: impl Into<PathBuf>) -> Self {
+        Self {
+            out: out.into(),
+            force: false,
+            shard: None,
+            everything: false,
+            progress: false,
+            profile: false,
+        }
+    }
+}
+
 /// How one representation of one asset ended.
 #[derive(Clone, Debug, PartialEq, Serialize)]
 #[serde(rename_all = "snake_case")]

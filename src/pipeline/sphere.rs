@@ -140,6 +140,13 @@ fn measure_directions(needs: &Needs, coverage: Coverage, count: usize) -> Vec<DV
         .collect()
 }
 
+/// Index in a `grid·size`-wide atlas of texel `(x, y)` of frame `k` (tile column `k % grid`,
+/// tile row `k / grid`): the one layout [`SphereRepr::write`] and [`SphereRepr::read`] share.
+fn atlas_index(k: usize, grid: usize, size: usize, x: usize, y: usize) -> usize {
+    let (ti, tj) = (k % grid, k / grid);
+    (tj * size + y) * grid * size + ti * size + x
+}
+
 fn sphere_err(e: SphereError) -> PipelineError {
     PipelineError::Spec(e.to_string())
 }
@@ -151,7 +158,12 @@ impl Representation for SphereRepr {
     type Decisions = SphereDecisions;
 
     fn relevant_needs(needs: &Needs) -> serde_json::Value {
-        json!({ "elevation_deg": needs.elevation_deg, "screen_px_max": needs.screen_px[1] })
+        // The azimuths decide nothing that is built, but the measured directions.
+        json!({
+            "azimuth_deg": needs.azimuth_deg,
+            "elevation_deg": needs.elevation_deg,
+            "screen_px_max": needs.screen_px[1],
+        })
     }
 
     fn plan(
@@ -241,11 +253,10 @@ impl Representation for SphereRepr {
         let mut depth = CodeImage::<u16>::new(side, side, 1);
         let mut bounds = CodeImage::<u8>::new(side, side, 2);
         for (k, (c, b)) in data.codes.iter().zip(&data.bounds).enumerate() {
-            let (ti, tj) = (k % g, k / g);
             for y in 0..f {
                 for x in 0..f {
                     let src = y * f + x;
-                    let dst = (tj * f + y) * side + ti * f + x;
+                    let dst = atlas_index(k, g, f, x, y);
                     albedo.pixel_mut(dst).copy_from_slice(&c.albedo[src]);
                     normal.pixel_mut(dst).copy_from_slice(&c.normal[src]);
                     depth.pixel_mut(dst)[0] = c.depth[src];
@@ -361,7 +372,6 @@ impl Representation for SphereRepr {
         let mut codes = Vec::with_capacity(n);
         let mut cone = Vec::with_capacity(n);
         for k in 0..n {
-            let (ti, tj) = (k % grid, k / grid);
             let mut c = FrameCodes {
                 size,
                 albedo: vec![[0; 3]; size * size],
@@ -376,7 +386,7 @@ impl Representation for SphereRepr {
             for y in 0..size {
                 for x in 0..size {
                     let dst = y * size + x;
-                    let src = (tj * size + y) * side + ti * size + x;
+                    let src = atlas_index(k, grid, size, x, y);
                     let a = albedo.pixel(src);
                     c.albedo[dst] = [a[0], a[1], a[2]];
                     let nn = normal.pixel(src);
@@ -430,11 +440,7 @@ impl Representation for SphereRepr {
             file: format!("{}-sphere.png", source.name),
             caption: format!(
                 "{}: ground truth | exact warp ({:.1} dB) | engine impostor blend ({:.1} dB), elevation {e:.0}°",
-                source.name,
-                crate::metrics::psnr(&ours.image, &truths[0])
-                    .map_err(|e| PipelineError::Spec(e.to_string()))?,
-                crate::metrics::psnr(&base.image, &truths[0])
-                    .map_err(|e| PipelineError::Spec(e.to_string()))?,
+                source.name, m.ours.psnr_per_direction[0], m.baseline.psnr_per_direction[0],
             ),
             image: RgbaImage::side_by_side(&[&truths[0], &ours.image, &base.image]),
         }];

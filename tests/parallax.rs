@@ -828,13 +828,13 @@ fn hole_filling_and_fallback_marches_are_counted_apart_from_the_bracketing_steps
     assert!(filled > 0 && hole_steps > 0 && fallback_steps > 0);
 }
 
-/// A known bug, kept as a failing regression case (`cargo test --test parallax -- --ignored`):
-/// the random-codes property test below found, once in five runs, adversarial codes (normals
-/// facing away, steep brims of slope 16.9) where the best-c and split best-c bounds each miss
-/// one event of the dense sweep (`[0, 0, 0, 1, 1]`). It fails the same on the code before this
-/// change (commit 30255c1); not yet diagnosed.
+/// Regression: codes the random-codes property test below found (normals facing away, steep
+/// brims of slope 16.9), where a ray passes through a piece's end point exactly at θ = Δθ. The
+/// event angle, computed at or just past Δθ, was dropped, so the exact evaluation at Δθ did not
+/// consider the pieces it bounds, and the best-c and split best-c bounds each missed that one
+/// crossing of the dense sweep (`[0, 0, 0, 1, 1]`). Events within the sweep's window of ±Δθ
+/// are now kept at the end.
 #[test]
-#[ignore = "known bug: best-c bounds miss one event on these adversarial codes"]
 fn best_c_bounds_on_adversarial_steep_brims_regression() {
     use altrep::parallax::ViewCodes;
     let texels: Vec<Option<(u8, [u8; 3])>> = vec![

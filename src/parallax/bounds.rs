@@ -579,8 +579,11 @@ fn pixel_points(
         }
         let phi = (x / rho).clamp(-1.0, 1.0).acos();
         for th in [wrap(psi - phi), wrap(psi + phi)] {
-            if th > -delta && th < delta {
-                events.push((th, e as u32));
+            // An event computed within the window outside the range is one at its end (a
+            // crossing through an end point at θ = ±Δθ): it is kept there, so that the pieces it
+            // bounds are considered at the end's exact evaluation.
+            if th > -delta - WINDOW && th < delta + WINDOW {
+                events.push((th.clamp(-delta, delta), e as u32));
             }
         }
     }
@@ -1222,8 +1225,11 @@ mod reference {
             }
             let phi = (x / rho).clamp(-1.0, 1.0).acos();
             for th in [wrap(psi - phi), wrap(psi + phi)] {
-                if th > -delta && th < delta {
-                    events.push((th, e as u32));
+                // An event computed within the window outside the range is one at its end (a
+                // crossing through an end point at θ = ±Δθ): it is kept there, so that the
+                // pieces it bounds are considered at the end's exact evaluation.
+                if th > -delta - WINDOW && th < delta + WINDOW {
+                    events.push((th.clamp(-delta, delta), e as u32));
                 }
             }
         }

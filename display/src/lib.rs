@@ -6,9 +6,11 @@
 //! nothing and reads no mesh. Each shader is the GPU twin of a CPU renderer of the library and
 //! can write its per-fragment march steps to a storage buffer, read back by the tests.
 //!
-//! Representations drawn so far: images with parallax ([`parallax::ParallaxDisplay`], the twin
-//! of `altrep::parallax::{render, render_bounded}`). A further representation is one more module
-//! with its own WGSL file, taking the same [`Gpu`] and returning the same [`Frame`].
+//! Representations drawn: images with parallax ([`parallax::ParallaxDisplay`], the twin of
+//! `altrep::parallax::{render, render_bounded}`), cylindrical impostors
+//! ([`cylinder::CylinderDisplay`]), texture pyramids ([`pyramid::PyramidDisplay`]) and images with parallax from
+//! any direction ([`sphere::SphereDisplay`], the twin of `altrep::sphere::render`). A further
+//! representation is one more module with its own WGSL file, taking the same [`Gpu`].
 //!
 //! ## Conventions
 //!
@@ -29,6 +31,7 @@ pub mod cylinder;
 mod offscreen;
 pub mod parallax;
 pub mod pyramid;
+pub mod sphere;
 
 use std::path::Path;
 

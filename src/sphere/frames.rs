@@ -188,6 +188,14 @@ impl Frame {
         Some((self.depth[k], self.albedo[k], self.normal[k]))
     }
 
+    /// The plane of texel `(i, j)`: its stored (decoded) depth `Z` at the texel centre and its
+    /// slope `(∂Z/∂X, ∂Z/∂Y)` in frame units (zero for [`SurfaceModel::Flat`]); `None` if it is
+    /// undefined or outside the frame.
+    pub fn plane(&self, i: usize, j: usize) -> Option<(f64, DVec2)> {
+        let k = self.cell(i as i64, j as i64)?;
+        Some((self.depth[k], self.slope[k]))
+    }
+
     /// Share of defined texels.
     pub fn coverage(&self) -> f64 {
         self.defined.iter().filter(|d| **d).count() as f64 / self.defined.len().max(1) as f64

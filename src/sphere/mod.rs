@@ -64,8 +64,10 @@
 //!
 //! A point that any frame sees as free is free (the frame's camera sees through it). Each frame
 //! is marched to its first event; the deepest event along the display ray is a candidate, and
-//! every frame is asked (one fetch) whether the candidate is free for it; if one is, the frames
-//! march on from there, and so on (at most [`MAX_CARVE_ROUNDS`] rounds). A frame that meets no
+//! every other frame is asked (one fetch) whether the candidate is free for it (the frame whose
+//! event it is holds it hidden by definition: asking it again would decide a point on a cell
+//! edge by rounding, and the carving would stall there); if one is, the frames march on from
+//! there, and so on (at most [`MAX_CARVE_ROUNDS`] rounds). A frame that meets no
 //! event makes the whole ray free: the pixel is empty. At the surface point found, the colour is
 //! the barycentric blend of the frames that **see** it (their surface lies within
 //! `visibility` texel pitches of it), each bilinearly filtered at the hit and shaded from its
@@ -110,7 +112,9 @@ pub use measure::{
     measure, truth_images,
 };
 pub use viewset::{Coverage, ViewSet};
-pub use warp::{MAX_CARVE_ROUNDS, RenderOutput, RenderParams, render};
+pub use warp::{
+    EnclosingFrame, MAX_CARVE_ROUNDS, RenderOutput, RenderParams, enclosing_frames, render,
+};
 
 use altrep_data_gen::DataGenError;
 #[cfg(doc)]

@@ -12,6 +12,12 @@ use super::{SphereError, SphereImages, check};
 /// after them takes the last candidate and is counted in [`RenderOutput::unresolved`].
 pub const MAX_CARVE_ROUNDS: usize = 8;
 
+/// How far past a carving candidate (display depth, frame units) the other frames are asked
+/// whether it is hidden, and the colour is looked up: a candidate where the ray enters a hidden
+/// cell through its side lies on a texel edge, where the cell a lookup lands in would otherwise
+/// be decided by rounding.
+const PROBE: f64 = 1e-9;
+
 /// Parameters of [`render`] (and of the engine baseline, which uses `size`, `samples` and
 /// `light`).
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -258,6 +264,40 @@ pub(crate) fn hidden(frame: &Frame, p: DVec2, z: f64) -> bool {
     frame.height_at(p).is_some_and(|h| h >= z - 1e-9)
 }
 
+/// A frame that draws a display direction, as [`render`] uses it (what a shader needs per
+/// draw besides the stored frames).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct EnclosingFrame {
+    /// Index of the frame, in the order of [`super::ViewSet::direction`].
+    pub frame: usize,
+    /// Its barycentric weight, renormalised over the frames kept (they sum to 1).
+    pub weight: f64,
+    /// Frame `X`, `Y`, `Z` as linear functions of display `(x, y, z)`: row `r` is
+    /// `(right·a_r, up·a_r, dir·a_r)` with `(right, up, dir)` the display frame's axes and `a`
+    /// the stored frame's axes (`right_k`, `up_k`, `d_k`), all in the object frame.
+    pub rows: [DVec3; 3],
+}
+
+/// The enclosing frames that draw direction `dir` (unit, toward the camera): the corners of its
+/// grid triangle with a weight above `1e-12` that face its hemisphere (`d·d_k > 1e-9`), with
+/// their weights renormalised, as [`render`] uses them. Cost: `O(1)`.
+///
+/// Errors: a direction that is zero or not finite, or that the view set does not cover.
+pub fn enclosing_frames(
+    images: &SphereImages,
+    dir: DVec3,
+) -> Result<Vec<EnclosingFrame>, SphereError> {
+    let display = display_frame(images, dir)?;
+    Ok(enclosing_maps(images, &display)?
+        .into_iter()
+        .map(|(frame, weight, map)| EnclosingFrame {
+            frame,
+            weight,
+            rows: map.m,
+        })
+        .collect())
+}
+
 /// The enclosing frames of `dir` with a positive weight: `(frame, weight, map)`.
 pub(crate) fn enclosing_maps(
     images: &SphereImages,
@@ -419,34 +459,50 @@ fn trace(
     let mut z_c = zs;
     ray.unresolved = true;
     for _ in 0..MAX_CARVE_ROUNDS {
-        // The deepest of the frames' next events below `z_cur` (display depth).
+        // The deepest of the frames' next events below `z_cur` (display depth), and the frame
+        // whose event it is (the first such frame on ties).
         let mut deepest = f64::INFINITY;
-        for &(frame, ref line, lo, hi) in &lines {
+        let mut owner = 0;
+        for (s, &(frame, ref line, lo, hi)) in lines.iter().enumerate() {
             let (p, zf) = at(line, z_cur);
             // Hidden where the march resumes (or where the ray enters the sphere): the event is
             // here. Transitions start below `zmax` only, so this is checked before the bounds.
             ray.steps += 1;
-            if hidden(frame, p, zf) {
-                deepest = deepest.min(z_cur);
-                continue;
-            }
-            match first_event(frame, line.q, line.t, zf.min(hi), lo, &mut ray.steps) {
-                Some(z) => deepest = deepest.min((z - line.a) / line.c),
-                // Free from here on, and no event below `lo`: the whole rest of the ray is free.
-                None => {
-                    return RaySample {
-                        unresolved: false,
-                        ..ray
-                    };
+            let z = if hidden(frame, p, zf) {
+                z_cur
+            } else {
+                match first_event(frame, line.q, line.t, zf.min(hi), lo, &mut ray.steps) {
+                    Some(z) => (z - line.a) / line.c,
+                    // Free from here on, and no event below `lo`: the whole rest of the ray is
+                    // free.
+                    None => {
+                        return RaySample {
+                            unresolved: false,
+                            ..ray
+                        };
+                    }
                 }
+            };
+            if z < deepest {
+                (deepest, owner) = (z, s);
             }
         }
         z_c = deepest;
-        ray.steps += lines.len() as u32;
-        if lines.iter().all(|&(frame, ref line, _, _)| {
-            let (p, zf) = at(line, z_c);
-            hidden(frame, p, zf)
-        }) {
+        // The candidate is hidden from its owner by construction (it is the owner's first point
+        // that is not free; asking again would decide a point on a cell edge by rounding and
+        // stall the carving); every other frame is asked, one fetch each.
+        if lines
+            .iter()
+            .enumerate()
+            .all(|(s, &(frame, ref line, _, _))| {
+                if s == owner {
+                    return true;
+                }
+                ray.steps += 1;
+                let (p, zf) = at(line, z_c - PROBE);
+                hidden(frame, p, zf)
+            })
+        {
             ray.unresolved = false;
             break;
         }
@@ -456,7 +512,7 @@ fn trace(
     let (mut col, mut wsum) = (Vec3::ZERO, 0.0f64);
     let mut nearest: Option<(f64, Vec3)> = None;
     for (&(frame, ref line, _, _), &(_, weight, _)) in lines.iter().zip(maps) {
-        let (p, zf) = at(line, z_c);
+        let (p, zf) = at(line, z_c - PROBE);
         let (Some(h), Some((albedo, normal))) = (frame.height_at(p), frame.attributes_at(p)) else {
             continue;
         };

@@ -1,0 +1,350 @@
+//! Images with parallax from any direction on the GPU: the fragment-shader twin of
+//! `altrep::sphere::render` at one ray per pixel (`RenderParams::samples = 1`).
+//!
+//! Per fragment, the shader (`sphere.wgsl`) takes the display ray through the pixel centre,
+//! marches it through each enclosing frame's depth map between the frame's stored cone bounds
+//! (2D DDA, one fetch per cell), carves free space between the frames (at most
+//! `altrep::sphere::MAX_CARVE_ROUNDS` rounds), and colours the surface point from the frames
+//! that see it, relit from their normals with the diffuse light. The enclosing frames, their
+//! weights and their linear maps come from the library (`altrep::sphere::enclosing_frames`),
+//! computed on the host in `f64` as the CPU computes them; the shader repeats the CPU's
+//! formulas in the same order, in `f32` ([`Precision::F32`], what an engine ships) or, where the
+//! adapter has `SHADER_F64`, in `f64` ([`Precision::F64`]), where it is the CPU's computation
+//! operation for operation.
+//!
+//! The stored codes are decoded on the host (depth, slope, linear albedo, unit normal, bound
+//! codes): GPU memory is `G²·F²·(3·size(real) + 36)` bytes, against the 10 bytes per texel of the
+//! asset's files. The output is premultiplied linear RGBA (alpha 1 where a surface was found),
+//! the depth written is `(1 − z)/2` of the display depth `z` (0 at the front of the bounding
+//! sphere, 1 at its back), and per fragment the texel fetches and flags are read back
+//! ([`SphereFrame`]).
+
+use std::path::Path;
+use std::time::Instant;
+
+use altrep::asset::AssetReader;
+use altrep::pipeline::Representation;
+use altrep::pipeline::sphere::SphereRepr;
+use altrep::sphere::{SphereImages, enclosing_frames};
+use altrep_data_gen::{Light, RgbaImage};
+use glam::DVec3;
+use wgpu::util::DeviceExt;
+
+pub use crate::parallax::Precision;
+use crate::{DisplayError, Gpu, offscreen};
+
+const SHADER: &str = include_str!("sphere.wgsl");
+
+/// Loads an any-direction asset folder (e.g. `out/truck-from-above/sphere`) through the
+/// library's loader: `AssetReader::open` (checks the description and every file's hash) then
+/// `SphereRepr::read`. Errors: [`DisplayError::Asset`] with the loader's message.
+pub fn load_sphere(dir: &Path) -> Result<SphereImages, DisplayError> {
+    let err = |e: &dyn std::fmt::Display| DisplayError::Asset {
+        path: dir.display().to_string(),
+        reason: e.to_string(),
+    };
+    let reader = AssetReader::open(dir).map_err(|e| err(&e))?;
+    SphereRepr::read(&reader).map_err(|e| err(&e))
+}
+
+/// What to draw.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SphereDraw {
+    /// Display direction, toward the camera, in the object frame (`y` up); any finite non-zero
+    /// vector (it is normalised), inside the view set's coverage.
+    pub dir: DVec3,
+    /// Screen width and height in pixels; the square covers the bounding sphere.
+    pub size: usize,
+    /// A frame sees a surface point when its own surface lies within this many texel pitches
+    /// above it (`altrep::sphere::RenderParams::visibility`).
+    pub visibility: f64,
+    /// March between the stored cone bounds (`false`: the whole chord of the sphere).
+    pub use_bounds: bool,
+    /// The light.
+    pub light: Light,
+}
+
+impl SphereDraw {
+    /// Along `dir` at `size²`, with the CPU's defaults: visibility 2, bounds on, default light.
+    pub fn new(dir: DVec3, size: usize) -> Self {
+        let d = altrep::sphere::RenderParams::default();
+        Self {
+            dir,
+            size,
+            visibility: d.visibility,
+            use_bounds: d.use_bounds,
+            light: d.light,
+        }
+    }
+}
+
+/// One drawn frame read back from the GPU.
+#[derive(Clone, Debug)]
+pub struct SphereFrame {
+    /// Premultiplied linear RGBA, alpha 1 where a surface was found, 0 elsewhere.
+    pub image: RgbaImage,
+    /// Per fragment (row-major): texel fetches of its ray, all frames together (0 outside the
+    /// sphere's disc).
+    pub steps: Vec<u32>,
+    /// Per fragment: the ray was traced (its pixel centre lies inside the sphere's disc).
+    pub traced: Vec<bool>,
+    /// Rays whose surface point no frame sees (coloured by the nearest frame surface).
+    pub holes: usize,
+    /// Rays still unresolved after the carving rounds.
+    pub unresolved: usize,
+    /// Per fragment, the depth written (1 where nothing was drawn).
+    pub depth: Vec<f32>,
+    /// Wall time of the draw and read-back (milliseconds; on lavapipe this is CPU emulation).
+    pub millis: f64,
+}
+
+impl SphereFrame {
+    /// Mean texel fetches per traced ray (0 when none was traced), as
+    /// `altrep::sphere::RenderOutput::mean_steps` counts them.
+    pub fn mean_steps(&self) -> f64 {
+        let (sum, n) = self
+            .steps
+            .iter()
+            .zip(&self.traced)
+            .filter(|(_, t)| **t)
+            .fold((0u64, 0usize), |(s, n), (&x, _)| (s + u64::from(x), n + 1));
+        sum as f64 / n.max(1) as f64
+    }
+}
+
+/// An any-direction asset uploaded to the GPU, with the pipeline that draws it.
+pub struct SphereDisplay {
+    precision: Precision,
+    pipeline: wgpu::RenderPipeline,
+    images: SphereImages,
+    tex: wgpu::Buffer,
+    attr: wgpu::Buffer,
+    code: wgpu::Buffer,
+}
+
+fn invalid(
+    name: &'static str,
+    value: impl std::fmt::Display,
+    reason: &'static str,
+) -> DisplayError {
+    DisplayError::InvalidParameter {
+        name,
+        value: value.to_string(),
+        reason,
+    }
+}
+
+/// Bytes of `values` in the shader's `real` type.
+fn reals(values: &[f64], precision: Precision) -> Vec<u8> {
+    match precision {
+        Precision::F32 => values
+            .iter()
+            .flat_map(|&v| (v as f32).to_le_bytes())
+            .collect(),
+        Precision::F64 => values.iter().flat_map(|&v| v.to_le_bytes()).collect(),
+    }
+}
+
+impl SphereDisplay {
+    /// Uploads `images` (every frame decoded: depth, slope, albedo, normal, bound codes) and
+    /// builds the pipeline in `precision`. Cost: one pass over the `G²·F²` texels.
+    ///
+    /// Errors: [`Precision::F64`] on a device without `SHADER_F64`; frames larger than the
+    /// device's storage-buffer limit; a shader or pipeline the device rejects
+    /// ([`DisplayError::Gpu`]).
+    pub fn new(
+        gpu: &Gpu,
+        images: &SphereImages,
+        precision: Precision,
+    ) -> Result<Self, DisplayError> {
+        if precision == Precision::F64 && !gpu.has_f64 {
+            return Err(invalid(
+                "precision",
+                "f64",
+                "needs an adapter with SHADER_F64",
+            ));
+        }
+        let f = images.params.size;
+        let frames = images.frames.len();
+        let texels = frames * f * f;
+        let attr_bytes = (texels * 32) as u64;
+        let limit = gpu.device.limits().max_storage_buffer_binding_size;
+        if attr_bytes > limit {
+            return Err(invalid(
+                "frames",
+                format!("{frames} of {f}²"),
+                "exceed the device's storage-buffer size (32 bytes per texel)",
+            ));
+        }
+        let mut tex = Vec::with_capacity(3 * texels);
+        let mut attr: Vec<f32> = Vec::with_capacity(8 * texels);
+        let mut code: Vec<u32> = Vec::with_capacity(texels);
+        for (frame, bounds) in images.frames.iter().zip(&images.bounds) {
+            for j in 0..f {
+                for i in 0..f {
+                    let idx = j * f + i;
+                    let bound = u32::from(bounds.zmin[idx] <= bounds.zmax[idx]) << 1
+                        | u32::from(bounds.zmin[idx]) << 8
+                        | u32::from(bounds.zmax[idx]) << 16;
+                    match (frame.plane(i, j), frame.texel(i, j)) {
+                        (Some((z, g)), Some((_, a, n))) => {
+                            tex.extend_from_slice(&[z, g.x, g.y]);
+                            attr.extend_from_slice(&[a.x, a.y, a.z, 0.0, n.x, n.y, n.z, 0.0]);
+                            code.push(1 | bound);
+                        }
+                        _ => {
+                            tex.extend_from_slice(&[0.0; 3]);
+                            attr.extend_from_slice(&[0.0; 8]);
+                            code.push(bound);
+                        }
+                    }
+                }
+            }
+        }
+        let dev = &gpu.device;
+        let storage = |label: &str, bytes: &[u8]| {
+            dev.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some(label),
+                contents: bytes,
+                usage: wgpu::BufferUsages::STORAGE,
+            })
+        };
+        let src = match precision {
+            Precision::F32 => SHADER.to_string(),
+            Precision::F64 => SHADER.replacen("alias real = f32;", "alias real = f64;", 1),
+        };
+        let pipeline = offscreen::pipeline(gpu, "any-direction impostor", src)?;
+        Ok(Self {
+            precision,
+            pipeline,
+            tex: storage("sphere planes", &reals(&tex, precision)),
+            attr: storage("sphere attributes", bytemuck::cast_slice(&attr)),
+            code: storage("sphere codes", bytemuck::cast_slice(&code)),
+            images: images.clone(),
+        })
+    }
+
+    /// The precision the shader runs in.
+    pub fn precision(&self) -> Precision {
+        self.precision
+    }
+
+    /// The frames drawn.
+    pub fn images(&self) -> &SphereImages {
+        &self.images
+    }
+
+    /// Draws one frame and reads back the image, the fetches, the flags and the depth. Cost: one
+    /// draw of `size²` fragments, each marching its enclosing frames (the CPU's steps), plus
+    /// the read-back.
+    ///
+    /// Errors: a zero or huge screen, a visibility that is not finite and positive, a light
+    /// that is not finite, a direction the view set does not cover (or zero, or not finite), a
+    /// GPU error.
+    pub fn render(&self, gpu: &Gpu, d: &SphereDraw) -> Result<SphereFrame, DisplayError> {
+        if d.size == 0 || d.size > 8192 {
+            return Err(invalid("screen size", d.size, "must be in 1..=8192"));
+        }
+        if !(d.visibility.is_finite() && d.visibility > 0.0) {
+            return Err(invalid(
+                "visibility",
+                d.visibility,
+                "must be finite and positive",
+            ));
+        }
+        let ldir = d.light.direction;
+        if !(ldir.is_finite() && d.light.ambient.is_finite()) {
+            return Err(invalid("light", format!("{:?}", d.light), "must be finite"));
+        }
+        let t0 = Instant::now();
+        let enclosing = enclosing_frames(&self.images, d.dir).map_err(|e| {
+            invalid(
+                "direction",
+                format!("{:?} ({e})", d.dir),
+                "must be a finite, non-zero direction the view set covers",
+            )
+        })?;
+        let tiny = match self.precision {
+            Precision::F64 => 1e-300,
+            Precision::F32 => f64::from(f32::MIN_POSITIVE),
+        };
+        let inf = match self.precision {
+            Precision::F64 => f64::MAX,
+            Precision::F32 => f64::from(f32::MAX),
+        };
+        // A point within this of a frame's surface is hidden from it, and a carving candidate
+        // is checked and coloured this far past it: the CPU's 1e-9 in `f64`; in `f32` that is
+        // below rounding, so 16 ulps of the sphere radius (about 2e-6) stand in for it.
+        let hidden_tol = match self.precision {
+            Precision::F64 => 1e-9,
+            Precision::F32 => 16.0 * f64::from(f32::EPSILON),
+        };
+        let mut pv = vec![0.0f64; 8 + 30];
+        pv[..7].copy_from_slice(&[
+            self.images.params.size as f64,
+            d.visibility,
+            inf,
+            tiny,
+            d.size as f64,
+            hidden_tol,
+            // warp.rs `PROBE` (1e-9) in `f64`; the same 16 ulps in `f32`.
+            hidden_tol,
+        ]);
+        let mut u = [0u32; 5];
+        u[0] = enclosing.len() as u32;
+        for (s, e) in enclosing.iter().enumerate() {
+            for (r, row) in e.rows.iter().enumerate() {
+                pv[8 + 10 * s + 3 * r..8 + 10 * s + 3 * r + 3].copy_from_slice(&row.to_array());
+            }
+            pv[8 + 10 * s + 9] = e.weight;
+            u[1 + s] = e.frame as u32;
+        }
+        u[4] = u32::from(d.use_bounds);
+        let light = [ldir.x, ldir.y, ldir.z, d.light.ambient];
+        let dev = &gpu.device;
+        let init = |label: &str, bytes: &[u8]| {
+            dev.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some(label),
+                contents: bytes,
+                usage: wgpu::BufferUsages::STORAGE,
+            })
+        };
+        let pbuf = init("sphere reals", &reals(&pv, self.precision));
+        let ubuf = init("sphere ints", bytemuck::cast_slice(&u));
+        let lbuf = init("light", bytemuck::cast_slice(&light));
+        let frags = d.size * d.size;
+        let steps = dev.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("steps"),
+            size: (frags * 8) as u64,
+            usage: wgpu::BufferUsages::STORAGE
+                | wgpu::BufferUsages::COPY_SRC
+                | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let drawn = offscreen::draw(
+            gpu,
+            &self.pipeline,
+            &[&pbuf, &ubuf, &lbuf, &self.tex, &self.attr, &self.code],
+            &steps,
+            2 * frags,
+            (d.size, d.size),
+            t0,
+        )?;
+        let mut frame = SphereFrame {
+            image: drawn.image,
+            steps: Vec::with_capacity(frags),
+            traced: Vec::with_capacity(frags),
+            holes: 0,
+            unresolved: 0,
+            depth: drawn.depth,
+            millis: drawn.millis,
+        };
+        for w in drawn.steps.chunks_exact(2) {
+            frame.steps.push(w[0]);
+            frame.traced.push(w[1] & 4 != 0);
+            frame.holes += usize::from(w[1] & 1 != 0);
+            frame.unresolved += usize::from(w[1] & 2 != 0);
+        }
+        Ok(frame)
+    }
+}

@@ -304,8 +304,8 @@ fn straight_down_into_a_cup_needs_a_frame_at_the_zenith() {
     // 9.5°), so the floor along the walls is hidden from all of them and is coloured from the
     // nearest frame surface (a hole). An odd grid puts a frame at the zenith. Measured at 8
     // directions 84–89° up, 64² with 2 × 2 rays, truth 3 × 3, frames of 50²:
-    //   G = 4: 23.78 dB, holes 0.0094 | G = 5: 24.04 dB, holes 0.0007
-    //   G = 8: 21.24 dB, holes 0.0039 | G = 9: 24.20 dB, holes 0.0022
+    //   G = 4: 23.96 dB, holes 0.0050 | G = 5: 24.04 dB, holes 0.0007
+    //   G = 8: 21.23 dB, holes 0.0038 | G = 9: 24.20 dB, holes 0.0021
     // (engine blend 18.25, 19.02, 19.92, 20.38 dB). The fix costs (G + 1)²/G² of the memory.
     let shape = cup();
     let dirs: Vec<DVec3> = (0..8)

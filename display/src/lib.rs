@@ -81,6 +81,19 @@ pub enum DisplayError {
     Gpu(String),
 }
 
+/// A typed error for a drawing or upload parameter `name` with `value` that fails `reason`.
+pub(crate) fn invalid(
+    name: &'static str,
+    value: impl std::fmt::Display,
+    reason: &'static str,
+) -> DisplayError {
+    DisplayError::InvalidParameter {
+        name,
+        value: value.to_string(),
+        reason,
+    }
+}
+
 /// A headless wgpu device and queue.
 pub struct Gpu {
     /// The device.

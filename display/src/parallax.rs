@@ -21,7 +21,7 @@ use altrep::pipeline::parallax::ParallaxData;
 use altrep_data_gen::{Light, RgbaImage};
 use wgpu::util::DeviceExt;
 
-use crate::{DisplayError, Frame, Gpu, read_buffer};
+use crate::{DisplayError, Frame, Gpu, invalid, read_buffer};
 
 const SHADER: &str = include_str!("parallax.wgsl");
 
@@ -69,20 +69,8 @@ pub struct ParallaxDisplay {
     fixed: [f64; 5],
 }
 
-fn invalid(
-    name: &'static str,
-    value: impl std::fmt::Display,
-    reason: &'static str,
-) -> DisplayError {
-    DisplayError::InvalidParameter {
-        name,
-        value: value.to_string(),
-        reason,
-    }
-}
-
 /// Bytes of `values` in the shader's `real` type.
-fn reals(values: &[f64], precision: Precision) -> Vec<u8> {
+pub(crate) fn reals(values: &[f64], precision: Precision) -> Vec<u8> {
     match precision {
         Precision::F32 => values
             .iter()

@@ -31,7 +31,7 @@ use altrep_data_gen::RgbaImage;
 use glam::DVec3;
 use wgpu::util::DeviceExt;
 
-use crate::{DisplayError, Gpu, read_buffer};
+use crate::{DisplayError, Gpu, invalid, read_buffer};
 
 const SHADER: &str = include_str!("pyramid.wgsl");
 
@@ -158,18 +158,6 @@ pub fn value_psnr(
     } else {
         -10.0 * mse.log10()
     })
-}
-
-fn invalid(
-    name: &'static str,
-    value: impl std::fmt::Display,
-    reason: &'static str,
-) -> DisplayError {
-    DisplayError::InvalidParameter {
-        name,
-        value: value.to_string(),
-        reason,
-    }
 }
 
 /// Levels packed into one texel buffer with a level table.

@@ -31,7 +31,8 @@ use glam::DVec3;
 use wgpu::util::DeviceExt;
 
 pub use crate::parallax::Precision;
-use crate::{DisplayError, Gpu, offscreen};
+use crate::parallax::reals;
+use crate::{DisplayError, Gpu, invalid, offscreen};
 
 const SHADER: &str = include_str!("sphere.wgsl");
 
@@ -120,29 +121,6 @@ pub struct SphereDisplay {
     tex: wgpu::Buffer,
     attr: wgpu::Buffer,
     code: wgpu::Buffer,
-}
-
-fn invalid(
-    name: &'static str,
-    value: impl std::fmt::Display,
-    reason: &'static str,
-) -> DisplayError {
-    DisplayError::InvalidParameter {
-        name,
-        value: value.to_string(),
-        reason,
-    }
-}
-
-/// Bytes of `values` in the shader's `real` type.
-fn reals(values: &[f64], precision: Precision) -> Vec<u8> {
-    match precision {
-        Precision::F32 => values
-            .iter()
-            .flat_map(|&v| (v as f32).to_le_bytes())
-            .collect(),
-        Precision::F64 => values.iter().flat_map(|&v| v.to_le_bytes()).collect(),
-    }
 }
 
 impl SphereDisplay {

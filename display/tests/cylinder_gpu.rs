@@ -9,7 +9,7 @@
 //! difference PNGs go to `target/tmp/display-failures/`.
 
 use std::f64::consts::TAU;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use altrep::asset::{AssetWriter, Conventions};
 use altrep::cylinder::frame::row_coordinate;
@@ -29,6 +29,9 @@ use altrep_display::cylinder::{
 use altrep_display::{DisplayError, Gpu};
 use approx::assert_abs_diff_eq;
 
+mod common;
+use common::{failures_dir, gpu};
+
 /// Shapes of the step-count and image checks (star-shaped, flat faces, thin branches).
 const SHAPES: [&str; 3] = ["pear", "truck", "tree"];
 /// Camera angles (radians): off the columns, one on a column, one past a turn.
@@ -42,27 +45,6 @@ const MODES: [CylinderMode; 4] = [
     CylinderMode::Hybrid { steps: 2 },
     CylinderMode::Hybrid { steps: 4 },
 ];
-
-/// The device, or `None` after printing "skipped: no GPU adapter" (a failure when `CI=true`).
-fn gpu() -> Option<Gpu> {
-    match Gpu::headless() {
-        Ok(g) => {
-            eprintln!("adapter: {} (f64: {})", g.describe(), g.has_f64);
-            Some(g)
-        }
-        Err(e) => {
-            if std::env::var("CI").is_ok_and(|v| v == "true") {
-                panic!("CI=true and no GPU adapter: {e}");
-            }
-            eprintln!("skipped: no GPU adapter ({e})");
-            None
-        }
-    }
-}
-
-fn failures_dir() -> PathBuf {
-    Path::new(env!("CARGO_TARGET_TMPDIR")).join("display-failures")
-}
 
 /// Builds the cylinder asset of `shape` with the pipeline, writes it with the pipeline's writer,
 /// loads it back through the library's loader, and fits the offsets of the loaded texture with

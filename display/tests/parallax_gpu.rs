@@ -7,7 +7,7 @@
 //! are computed by the CPU renderers at test time (so there is nothing to bless). On failure the
 //! actual, expected and difference PNGs go to `target/tmp/display-failures/`.
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use altrep::asset::{AssetWriter, Conventions};
 use altrep::metrics::psnr;
@@ -23,33 +23,15 @@ use altrep_display::parallax::{DrawParams, ParallaxDisplay, Precision};
 use altrep_display::{DisplayError, Gpu, load_parallax};
 use approx::assert_abs_diff_eq;
 
+mod common;
+use common::{failures_dir, gpu};
+
 /// Shapes of the step-count and image checks (flat faces, a hole, thin branches).
 const SHAPES: [&str; 3] = ["truck", "torus", "tree"];
 /// Display angles (radians): both signs of θ, off the view angles, one exactly on a view.
 const ANGLES: [f64; 4] = [0.3, 1.1, std::f64::consts::FRAC_PI_2, 4.4];
 /// View size of the test assets.
 const SIZE: usize = 32;
-
-/// The device, or `None` after printing "skipped: no GPU adapter" (a failure when `CI=true`).
-fn gpu() -> Option<Gpu> {
-    match Gpu::headless() {
-        Ok(g) => {
-            eprintln!("adapter: {} (f64: {})", g.describe(), g.has_f64);
-            Some(g)
-        }
-        Err(e) => {
-            if std::env::var("CI").is_ok_and(|v| v == "true") {
-                panic!("CI=true and no GPU adapter: {e}");
-            }
-            eprintln!("skipped: no GPU adapter ({e})");
-            None
-        }
-    }
-}
-
-fn failures_dir() -> PathBuf {
-    Path::new(env!("CARGO_TARGET_TMPDIR")).join("display-failures")
-}
 
 /// Builds a parallax asset of `shape` with every bound kind, writes it with the pipeline's
 /// writer and loads it back through the library's loader, as the display does.

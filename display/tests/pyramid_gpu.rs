@@ -9,7 +9,7 @@
 //! come from the CPU samplers at test time. On failure the actual, expected and difference PNGs
 //! go to `target/tmp/display-failures/`.
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use altrep::asset::{AssetWriter, Conventions};
 use altrep::pipeline::pyramid::{PyramidAsset, PyramidRepr};
@@ -17,10 +17,13 @@ use altrep::pipeline::{Needs, Representation, Source};
 use altrep::pyramid::truth::{PlaneView, footprints, supersampled_truth, test_texture};
 use altrep::pyramid::{FipMap, PyramidData, PyramidParams, Scheme, Texture, WrapMode};
 use altrep_data_gen::{Light, RgbaImage};
+use altrep_display::DisplayError;
 use altrep_display::check::{pixel_errors, quantile, write_artefacts};
 use altrep_display::pyramid::{PyramidDisplay, Sampler, load_pyramid, value_psnr, values_to_image};
-use altrep_display::{DisplayError, Gpu};
 use approx::assert_abs_diff_eq;
+
+mod common;
+use common::{failures_dir, gpu};
 
 /// Texels per side of the test texture (checkerboard, diagonal wave and noise; periodic).
 const TEX: usize = 128;
@@ -50,26 +53,6 @@ fn views() -> Vec<PlaneView> {
         });
     }
     v
-}
-
-fn gpu() -> Option<Gpu> {
-    match Gpu::headless() {
-        Ok(g) => {
-            eprintln!("adapter: {}", g.describe());
-            Some(g)
-        }
-        Err(e) => {
-            if std::env::var("CI").is_ok_and(|v| v == "true") {
-                panic!("CI=true and no GPU adapter: {e}");
-            }
-            eprintln!("skipped: no GPU adapter ({e})");
-            None
-        }
-    }
-}
-
-fn failures_dir() -> PathBuf {
-    Path::new(env!("CARGO_TARGET_TMPDIR")).join("display-failures")
 }
 
 fn params() -> PyramidParams {

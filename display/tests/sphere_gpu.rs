@@ -7,7 +7,7 @@
 //! are computed by the CPU renderer at test time. On failure the actual, expected and difference
 //! PNGs go to `target/tmp/display-failures/`.
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use altrep::asset::{AssetWriter, Conventions};
 use altrep::metrics::psnr;
@@ -18,11 +18,14 @@ use altrep::sphere::{
     fibonacci_directions, render, truth_images,
 };
 use altrep_data_gen::{Light, RgbaImage, scene_shape};
+use altrep_display::DisplayError;
 use altrep_display::check::{pixel_errors, quantile, write_artefacts};
 use altrep_display::sphere::{Precision, SphereDisplay, SphereDraw, SphereFrame, load_sphere};
-use altrep_display::{DisplayError, Gpu};
 use approx::assert_abs_diff_eq;
 use glam::DVec3;
+
+mod common;
+use common::{failures_dir, gpu};
 
 /// Shapes checked (flat faces, thin branches, a seat over open space), with the view set and
 /// surface model each is stored with.
@@ -36,27 +39,6 @@ const CASES: [(&str, Coverage, SurfaceModel); 3] = [
 /// texel edge there, where `f32` and `f64` would split a column of rays between the two texels
 /// differently.
 const SIZE: usize = 64;
-
-/// The device, or `None` after printing "skipped: no GPU adapter" (a failure when `CI=true`).
-fn gpu() -> Option<Gpu> {
-    match Gpu::headless() {
-        Ok(g) => {
-            eprintln!("adapter: {} (f64: {})", g.describe(), g.has_f64);
-            Some(g)
-        }
-        Err(e) => {
-            if std::env::var("CI").is_ok_and(|v| v == "true") {
-                panic!("CI=true and no GPU adapter: {e}");
-            }
-            eprintln!("skipped: no GPU adapter ({e})");
-            None
-        }
-    }
-}
-
-fn failures_dir() -> PathBuf {
-    Path::new(env!("CARGO_TARGET_TMPDIR")).join("display-failures")
-}
 
 /// Captures `shape`, writes it with the pipeline's writer and loads it back through
 /// [`load_sphere`].

@@ -64,6 +64,11 @@ pub struct SphereArgs {
     /// azimuth, PSNR of both methods, share of rays no frame sees).
     #[arg(long, default_value_t = 0)]
     pub worst: usize,
+    /// Print, per configuration, where each method's error lies: MSE ×10⁴ in the silhouette
+    /// band (≤ 1 px, 2 px), the interior and outside, and the alpha bias (mean alpha minus the
+    /// truth's; negative: missing coverage).
+    #[arg(long)]
+    pub split: bool,
     /// Largest frame size `--fit-budgets` may choose.
     #[arg(long, default_value_t = 256, value_parser = clap::value_parser!(u32).range(8..=4096))]
     pub max_size: u32,
@@ -179,6 +184,19 @@ pub fn run(args: SphereArgs) -> CliResult {
             m.bounds_s,
             m.ours.hole_share
         );
+        if args.split {
+            for (name, st) in [("ours", &m.ours), ("baseline", &m.baseline)] {
+                let e = &st.split;
+                println!(
+                    "        split {name:>8}: MSE×1e4 band≤1px {:7.3}, band 2px {:6.3}, interior {:7.3}, outside {:6.3}; alpha bias {:+.4}",
+                    e.band1_mse * 1e4,
+                    e.band2_mse * 1e4,
+                    e.interior_mse * 1e4,
+                    e.outside_mse * 1e4,
+                    e.alpha_bias
+                );
+            }
+        }
         if args.worst > 0 {
             let mut order: Vec<usize> = (0..m.directions.len()).collect();
             order.sort_by(|&a, &b| {

@@ -20,7 +20,9 @@ use super::warp::{
     render_with,
 };
 use super::{ParallaxError, invalid};
-use crate::metrics::{CompareOptions, compare, psnr_from_mse, silhouette_iou};
+use crate::metrics::{
+    CompareOptions, ErrorSplit, compare, error_split, psnr_from_mse, silhouette_iou,
+};
 
 /// Step statistics of one bound type.
 #[derive(Clone, Debug, Serialize)]
@@ -412,90 +414,6 @@ pub fn measure_quality(
         });
     }
     Ok(rows)
-}
-
-/// Where the error of an image lies, by the distance of each pixel to the true silhouette: the
-/// Chebyshev distance `d` to the nearest pixel on the other side of the ground truth's outline
-/// (alpha > ½), up to 2. Each `*_mse` is the squared error summed over that region's pixels and
-/// channels divided by all of them (`4 × pixels`), so the four parts add up to the image's MSE.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
-pub struct ErrorSplit {
-    /// Pixels with `d ≤ 1` (the silhouette band of one pixel either side).
-    pub band1_mse: f64,
-    /// Pixels with `d = 2`.
-    pub band2_mse: f64,
-    /// Covered pixels further in (`d > 2`).
-    pub interior_mse: f64,
-    /// Uncovered pixels further out (`d > 2`): false coverage far from the outline.
-    pub outside_mse: f64,
-    /// Mean alpha of the image minus that of the truth (positive: over-coverage).
-    pub alpha_bias: f64,
-}
-
-impl ErrorSplit {
-    /// The sum of the parts, the image's MSE.
-    pub fn mse(&self) -> f64 {
-        self.band1_mse + self.band2_mse + self.interior_mse + self.outside_mse
-    }
-
-    fn add(&mut self, o: &Self) {
-        self.band1_mse += o.band1_mse;
-        self.band2_mse += o.band2_mse;
-        self.interior_mse += o.interior_mse;
-        self.outside_mse += o.outside_mse;
-        self.alpha_bias += o.alpha_bias;
-    }
-
-    fn scale(&mut self, f: f64) {
-        self.band1_mse *= f;
-        self.band2_mse *= f;
-        self.interior_mse *= f;
-        self.outside_mse *= f;
-        self.alpha_bias *= f;
-    }
-}
-
-/// Splits the error of `image` against `truth` by distance to the true silhouette (see
-/// [`ErrorSplit`]). Cost: 25 look-ups per pixel. Errors: images of different sizes or empty.
-pub fn error_split(image: &RgbaImage, truth: &RgbaImage) -> Result<ErrorSplit, ParallaxError> {
-    let (w, h) = (truth.width, truth.height);
-    if (image.width, image.height) != (w, h) || w * h == 0 {
-        return Err(invalid(
-            "image size",
-            format!("{}×{} vs {w}×{h}", image.width, image.height),
-            "must be equal and non-empty",
-        ));
-    }
-    let inside = |i: i64, j: i64| {
-        let (i, j) = (i.clamp(0, w as i64 - 1), j.clamp(0, h as i64 - 1));
-        truth.pixels[j as usize * w + i as usize][3] > 0.5
-    };
-    let mut out = ErrorSplit::default();
-    let norm = 1.0 / (4 * w * h) as f64;
-    for j in 0..h as i64 {
-        for i in 0..w as i64 {
-            let me = inside(i, j);
-            let mut d = 3;
-            for dj in -2i64..=2 {
-                for di in -2i64..=2 {
-                    if inside(i + di, j + dj) != me {
-                        d = d.min(di.abs().max(dj.abs()));
-                    }
-                }
-            }
-            let k = j as usize * w + i as usize;
-            let (a, b) = (image.pixels[k], truth.pixels[k]);
-            let e2: f64 = (0..4).map(|c| f64::from(a[c] - b[c]).powi(2)).sum::<f64>() * norm;
-            match (d, me) {
-                (0..=1, _) => out.band1_mse += e2,
-                (2, _) => out.band2_mse += e2,
-                (_, true) => out.interior_mse += e2,
-                (_, false) => out.outside_mse += e2,
-            }
-            out.alpha_bias += f64::from(a[3] - b[3]) / (w * h) as f64;
-        }
-    }
-    Ok(out)
 }
 
 /// One reconstruction measured by [`measure_quality_sweep`]: a surface model at silhouettes and

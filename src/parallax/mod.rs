@@ -95,8 +95,8 @@ pub use bounds::{
 };
 pub use images::{Brim, ParallaxImages, ParallaxParams, View, ViewCodes, normal_code};
 pub use measure::{
-    ErrorSplit, QualityParams, QualityRow, StepStats, StepsReport, SweepRow, Variant, error_split,
-    measure_quality, measure_quality_sweep, measure_steps,
+    QualityParams, QualityRow, StepStats, StepsReport, SweepRow, Variant, measure_quality,
+    measure_quality_sweep, measure_steps,
 };
 pub use warp::{
     BoundedRender, Crossing, MarchResult, Reconstruction, RenderParams, RowFilter, WarpMethod,
@@ -107,6 +107,7 @@ pub use warp::{
 use altrep_data_gen::DataGenError;
 
 use crate::metrics::MetricsError;
+pub use crate::metrics::{ErrorSplit, error_split};
 
 /// What went wrong while building, warping or measuring images with parallax.
 #[derive(Debug, thiserror::Error)]

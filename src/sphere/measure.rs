@@ -9,7 +9,7 @@ use glam::DVec3;
 use super::baseline::render_engine_baseline;
 use super::warp::{RenderOutput, RenderParams, render};
 use super::{Coverage, SphereError, SphereImages, SphereParams, check};
-use crate::metrics::{psnr, silhouette_iou};
+use crate::metrics::{ErrorSplit, error_split, psnr, silhouette_iou};
 
 /// `n` directions spread evenly over the upper hemisphere or the sphere (Fibonacci spiral:
 /// heights uniform, azimuths stepped by the golden angle). Elevations stay strictly inside
@@ -78,6 +78,9 @@ pub struct MethodStats {
     pub psnr_per_direction: Vec<f64>,
     /// Share of rays whose surface point no frame sees, per direction (exact warp only).
     pub holes_per_direction: Vec<f64>,
+    /// Where the error lies, by distance to the true silhouette (outline band, interior,
+    /// false coverage outside, alpha bias), averaged over the directions.
+    pub split: ErrorSplit,
 }
 
 /// One configuration (grid and frame size) measured for both methods.
@@ -145,6 +148,7 @@ fn stats(outs: &[(RenderOutput, f64)], truths: &[RgbaImage]) -> Result<MethodSta
         s.psnr_mean += p;
         s.psnr_min = s.psnr_min.min(p);
         s.iou_mean += silhouette_iou(&out.image, truth, 0.5)?;
+        s.split.add(&error_split(&out.image, truth)?);
         steps += out.steps.iter().map(|&v| f64::from(v)).sum::<f64>();
         rays += out.steps.len();
         s.steps_max = s.steps_max.max(out.max_steps());
@@ -155,6 +159,7 @@ fn stats(outs: &[(RenderOutput, f64)], truths: &[RgbaImage]) -> Result<MethodSta
     let n = outs.len().max(1) as f64;
     s.psnr_mean /= n;
     s.iou_mean /= n;
+    s.split.scale(1.0 / n);
     s.ms_per_image /= n;
     s.steps_mean = steps / rays.max(1) as f64;
     s.hole_share = holes as f64 / rays.max(1) as f64;

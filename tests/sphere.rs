@@ -341,3 +341,64 @@ fn straight_down_into_a_cup_needs_a_frame_at_the_zenith() {
     assert!(p5 >= p4 - 0.1, "G = 5 {p5} vs G = 4 {p4}");
     assert!(p9 >= p8 + 2.0, "G = 9 {p9} vs G = 8 {p8}");
 }
+
+#[test]
+fn a_hole_depth_empties_only_holes_deeper_than_it() {
+    // Straight down into the cup with 4 × 4 frames: some rays reach floor points no frame sees
+    // (holes). With a hole depth larger than any possible gap (the sphere's diameter) the
+    // picture is the default one; with a tiny one every hole ray is empty and nothing else
+    // changes.
+    let img = SphereImages::capture(&cup(), &SphereParams::hemisphere(4, 50).unwrap()).unwrap();
+    let d = DVec3::new(0.05, 1.0, 0.03).normalize();
+    let rp = RenderParams {
+        size: 64,
+        ..RenderParams::default()
+    };
+    let base = render(&img, d, &rp).unwrap();
+    assert!(base.holes > 0, "the view must have holes");
+    let wide = render(
+        &img,
+        d,
+        &RenderParams {
+            hole_depth: Some(2.5),
+            ..rp
+        },
+    )
+    .unwrap();
+    assert_eq!(wide.image, base.image);
+    let tiny = render(
+        &img,
+        d,
+        &RenderParams {
+            hole_depth: Some(1e-12),
+            ..rp
+        },
+    )
+    .unwrap();
+    assert_eq!(tiny.holes, base.holes, "holes are still counted");
+    assert_eq!(tiny.steps, base.steps, "the march is the same");
+    let covered =
+        |o: &altrep::sphere::RenderOutput| o.image.pixels.iter().filter(|p| p[3] > 0.0).count();
+    // One ray per pixel: each hole ray empties its pixel.
+    assert_eq!(covered(&base) - covered(&tiny), base.holes);
+    for (a, b) in tiny.image.pixels.iter().zip(&base.image.pixels) {
+        assert!(
+            a == b || a[3] == 0.0,
+            "only hole pixels change, and only to empty"
+        );
+    }
+    for bad in [0.0, -1.0, f64::NAN, f64::INFINITY] {
+        assert!(
+            render(
+                &img,
+                d,
+                &RenderParams {
+                    hole_depth: Some(bad),
+                    ..rp
+                }
+            )
+            .is_err(),
+            "hole depth {bad}"
+        );
+    }
+}

@@ -61,6 +61,9 @@ pub struct SphereDraw {
     pub visibility: f64,
     /// March between the stored cone bounds (`false`: the whole chord of the sphere).
     pub use_bounds: bool,
+    /// Holes farther than this from the nearest frame surface are drawn empty
+    /// (`altrep::sphere::RenderParams::hole_depth`; `None`: every hole is coloured).
+    pub hole_depth: Option<f64>,
     /// The light.
     pub light: Light,
 }
@@ -74,6 +77,7 @@ impl SphereDraw {
             size,
             visibility: d.visibility,
             use_bounds: d.use_bounds,
+            hole_depth: d.hole_depth,
             light: d.light,
         }
     }
@@ -223,6 +227,11 @@ impl SphereDisplay {
         if d.size == 0 || d.size > 8192 {
             return Err(invalid("screen size", d.size, "must be in 1..=8192"));
         }
+        if let Some(h) = d.hole_depth
+            && !(h.is_finite() && h > 0.0)
+        {
+            return Err(invalid("hole depth", h, "must be finite and positive"));
+        }
         if !(d.visibility.is_finite() && d.visibility > 0.0) {
             return Err(invalid(
                 "visibility",
@@ -258,7 +267,7 @@ impl SphereDisplay {
             Precision::F32 => 16.0 * f64::from(f32::EPSILON),
         };
         let mut pv = vec![0.0f64; 8 + 30];
-        pv[..7].copy_from_slice(&[
+        pv[..8].copy_from_slice(&[
             self.images.params.size as f64,
             d.visibility,
             inf,
@@ -267,6 +276,7 @@ impl SphereDisplay {
             hidden_tol,
             // warp.rs `PROBE` (1e-9) in `f64`; the same 16 ulps in `f32`.
             hidden_tol,
+            d.hole_depth.unwrap_or(inf),
         ]);
         let mut u = [0u32; 5];
         u[0] = enclosing.len() as u32;

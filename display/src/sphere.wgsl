@@ -10,7 +10,8 @@ alias real = f32;
 // Scalars in `real`, see `SphereDisplay::render`: 0 F (texels per frame side), 1 visibility
 // (texel pitches), 2 "infinity", 3 the CPU's 1e-300 (smallest direction component marched),
 // 4 screen size, 5 the tolerance of `hidden` (the CPU's 1e-9; see the host), 6 how far past a
-// candidate it is checked and coloured (warp.rs `PROBE`); then per enclosing frame s (0..3) at 8 + 10·s: rows X, Y, Z of its map (9 values,
+// candidate it is checked and coloured (warp.rs `PROBE`), 7 the hole depth ("infinity": none);
+// then per enclosing frame s (0..3) at 8 + 10·s: rows X, Y, Z of its map (9 values,
 // row-major) and its weight.
 @group(0) @binding(0) var<storage, read> P: array<real>;
 // Integers: 0 number of enclosing frames (1..3), 1..3 their frame indices, 4 use the bounds.
@@ -463,8 +464,14 @@ fn fs_main(in: VsOut) -> FsOut {
     if wsum > real(0.0) {
         out.colour = vec4<f32>(col / f32(wsum), 1.0);
     } else if have_nearest {
-        out.colour = vec4<f32>(nearest_col, 1.0);
         flags = flags | 1u;
+        if nearest_gap > P[7] {
+            // A hole deeper than the hole depth: taken as empty.
+            STEPS[2u * frag] = steps;
+            STEPS[2u * frag + 1u] = flags & 5u;
+            discard;
+        }
+        out.colour = vec4<f32>(nearest_col, 1.0);
     } else {
         STEPS[2u * frag] = steps;
         STEPS[2u * frag + 1u] = flags & 4u;

@@ -280,3 +280,51 @@ fn bad_draw_parameters_are_typed_errors() {
         Err(DisplayError::Asset { .. })
     ));
 }
+
+#[test]
+fn gpu_hole_depth_matches_the_cpu() {
+    let Some(gpu) = gpu() else { return };
+    let dir = tempfile::tempdir().unwrap();
+    let (mut emptied, mut worst_db) = (0usize, f64::INFINITY);
+    for (shape, coverage, model) in CASES {
+        let images = asset(shape, coverage, model, dir.path());
+        let disp = SphereDisplay::new(&gpu, &images, Precision::F32).unwrap();
+        for d in directions(&images) {
+            let draw = SphereDraw {
+                hole_depth: Some(0.05),
+                ..SphereDraw::new(d, SIZE)
+            };
+            let frame = disp.render(&gpu, &draw).unwrap();
+            let rp = RenderParams {
+                size: SIZE,
+                hole_depth: Some(0.05),
+                ..RenderParams::default()
+            };
+            let want = render(&images, d, &rp).unwrap();
+            let name = format!("sphere-holes-{shape}-{:.2}-{:.2}-{:.2}", d.x, d.y, d.z);
+            worst_db = worst_db.min(check_image(&name, &frame.image, &want.image, 50.0, 0.01));
+            let full = cpu(&images, d);
+            let covered = |img: &RgbaImage| img.pixels.iter().filter(|p| p[3] > 0.0).count();
+            emptied += covered(&full.image) - covered(&want.image);
+        }
+    }
+    eprintln!(
+        "hole depth 0.05: {emptied} pixels emptied over the cases; worst image PSNR GPU vs CPU {worst_db:.1} dB"
+    );
+    assert!(emptied > 0, "the hole depth must empty some pixels");
+    let d = SphereDraw {
+        hole_depth: Some(-1.0),
+        ..SphereDraw::new(DVec3::Y, 8)
+    };
+    let images = asset(
+        "truck",
+        Coverage::Hemisphere,
+        SurfaceModel::DEFAULT,
+        dir.path(),
+    );
+    let disp = SphereDisplay::new(&gpu, &images, Precision::F32).unwrap();
+    assert!(matches!(
+        disp.render(&gpu, &d),
+        Err(DisplayError::InvalidParameter { .. })
+    ));
+}

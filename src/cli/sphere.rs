@@ -69,6 +69,10 @@ pub struct SphereArgs {
     /// truth's; negative: missing coverage).
     #[arg(long)]
     pub split: bool,
+    /// Take a ray whose surface point no frame sees as empty when the nearest frame surface
+    /// lies farther than this from it (frame units, sphere radius 1); default: always colour it.
+    #[arg(long)]
+    pub hole_depth: Option<f64>,
     /// Largest frame size `--fit-budgets` may choose.
     #[arg(long, default_value_t = 256, value_parser = clap::value_parser!(u32).range(8..=4096))]
     pub max_size: u32,
@@ -101,6 +105,7 @@ pub fn run(args: SphereArgs) -> CliResult {
             size: args.out_size as usize,
             samples: args.samples as usize,
             use_bounds: !args.no_bounds,
+            hole_depth: args.hole_depth,
             ..RenderParams::default()
         },
         truth_supersample: args.truth_samples as usize,

@@ -31,18 +31,26 @@ pub struct RenderParams {
     pub visibility: f64,
     /// Use the cone bounds (`false`: march the whole chord of the bounding sphere).
     pub use_bounds: bool,
+    /// Where no enclosing frame sees the surface point found (a hole), it is coloured from the
+    /// frame surface nearest to it only when that surface lies within this distance (frame
+    /// units, the bounding sphere's radius is 1); farther, the ray is taken as empty: space seen
+    /// through an opening that none of the three frames looks into (a see-through shell)
+    /// rather than a surface. `None` (the default): every hole is coloured.
+    #[serde(default)]
+    pub hole_depth: Option<f64>,
     /// The light (the one shading function of the project).
     pub light: Light,
 }
 
 impl Default for RenderParams {
-    /// 128², one ray per pixel, visibility 2, bounds on, the default light.
+    /// 128², one ray per pixel, visibility 2, bounds on, every hole coloured, the default light.
     fn default() -> Self {
         Self {
             size: 128,
             samples: 1,
             visibility: 2.0,
             use_bounds: true,
+            hole_depth: None,
             light: Light::default(),
         }
     }
@@ -70,6 +78,14 @@ impl RenderParams {
             self.visibility,
             "must be finite and positive",
         )?;
+        if let Some(d) = self.hole_depth {
+            check(
+                d.is_finite() && d > 0.0,
+                "hole depth",
+                d,
+                "must be finite and positive",
+            )?;
+        }
         Ok(())
     }
 }
@@ -528,9 +544,13 @@ fn trace(
     }
     if wsum > 0.0 {
         ray.colour = Some(col / wsum as f32);
-    } else if let Some((_, c)) = nearest {
-        ray.colour = Some(c);
+    } else if let Some((gap, c)) = nearest {
         ray.hole = true;
+        if params.hole_depth.is_some_and(|d| gap > d) {
+            ray.unresolved = false;
+            return ray;
+        }
+        ray.colour = Some(c);
     } else {
         ray.unresolved = false;
         return ray;

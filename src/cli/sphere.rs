@@ -70,9 +70,9 @@ pub struct SphereArgs {
     #[arg(long)]
     pub split: bool,
     /// Take a ray whose surface point no frame sees as empty when the nearest frame surface
-    /// lies farther than this from it (frame units, sphere radius 1); default: always colour it.
-    #[arg(long)]
-    pub hole_depth: Option<f64>,
+    /// lies farther than this from it (frame units, sphere radius 1); 0 colours every such ray.
+    #[arg(long, default_value_t = crate::sphere::DEFAULT_HOLE_DEPTH)]
+    pub hole_depth: f64,
     /// Largest frame size `--fit-budgets` may choose.
     #[arg(long, default_value_t = 256, value_parser = clap::value_parser!(u32).range(8..=4096))]
     pub max_size: u32,
@@ -105,7 +105,7 @@ pub fn run(args: SphereArgs) -> CliResult {
             size: args.out_size as usize,
             samples: args.samples as usize,
             use_bounds: !args.no_bounds,
-            hole_depth: args.hole_depth,
+            hole_depth: (args.hole_depth != 0.0).then_some(args.hole_depth),
             ..RenderParams::default()
         },
         truth_supersample: args.truth_samples as usize,

@@ -113,7 +113,8 @@ pub use measure::{
 };
 pub use viewset::{Coverage, ViewSet};
 pub use warp::{
-    EnclosingFrame, MAX_CARVE_ROUNDS, RenderOutput, RenderParams, enclosing_frames, render,
+    DEFAULT_HOLE_DEPTH, EnclosingFrame, MAX_CARVE_ROUNDS, RenderOutput, RenderParams,
+    enclosing_frames, render,
 };
 
 use altrep_data_gen::DataGenError;

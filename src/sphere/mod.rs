@@ -72,7 +72,10 @@
 //! the barycentric blend of the frames that **see** it (their surface lies within
 //! `visibility` texel pitches of it), each bilinearly filtered at the hit and shaded from its
 //! normal; where no frame sees it (a point hidden from all three, e.g. deep in a concavity) the
-//! frame whose surface lies nearest above it gives the colour.
+//! frame whose surface lies nearest above it gives the colour, if that surface lies within the
+//! hole depth (half the radius by default, [`RenderParams::hole_depth`]); farther, the ray is
+//! taken as empty: through the openings of a see-through shell the ray reaches space that no
+//! enclosing frame looks into, which carving cannot clear.
 //!
 //! ## Bounds for a cone of directions
 //!

@@ -836,7 +836,6 @@ fn hole_filling_and_fallback_marches_are_counted_apart_from_the_bracketing_steps
 /// are now kept at the end.
 #[test]
 fn best_c_bounds_on_adversarial_steep_brims_regression() {
-    use altrep::parallax::ViewCodes;
     let texels: Vec<Option<(u8, [u8; 3])>> = vec![
         None,
         None,
@@ -983,6 +982,18 @@ fn best_c_bounds_on_adversarial_steep_brims_regression() {
         None,
         None,
     ];
+    let images = tangent_brim_images(&texels, 16.926427495976476);
+    let violations = brim_bound_violations(&images);
+    assert!(
+        violations.iter().all(|&v| v == 0),
+        "violations {violations:?}"
+    );
+}
+
+/// Four views of 12 × 3 texels from `texels` (view-major; `None` undefined, else a depth code
+/// and any normal code), with tangent brims of `max_slope`.
+fn tangent_brim_images(texels: &[Option<(u8, [u8; 3])>], max_slope: f64) -> ParallaxImages {
+    use altrep::parallax::ViewCodes;
     let p = ParallaxParams {
         views: 4,
         width: 12,
@@ -996,38 +1007,35 @@ fn best_c_bounds_on_adversarial_steep_brims_regression() {
                 if let Some((d, n)) = texels[k * 36 + idx] {
                     c.defined[idx] = true;
                     c.depth[idx] = u16::from(d);
-                    c.normal[idx] = n;
+                    c.normal[idx] = n; // any code, including zero and facing away
                     c.albedo[idx] = [200, 100, 50];
                 }
             }
             c
         })
         .collect();
-    let images = ParallaxImages::from_codes(&p, &codes)
+    ParallaxImages::from_codes(&p, &codes)
         .unwrap()
-        .with_brim(Brim::Tangent {
-            max_slope: 16.926427495976476,
-        })
-        .unwrap();
+        .with_brim(Brim::Tangent { max_slope })
+        .unwrap()
+}
+
+/// Dense-sweep violations of every bound kind (4 subdivisions) on `images`.
+fn brim_bound_violations(images: &ParallaxImages) -> Vec<u64> {
     let params = BoundParams {
         subdivisions: 4,
         ..BoundParams::default()
     };
     let bounds: Vec<Bounds> = BoundKind::ALL
         .iter()
-        .map(|&k| build_bounds(&images, k, &params).unwrap())
+        .map(|&k| build_bounds(images, k, &params).unwrap())
         .collect();
     let refs: Vec<&Bounds> = bounds.iter().collect();
-    let violations = dense_sweep(&images, &refs, 4).unwrap();
-    assert!(
-        violations.iter().all(|&v| v == 0),
-        "violations {violations:?}"
-    );
+    dense_sweep(images, &refs, 4).unwrap()
 }
 
 #[test]
 fn tangent_brims_on_random_codes_stay_conservative_and_finite() {
-    use altrep::parallax::ViewCodes;
     use proptest::prelude::*;
     let config = ProptestConfig {
         cases: 24,
@@ -1040,32 +1048,9 @@ fn tangent_brims_on_random_codes_stay_conservative_and_finite() {
         slope in prop_oneof![Just(0.0), Just(1e6), 0.0f64..20.0],
         alpha in -7.0f64..7.0,
     )| {
-        let p = ParallaxParams { views: 4, width: 12, height: 3, ..ParallaxParams::default() };
-        let codes: Vec<ViewCodes> = (0..4)
-            .map(|k| {
-                let mut c = ViewCodes::empty(12, 3);
-                for idx in 0..36 {
-                    if let Some((d, n)) = texels[k * 36 + idx] {
-                        c.defined[idx] = true;
-                        c.depth[idx] = u16::from(d);
-                        c.normal[idx] = n; // any code, including zero and facing away
-                        c.albedo[idx] = [200, 100, 50];
-                    }
-                }
-                c
-            })
-            .collect();
-        let images = ParallaxImages::from_codes(&p, &codes)
-            .unwrap()
-            .with_brim(Brim::Tangent { max_slope: slope })
-            .unwrap();
+        let images = tangent_brim_images(&texels, slope);
         prop_assert!(images.march_radius().is_finite());
-        let bounds: Vec<Bounds> = BoundKind::ALL
-            .iter()
-            .map(|&k| build_bounds(&images, k, &BoundParams { subdivisions: 4, ..BoundParams::default() }).unwrap())
-            .collect();
-        let refs: Vec<&Bounds> = bounds.iter().collect();
-        let violations = dense_sweep(&images, &refs, 4).unwrap();
+        let violations = brim_bound_violations(&images);
         prop_assert!(violations.iter().all(|&v| v == 0), "violations {:?}", violations);
         let screen = RenderParams { supersample: 3, ..RenderParams::native(&images) };
         let img = render_with(&images, alpha, WarpMethod::Inverse, &screen, &Variant::best().rec).unwrap();

@@ -22,7 +22,7 @@ use super::{PipelineError, Plan};
 use crate::asset::{AssetReader, AssetWriter, Channel, CodeImage, Encoding};
 use crate::sphere::{
     ConeBounds, Coverage, FrameCodes, MeasureParams, RenderParams, SphereError, SphereImages,
-    SphereParams, SurfaceModel, ViewSet, fibonacci_directions, measure, render,
+    SphereParams, SurfaceModel, ViewSet, azimuth_elevation, fibonacci_directions, measure, render,
     render_engine_baseline, truth_images,
 };
 
@@ -92,12 +92,6 @@ pub struct SphereDecisions {
 /// Images with parallax from any direction, for the pipeline.
 pub struct SphereRepr;
 
-/// The unit direction toward the camera at azimuth `a` and elevation `e` (radians):
-/// `(cos e cos a, sin e, cos e sin a)`, the manifest's convention.
-fn direction(a: f64, e: f64) -> DVec3 {
-    DVec3::new(e.cos() * a.cos(), e.sin(), e.cos() * a.sin())
-}
-
 /// Whether `d` lies in the needed azimuth and elevation ranges.
 fn needed(needs: &Needs, d: DVec3) -> bool {
     let e = d.y.clamp(-1.0, 1.0).asin().to_degrees();
@@ -135,7 +129,7 @@ fn measure_directions(needs: &Needs, coverage: Coverage, count: usize) -> Vec<DV
             let u = (k as f64 + 0.37) / count as f64;
             let v = ((k * 7) % count) as f64 / count as f64;
             let e = (e0 + (e1 - e0) * v).clamp(-89.5, 89.5);
-            direction((a0 + (a1 - a0).min(360.0) * u).to_radians(), e.to_radians())
+            azimuth_elevation((a0 + (a1 - a0).min(360.0) * u).to_radians(), e.to_radians())
         })
         .collect()
 }

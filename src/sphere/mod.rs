@@ -114,7 +114,7 @@ pub use measure::{
     BudgetRow, MeasureParams, MethodStats, SphereMeasurement, budget_table, fibonacci_directions,
     measure, truth_images,
 };
-pub use viewset::{Coverage, ViewSet};
+pub use viewset::{Coverage, ViewSet, azimuth_elevation};
 pub use warp::{
     DEFAULT_HOLE_DEPTH, EnclosingFrame, MAX_CARVE_ROUNDS, RenderOutput, RenderParams,
     enclosing_frames, render,

@@ -23,6 +23,13 @@ pub struct ViewSet {
     pub grid: usize,
 }
 
+/// The unit direction toward the camera at azimuth `a` and elevation `e` (radians):
+/// `(cos e cos a, sin e, cos e sin a)`, the manifest's convention (`y` up, azimuth from `x`
+/// toward `z`).
+pub fn azimuth_elevation(a: f64, e: f64) -> DVec3 {
+    DVec3::new(e.cos() * a.cos(), e.sin(), e.cos() * a.sin())
+}
+
 fn sign(x: f64) -> f64 {
     if x < 0.0 { -1.0 } else { 1.0 }
 }

@@ -26,7 +26,9 @@ use altrep::asset::{AssetWriter, Conventions};
 use altrep::metrics::psnr;
 use altrep::pipeline::sphere::{SphereRepr, SphereSpec};
 use altrep::pipeline::{Needs, Representation, Source};
-use altrep::sphere::{RenderParams, SphereImages, render_engine_baseline, truth_images};
+use altrep::sphere::{
+    RenderParams, SphereImages, azimuth_elevation, render_engine_baseline, truth_images,
+};
 use altrep_data_gen::{Light, RgbaImage, scene_shape};
 use altrep_display::sphere::{Precision, SphereDisplay, SphereDraw, load_sphere};
 use altrep_display::{Gpu, to_srgb8};
@@ -69,12 +71,6 @@ struct Args {
     /// Open a window with orbit controls instead of writing files.
     #[arg(long)]
     window: bool,
-}
-
-/// The unit direction toward the camera at azimuth `a` and elevation `e` (radians), the
-/// manifest's convention.
-fn direction(a: f64, e: f64) -> DVec3 {
-    DVec3::new(e.cos() * a.cos(), e.sin(), e.cos() * a.sin())
 }
 
 fn precompute(args: &Args) -> Result<SphereImages, String> {
@@ -135,7 +131,7 @@ fn run(args: &Args) -> Result<(), String> {
             |gpu| SphereDisplay::new(gpu, &images, Precision::F32).map_err(|e| e.to_string()),
             |gpu, disp, orbit| {
                 // Below the horizon a hemisphere has no frames: the elevation stops at 0.
-                let d = direction(
+                let d = azimuth_elevation(
                     orbit.azimuth,
                     orbit.elevation.clamp(0.0, std::f64::consts::FRAC_PI_2),
                 );
@@ -173,7 +169,7 @@ fn run(args: &Args) -> Result<(), String> {
     std::fs::create_dir_all(&args.out).map_err(|e| e.to_string())?;
     let bg = [0.18, 0.2, 0.23];
     for (az, el) in [(30, 5), (120, 30), (210, 60), (0, 90)] {
-        let d = direction(f64::from(az).to_radians(), f64::from(el).to_radians());
+        let d = azimuth_elevation(f64::from(az).to_radians(), f64::from(el).to_radians());
         let (img, _, steps, ours, engine) = triple(d)?;
         let path = args.out.join(format!("still-{az:03}-{el:02}.png"));
         to_srgb8(&img, bg, args.scale)
@@ -192,7 +188,7 @@ fn run(args: &Args) -> Result<(), String> {
     let (mut ms, mut steps) = (Vec::new(), 0.0);
     for k in 0..n {
         let u = k as f64 / n as f64;
-        let d = direction(std::f64::consts::TAU * u, 1.55 * u);
+        let d = azimuth_elevation(std::f64::consts::TAU * u, 1.55 * u);
         let (img, t, s, _, _) = triple(d)?;
         ms.push(t);
         steps += s;

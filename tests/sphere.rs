@@ -301,14 +301,17 @@ fn cup() -> altrep::data_gen::Csg {
 fn straight_down_into_a_cup_needs_a_frame_at_the_zenith() {
     // Where a view set fails: looking (almost) straight down into a concave object. Even grids
     // have no frame at the zenith; the enclosing frames there are tilted (G = 4: 26.6°, G = 8:
-    // 9.5°), so the floor along the walls is hidden from all of them and is coloured from the
-    // nearest frame surface (a hole). An odd grid puts a frame at the zenith. Measured at 8
-    // directions 84–89° up, 64² with 2 × 2 rays, truth 3 × 3, frames of 50²:
-    //   G = 4: 21.93 dB, holes 0.0094 | G = 5: 24.06 dB, holes 0.0017
-    //   G = 8: 21.26 dB, holes 0.0082 | G = 9: 24.19 dB, holes 0.0033
-    // (engine blend 18.25, 19.02, 19.92, 20.38 dB), with the default hole depth, which draws the
-    // deepest unseen floor empty (every hole coloured: 23.85, 24.13, 21.26, 24.26 dB). The fix
-    // costs (G + 1)²/G² of the memory.
+    // 9.5°), so the floor along the walls is hidden from all of them. The extra frames (the
+    // default, 8) see most of it: holes (points no frame asked sees) fall to at most 0.13 % on
+    // every grid (without them: 0.94 %, 0.17 %, 0.82 %, 0.33 %), yet the even grids still lose
+    // to the odd ones, G = 8 by 3 dB, a loss the hole share no longer explains (not
+    // diagnosed). Measured at 8 directions 84–89° up, 64² with 2 × 2 rays, truth 3 × 3,
+    // frames of 50²:
+    //   G = 4: 23.75 dB, holes 0.0013 | G = 5: 24.14 dB, holes 0.0000
+    //   G = 8: 21.28 dB, holes 0.0000 | G = 9: 24.26 dB, holes 0.0006
+    // (engine blend 18.25, 19.02, 19.92, 20.38 dB; without extra frames, with the default hole
+    // depth: 21.93, 24.06, 21.26, 24.19 dB). An odd grid puts a frame at the zenith, for
+    // (G + 1)²/G² of the memory.
     let shape = cup();
     let dirs: Vec<DVec3> = (0..8)
         .map(|k| {
@@ -338,8 +341,10 @@ fn straight_down_into_a_cup_needs_a_frame_at_the_zenith() {
         m.push((r.ours.psnr_mean, r.ours.hole_share));
     }
     let [(p4, h4), (p5, h5), (p8, h8), (p9, h9)] = [m[0], m[1], m[2], m[3]];
-    assert!(h5 * 4.0 < h4, "G = 5 holes {h5} vs G = 4 {h4}");
-    assert!(h9 < h8, "G = 9 holes {h9} vs G = 8 {h8}");
+    assert!(h5 <= h4, "G = 5 holes {h5} vs G = 4 {h4}");
+    for (g, h) in [(4, h4), (5, h5), (8, h8), (9, h9)] {
+        assert!(h < 0.002, "G = {g}: holes {h} with the extra frames");
+    }
     assert!(p5 >= p4 - 0.1, "G = 5 {p5} vs G = 4 {p4}");
     assert!(p9 >= p8 + 2.0, "G = 9 {p9} vs G = 8 {p8}");
 }
@@ -403,5 +408,71 @@ fn a_hole_depth_empties_only_holes_deeper_than_it() {
             .is_err(),
             "hole depth {bad}"
         );
+    }
+}
+
+#[test]
+fn extra_frames_change_only_rays_no_enclosing_frame_sees_and_gain_against_the_truth() {
+    // The truck seen low over the horizon and the chair from below the seat on 4 × 4 frames:
+    // some rays reach points none of the three enclosing frames sees (holes). Asking more
+    // frames changes those rays only (one ray per pixel: a pixel changes only if its ray was a
+    // hole without them), leaves fewer holes, and draws closer to the ray-cast truth.
+    let light = Light::default();
+    for (shape, coverage) in [("truck", Coverage::Hemisphere), ("chair", Coverage::Sphere)] {
+        let s = scene_shape(shape).unwrap();
+        let params = SphereParams {
+            set: ViewSet::new(coverage, 4).unwrap(),
+            size: 48,
+            model: SurfaceModel::DEFAULT,
+        };
+        let img = SphereImages::capture(&s, &params).unwrap();
+        let dirs: Vec<DVec3> = (0..6)
+            .map(|k| {
+                let e = if shape == "chair" { -0.25 } else { 0.2 };
+                let a = 0.4 + k as f64 * 1.05;
+                DVec3::new(a.cos(), e, a.sin()).normalize()
+            })
+            .collect();
+        let truths = truth_images(&s, &dirs, 64, 1, &light).unwrap();
+        let (mut db0, mut db8, mut holes0, mut holes8) = (0.0, 0.0, 0, 0);
+        for (d, truth) in dirs.iter().zip(&truths) {
+            let rp = RenderParams {
+                size: 64,
+                extra_frames: 0,
+                ..RenderParams::default()
+            };
+            let without = render(&img, *d, &rp).unwrap();
+            let with = render(
+                &img,
+                *d,
+                &RenderParams {
+                    extra_frames: altrep::sphere::MAX_EXTRA_FRAMES,
+                    ..rp
+                },
+            )
+            .unwrap();
+            let changed = without
+                .image
+                .pixels
+                .iter()
+                .zip(&with.image.pixels)
+                .filter(|(a, b)| a != b)
+                .count();
+            assert!(
+                changed <= without.holes,
+                "{shape}: {changed} pixels changed, {} holes",
+                without.holes
+            );
+            holes0 += without.holes;
+            holes8 += with.holes;
+            db0 += psnr(&without.image, truth).unwrap() / dirs.len() as f64;
+            db8 += psnr(&with.image, truth).unwrap() / dirs.len() as f64;
+        }
+        println!(
+            "{shape}, 4 × 4 frames of 48², 6 low directions: no extra frames {db0:.2} dB ({holes0} holes), 8 extra frames {db8:.2} dB ({holes8} holes)"
+        );
+        assert!(holes0 > 0, "{shape}: the directions must have holes");
+        assert!(holes8 < holes0, "{shape}: holes {holes8} against {holes0}");
+        assert!(db8 >= db0, "{shape}: {db8} dB against {db0}");
     }
 }

@@ -5,8 +5,10 @@
 //! marches it through each enclosing frame's depth map between the frame's stored cone bounds
 //! (2D DDA, one fetch per cell), carves free space between the frames (at most
 //! `altrep::sphere::MAX_CARVE_ROUNDS` rounds), and colours the surface point from the frames
-//! that see it, relit from their normals with the diffuse light. The enclosing frames, their
-//! weights and their linear maps come from the library (`altrep::sphere::enclosing_frames`),
+//! that see it, relit from their normals with the diffuse light; where none of them sees it, it
+//! asks the extra frames in turn as the CPU does. The enclosing and extra frames, their
+//! weights and their linear maps come from the library (`altrep::sphere::enclosing_frames`,
+//! `altrep::sphere::extra_frames`),
 //! computed on the host in `f64` as the CPU computes them; the shader repeats the CPU's
 //! formulas in the same order, in `f32` ([`Precision::F32`], what an engine ships) or, where the
 //! adapter has `SHADER_F64`, in `f64` ([`Precision::F64`]), where it is the CPU's computation
@@ -25,7 +27,7 @@ use std::time::Instant;
 use altrep::asset::AssetReader;
 use altrep::pipeline::Representation;
 use altrep::pipeline::sphere::SphereRepr;
-use altrep::sphere::{SphereImages, enclosing_frames};
+use altrep::sphere::{MAX_EXTRA_FRAMES, SphereImages, enclosing_frames, extra_frames};
 use altrep_data_gen::{Light, RgbaImage};
 use glam::DVec3;
 use wgpu::util::DeviceExt;
@@ -64,6 +66,10 @@ pub struct SphereDraw {
     /// Holes farther than this from the nearest frame surface are drawn empty
     /// (`altrep::sphere::RenderParams::hole_depth`; `None`: every hole is coloured).
     pub hole_depth: Option<f64>,
+    /// Where no enclosing frame sees the point found, ask up to this many more frames
+    /// (`altrep::sphere::RenderParams::extra_frames`, at most
+    /// `altrep::sphere::MAX_EXTRA_FRAMES`).
+    pub extra_frames: usize,
     /// The light.
     pub light: Light,
 }
@@ -78,6 +84,7 @@ impl SphereDraw {
             visibility: d.visibility,
             use_bounds: d.use_bounds,
             hole_depth: d.hole_depth,
+            extra_frames: d.extra_frames,
             light: d.light,
         }
     }
@@ -232,6 +239,13 @@ impl SphereDisplay {
         {
             return Err(invalid("hole depth", h, "must be finite and positive"));
         }
+        if d.extra_frames > MAX_EXTRA_FRAMES {
+            return Err(invalid(
+                "extra frames",
+                d.extra_frames,
+                "must be at most MAX_EXTRA_FRAMES (8)",
+            ));
+        }
         if !(d.visibility.is_finite() && d.visibility > 0.0) {
             return Err(invalid(
                 "visibility",
@@ -244,13 +258,15 @@ impl SphereDisplay {
             return Err(invalid("light", format!("{:?}", d.light), "must be finite"));
         }
         let t0 = Instant::now();
-        let enclosing = enclosing_frames(&self.images, d.dir).map_err(|e| {
+        let direction_error = |e: altrep::sphere::SphereError| {
             invalid(
                 "direction",
                 format!("{:?} ({e})", d.dir),
                 "must be a finite, non-zero direction the view set covers",
             )
-        })?;
+        };
+        let enclosing = enclosing_frames(&self.images, d.dir).map_err(direction_error)?;
+        let extra = extra_frames(&self.images, d.dir, d.extra_frames).map_err(direction_error)?;
         let tiny = match self.precision {
             Precision::F64 => 1e-300,
             Precision::F32 => f64::from(f32::MIN_POSITIVE),
@@ -266,7 +282,8 @@ impl SphereDisplay {
             Precision::F64 => 1e-9,
             Precision::F32 => 16.0 * f64::from(f32::EPSILON),
         };
-        let mut pv = vec![0.0f64; 8 + 30];
+        let slots = enclosing.len() + extra.len();
+        let mut pv = vec![0.0f64; 8 + 10 * slots];
         pv[..8].copy_from_slice(&[
             self.images.params.size as f64,
             d.visibility,
@@ -278,16 +295,19 @@ impl SphereDisplay {
             hidden_tol,
             d.hole_depth.unwrap_or(inf),
         ]);
-        let mut u = [0u32; 5];
-        u[0] = enclosing.len() as u32;
-        for (s, e) in enclosing.iter().enumerate() {
+        // Slots: the enclosing frames, then the extra frames (sphere.wgsl's header).
+        let mut u = vec![
+            enclosing.len() as u32,
+            extra.len() as u32,
+            u32::from(d.use_bounds),
+        ];
+        for (s, e) in enclosing.iter().chain(&extra).enumerate() {
             for (r, row) in e.rows.iter().enumerate() {
                 pv[8 + 10 * s + 3 * r..8 + 10 * s + 3 * r + 3].copy_from_slice(&row.to_array());
             }
             pv[8 + 10 * s + 9] = e.weight;
-            u[1 + s] = e.frame as u32;
+            u.push(e.frame as u32);
         }
-        u[4] = u32::from(d.use_bounds);
         let light = [ldir.x, ldir.y, ldir.z, d.light.ambient];
         let dev = &gpu.device;
         let init = |label: &str, bytes: &[u8]| {

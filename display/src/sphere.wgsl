@@ -11,10 +11,11 @@ alias real = f32;
 // (texel pitches), 2 "infinity", 3 the CPU's 1e-300 (smallest direction component marched),
 // 4 screen size, 5 the tolerance of `hidden` (the CPU's 1e-9; see the host), 6 how far past a
 // candidate it is checked and coloured (warp.rs `PROBE`), 7 the hole depth ("infinity": none);
-// then per enclosing frame s (0..3) at 8 + 10·s: rows X, Y, Z of its map (9 values,
-// row-major) and its weight.
+// then per frame slot s at 8 + 10·s (the enclosing frames first, then the extra frames, the
+// nearest to the direction first): rows X, Y, Z of its map (9 values, row-major) and its weight.
 @group(0) @binding(0) var<storage, read> P: array<real>;
-// Integers: 0 number of enclosing frames (1..3), 1..3 their frame indices, 4 use the bounds.
+// Integers: 0 number of enclosing frames (1..3), 1 number of extra frames (0..MAX_EXTRA_FRAMES),
+// 2 use the bounds, then 3 + s the frame index of slot s.
 @group(0) @binding(1) var<storage, read> U: array<u32>;
 // Light: direction xyz (unit, object frame), ambient.
 @group(0) @binding(2) var<storage, read> L: array<f32>;
@@ -30,6 +31,8 @@ alias real = f32;
 @group(0) @binding(6) var<storage, read_write> STEPS: array<u32>;
 
 const MAX_CARVE_ROUNDS: u32 = 8u;
+// warp.rs `MAX_EXTRA_FRAMES`; the frame slots hold 3 enclosing frames and these.
+const MAX_SLOTS: u32 = 11u;
 
 var<private> steps: u32;
 
@@ -234,7 +237,7 @@ fn first_event(k: u32, q: vec2<real>, t: vec2<real>, z_hi: real, z_lo: real) -> 
     return none;
 }
 
-// The line of display ray (x, y) in enclosing frame s (warp.rs `FrameMap::line`).
+// The line of display ray (x, y) in the frame of slot s (warp.rs `FrameMap::line`).
 struct Line {
     k: u32,
     a: real,
@@ -251,7 +254,7 @@ fn map_at(s: u32, r: u32, col: u32) -> real {
 
 fn line_of(s: u32, x: real, y: real) -> Line {
     var l: Line;
-    l.k = U[1u + s];
+    l.k = U[3u + s];
     l.c = map_at(s, 2u, 2u);
     l.a = map_at(s, 2u, 0u) * x + map_at(s, 2u, 1u) * y;
     let z0 = -l.a / l.c;
@@ -357,12 +360,13 @@ fn fs_main(in: VsOut) -> FsOut {
     var flags = 4u;
     let zs = sqrt(real(1.0) - r2);
     let nf = U[0];
-    var lines: array<Line, 3>;
+    let ne = U[1];
+    var lines: array<Line, MAX_SLOTS>;
     for (var s = 0u; s < nf; s = s + 1u) {
         var l = line_of(s, x, y);
         l.lo = l.a - l.c * zs;
         l.hi = l.a + l.c * zs;
-        if U[4] != 0u {
+        if U[2] != 0u {
             // ConeBounds::interval at q: inside the frame, no event (the ray is free) or clip.
             let t = texel_coords(l.q);
             if t.x >= real(0.0) && t.x < size_f() && t.y >= real(0.0) && t.y < size_f() {
@@ -379,83 +383,103 @@ fn fs_main(in: VsOut) -> FsOut {
         }
         lines[s] = l;
     }
+    // Frame slots in use: the enclosing frames, then each extra frame asked.
+    var nl = nf;
     var z_cur = zs;
     var z_c = zs;
     var unresolved = true;
-    for (var round = 0u; round < MAX_CARVE_ROUNDS; round = round + 1u) {
-        // The deepest of the frames' next events below z_cur (display depth).
-        // and the frame whose event it is (the first on ties).
-        var deepest = P[2];
-        var owner = 0u;
-        for (var s = 0u; s < nf; s = s + 1u) {
-            let l = lines[s];
-            let p = at_p(l, z_cur);
-            let zf = at_z(l, z_cur);
-            steps = steps + 1u;
-            var z = z_cur;
-            if !hidden(l.k, p, zf) {
-                let e = first_event(l.k, l.q, l.t, min(zf, l.hi), l.lo);
-                if !e.found {
-                    // Free from here on: the whole rest of the ray is free.
-                    STEPS[2u * frag] = steps;
-                    STEPS[2u * frag + 1u] = flags;
-                    discard;
-                }
-                z = (e.z - l.a) / l.c;
-            }
-            if z < deepest {
-                deepest = z;
-                owner = s;
-            }
-        }
-        z_c = deepest;
-        // The candidate is hidden from its owner by construction; every other frame is asked.
-        var all_hidden = true;
-        for (var s = 0u; s < nf; s = s + 1u) {
-            if s == owner {
-                continue;
-            }
-            steps = steps + 1u;
-            let l = lines[s];
-            if !hidden(l.k, at_p(l, z_c - P[6]), at_z(l, z_c - P[6])) {
-                all_hidden = false;
-                break;
-            }
-        }
-        if all_hidden {
-            unresolved = false;
-            break;
-        }
-        z_cur = z_c;
-    }
-    // Colour: the frames that see the point, by weight; else the nearest surface above it.
     var col = vec3<f32>(0.0);
     var wsum = real(0.0);
     var have_nearest = false;
     var nearest_gap = real(0.0);
     var nearest_col = vec3<f32>(0.0);
-    for (var s = 0u; s < nf; s = s + 1u) {
-        let l = lines[s];
-        let p = at_p(l, z_c - P[6]);
-        let zf = at_z(l, z_c - P[6]);
-        let c = cell_at(l.k, p);
-        let at = attributes_at(l.k, p);
-        if c < 0 || !at.found {
-            continue;
+    loop {
+        unresolved = true;
+        for (var round = 0u; round < MAX_CARVE_ROUNDS; round = round + 1u) {
+            // The deepest of the frames' next events below z_cur (display depth).
+            // and the frame whose event it is (the first on ties).
+            var deepest = P[2];
+            var owner = 0u;
+            for (var s = 0u; s < nl; s = s + 1u) {
+                let l = lines[s];
+                let p = at_p(l, z_cur);
+                let zf = at_z(l, z_cur);
+                steps = steps + 1u;
+                var z = z_cur;
+                if !hidden(l.k, p, zf) {
+                    let e = first_event(l.k, l.q, l.t, min(zf, l.hi), l.lo);
+                    if !e.found {
+                        // Free from here on: the whole rest of the ray is free.
+                        STEPS[2u * frag] = steps;
+                        STEPS[2u * frag + 1u] = flags;
+                        discard;
+                    }
+                    z = (e.z - l.a) / l.c;
+                }
+                if z < deepest {
+                    deepest = z;
+                    owner = s;
+                }
+            }
+            z_c = deepest;
+            // The candidate is hidden from its owner by construction; every other frame is
+            // asked.
+            var all_hidden = true;
+            for (var s = 0u; s < nl; s = s + 1u) {
+                if s == owner {
+                    continue;
+                }
+                steps = steps + 1u;
+                let l = lines[s];
+                if !hidden(l.k, at_p(l, z_c - P[6]), at_z(l, z_c - P[6])) {
+                    all_hidden = false;
+                    break;
+                }
+            }
+            if all_hidden {
+                unresolved = false;
+                break;
+            }
+            z_cur = z_c;
         }
-        let h = height(u32(c), p);
-        let shaded = shade(at.albedo, at.normal);
-        let gap = h - zf;
-        let weight = P[8u + 10u * s + 9u];
-        if gap <= P[1] * pitch() {
-            col = col + shaded * f32(weight);
-            wsum = wsum + weight;
+        // Colour: the frames that see the point, by weight; else the nearest surface above it.
+        col = vec3<f32>(0.0);
+        wsum = real(0.0);
+        have_nearest = false;
+        for (var s = 0u; s < nl; s = s + 1u) {
+            let l = lines[s];
+            let p = at_p(l, z_c - P[6]);
+            let zf = at_z(l, z_c - P[6]);
+            let c = cell_at(l.k, p);
+            let at = attributes_at(l.k, p);
+            if c < 0 || !at.found {
+                continue;
+            }
+            let h = height(u32(c), p);
+            let shaded = shade(at.albedo, at.normal);
+            let gap = h - zf;
+            let weight = P[8u + 10u * s + 9u];
+            if gap <= P[1] * pitch() {
+                col = col + shaded * f32(weight);
+                wsum = wsum + weight;
+            }
+            if !have_nearest || abs(gap) < nearest_gap {
+                have_nearest = true;
+                nearest_gap = abs(gap);
+                nearest_col = shaded;
+            }
         }
-        if !have_nearest || abs(gap) < nearest_gap {
-            have_nearest = true;
-            nearest_gap = abs(gap);
-            nearest_col = shaded;
+        if wsum > real(0.0) || nl >= nf + ne {
+            break;
         }
+        // No frame asked sees the point: ask the next extra frame, its whole chord, carving
+        // again from the candidate.
+        var l = line_of(nl, x, y);
+        l.lo = l.a - l.c * zs;
+        l.hi = l.a + l.c * zs;
+        lines[nl] = l;
+        nl = nl + 1u;
+        z_cur = z_c;
     }
     if unresolved {
         flags = flags | 2u;

@@ -73,6 +73,10 @@ pub struct SphereArgs {
     /// lies farther than this from it (frame units, sphere radius 1); 0 colours every such ray.
     #[arg(long, default_value_t = crate::sphere::DEFAULT_HOLE_DEPTH)]
     pub hole_depth: f64,
+    /// Where no enclosing frame sees the point found, ask up to this many more frames (the
+    /// nearest to the direction first); 0 asks only the three enclosing frames.
+    #[arg(long, default_value_t = crate::sphere::DEFAULT_EXTRA_FRAMES)]
+    pub extra_frames: usize,
     /// Largest frame size `--fit-budgets` may choose.
     #[arg(long, default_value_t = 256, value_parser = clap::value_parser!(u32).range(8..=4096))]
     pub max_size: u32,
@@ -106,6 +110,7 @@ pub fn run(args: SphereArgs) -> CliResult {
             samples: args.samples as usize,
             use_bounds: !args.no_bounds,
             hole_depth: (args.hole_depth != 0.0).then_some(args.hole_depth),
+            extra_frames: args.extra_frames,
             ..RenderParams::default()
         },
         truth_supersample: args.truth_samples as usize,

@@ -71,7 +71,12 @@
 //! event makes the whole ray free: the pixel is empty. At the surface point found, the colour is
 //! the barycentric blend of the frames that **see** it (their surface lies within
 //! `visibility` texel pitches of it), each bilinearly filtered at the hit and shaded from its
-//! normal; where no frame sees it (a point hidden from all three, e.g. deep in a concavity) the
+//! normal. Where none of the three sees it, up to [`RenderParams::extra_frames`] more frames
+//! are asked in turn, the nearest to the display direction first: one that sees the point
+//! colours it (with a small weight, 1e-3, beside any enclosing frame that then sees it too); one
+//! that sees through it joins the carving, marched along its whole chord (its bounds hold only
+//! for its own cone of directions), and the carving resumes from the point. Where still no
+//! frame sees it (a point hidden from all of them, e.g. deep in a concavity) the
 //! frame whose surface lies nearest above it gives the colour, if that surface lies within the
 //! hole depth (half the radius by default, [`RenderParams::hole_depth`]); farther, the ray is
 //! taken as empty: through the openings of a see-through shell the ray reaches space that no
@@ -116,8 +121,8 @@ pub use measure::{
 };
 pub use viewset::{Coverage, ViewSet, azimuth_elevation};
 pub use warp::{
-    DEFAULT_HOLE_DEPTH, EnclosingFrame, MAX_CARVE_ROUNDS, RenderOutput, RenderParams,
-    enclosing_frames, render,
+    DEFAULT_EXTRA_FRAMES, DEFAULT_HOLE_DEPTH, EnclosingFrame, MAX_CARVE_ROUNDS, MAX_EXTRA_FRAMES,
+    RenderOutput, RenderParams, enclosing_frames, extra_frames, render,
 };
 
 use altrep_data_gen::DataGenError;

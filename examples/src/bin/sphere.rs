@@ -56,6 +56,10 @@ struct Args {
     /// Frames per side of the hemi-octahedral grid when precomputing.
     #[arg(long, default_value_t = 8)]
     grid: usize,
+    /// Frames asked beyond the three enclosing ones where none of those sees the point found
+    /// (0 to 8; `altrep::sphere::RenderParams::extra_frames`).
+    #[arg(long, default_value_t = altrep::sphere::DEFAULT_EXTRA_FRAMES)]
+    extra_frames: usize,
     /// Texels per frame side when precomputing.
     #[arg(long, default_value_t = 64)]
     size: usize,
@@ -117,6 +121,10 @@ fn run(args: &Args) -> Result<(), String> {
         None => precompute(args)?,
     };
     let screen = args.screen;
+    let draw = |d: DVec3| SphereDraw {
+        extra_frames: args.extra_frames,
+        ..SphereDraw::new(d, screen)
+    };
     if !(1..=4096).contains(&screen) {
         return Err(format!("--screen {screen} must be in 1..=4096"));
     }
@@ -135,7 +143,7 @@ fn run(args: &Args) -> Result<(), String> {
                     orbit.azimuth,
                     orbit.elevation.clamp(0.0, std::f64::consts::FRAC_PI_2),
                 );
-                disp.render(gpu, &SphereDraw::new(d, screen))
+                disp.render(gpu, &draw(d))
                     .map(|f| f.image)
                     .map_err(|e| e.to_string())
             },
@@ -154,9 +162,7 @@ fn run(args: &Args) -> Result<(), String> {
     };
     // (impostor | engine | original, ms, fetches per ray, PSNR ours, PSNR engine)
     let triple = |d: DVec3| -> Result<(RgbaImage, f64, f64, f64, f64), String> {
-        let fr = disp
-            .render(&gpu, &SphereDraw::new(d, screen))
-            .map_err(|e| e.to_string())?;
+        let fr = disp.render(&gpu, &draw(d)).map_err(|e| e.to_string())?;
         let engine = render_engine_baseline(&images, d, &cpu).map_err(|e| e.to_string())?;
         let truth = truth_images(&shape, &[d], screen, 3, &light)
             .map_err(|e| e.to_string())?

@@ -992,9 +992,11 @@ pub fn build_bounds(
     let mut views = Vec::new();
     let mut storage = Vec::new();
     if kind != BoundKind::Cylinder {
+        // Views in parallel as well as rows: a view's serial passes 2 and 3 overlap other
+        // views' sweeps (each view's result is the same either way).
         (views, storage) = images
             .views
-            .iter()
+            .par_iter()
             .map(|view| {
                 // Pass 1: per pixel, slot hulls (or direct ranges).
                 let rows: Vec<Vec<[Option<SlotHull>; 2]>> = (0..h)

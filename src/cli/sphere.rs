@@ -115,6 +115,8 @@ pub fn run(args: SphereArgs) -> CliResult {
         },
         truth_supersample: args.truth_samples as usize,
     };
+    // Bad render parameters (e.g. too many extra frames) are refused before the truths are cast.
+    params.render.validate()?;
     let model = if args.flat {
         SurfaceModel::Flat
     } else {

@@ -8,8 +8,12 @@
 //!   [`altrep::solvers::operator::PAR_MIN_NNZ`];
 //! - `vecops_split`: a dot product serially and split, over growing lengths
 //!   ([`altrep::solvers::vecops::PAR_MIN_LEN`]);
+//! - `csr_product_split` also times the lane-blocked product ([`BlockedCsr`], bitwise the same
+//!   results) on the same matrices, serially and split;
 //! - `pcg_default_system`: the default offset system, default (auto) split, forced serial and
-//!   forced parallel (same iterates bit for bit);
+//!   forced parallel (same iterates bit for bit), and as the fit solves it: the lane-blocked
+//!   matrix built from the CSR matrix and PCG through it (`blocked_build_and_solve`; the
+//!   matrix copy it starts from is made outside the timing);
 //! - `throughput`: a serial in-cache dense dot product of 45 344 entries, the machine's
 //!   multiply-add rate used for the lower bound (bench/RESULTS.md: multiply-adds of the solve
 //!   ÷ this rate).
@@ -23,8 +27,10 @@ use altrep::cli::fit_bench::test_function;
 use altrep::fit::{DEFAULT_LAMBDA, FitSamples, NormalEquations};
 use altrep::solvers::operator::csr_apply_raw;
 use altrep::solvers::vecops::dot;
-use altrep::solvers::{Method, Parallelism, SolveParams, solve, with_parallelism};
-use criterion::{Criterion, criterion_group, criterion_main};
+use altrep::solvers::{
+    BlockedCsr, LinearOperator, Method, Parallelism, SolveParams, solve, with_parallelism,
+};
+use criterion::{BatchSize, Criterion, criterion_group, criterion_main};
 use sprs::{CsMat, TriMat};
 
 const CELLS: [usize; 3] = [15, 8, 16];
@@ -90,6 +96,15 @@ fn products(c: &mut Criterion) {
                 })
             });
         }
+        let blocked = BlockedCsr::new(a.clone()).expect("finite matrix");
+        for (mode, label) in [
+            (Parallelism::Serial, "blocked_serial"),
+            (Parallelism::Parallel, "blocked_parallel"),
+        ] {
+            g.bench_function(format!("{name}/{label}"), |b| {
+                b.iter(|| with_parallelism(mode, || blocked.apply(black_box(&x), &mut y)))
+            });
+        }
     }
     g.finish();
 }
@@ -129,6 +144,20 @@ fn pcg_default(c: &mut Criterion) {
         probe.report.operator_applications,
         probe.report.relative_residual
     );
+    g.bench_function("pcg_jacobi/blocked_build_and_solve", |b| {
+        b.iter_batched(
+            || a.clone(),
+            |m| {
+                let op = BlockedCsr::new(m).expect("finite matrix");
+                solve(Method::Pcg, &op, black_box(&rhs), &p).expect("solves")
+            },
+            BatchSize::LargeInput,
+        )
+    });
+    let op = BlockedCsr::new(a.clone()).expect("finite matrix");
+    g.bench_function("pcg_jacobi/blocked_solve", |b| {
+        b.iter(|| solve(Method::Pcg, &op, black_box(&rhs), &p).expect("solves"))
+    });
     for (mode, label) in [
         (Parallelism::Auto, "auto"),
         (Parallelism::Serial, "serial"),

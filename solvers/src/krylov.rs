@@ -21,7 +21,7 @@ use crate::error::{SolverError, check_finite, check_len};
 use crate::operator::LinearOperator;
 use crate::precond::{Preconditioner, build_preconditioner};
 use crate::report::{Method, Solution, SolveParams, SolveReport, StopReason};
-use crate::vecops::{axpy, dot, norm2, xpby};
+use crate::vecops::{axpy, cg_update, dot, norm2, xpby};
 
 /// How many times a method may restart after the recomputed residual failed the tolerance that
 /// the recurrence's residual met.
@@ -290,9 +290,8 @@ fn pcg_impl<Op: LinearOperator + ?Sized>(
     };
     let n = b.len();
     let (mut z, mut q) = (vec![0.0; n], vec![0.0; n]);
-    m.apply(&r, &mut z);
+    let mut rho = m.apply_dot(&r, &mut z);
     let mut p = z.clone();
-    let mut rho = dot(&r, &z);
     for it in 1..=params.max_iterations {
         if !positive(rho) {
             return Ok(run.finish(x, it - 1, breakdown("rᵀM⁻¹r", rho, it)));
@@ -304,21 +303,18 @@ fn pcg_impl<Op: LinearOperator + ?Sized>(
             return Ok(run.finish(x, it - 1, breakdown("pᵀAp", pq, it)));
         }
         let alpha = rho / pq;
-        axpy(alpha, &p, &mut x);
-        axpy(-alpha, &q, &mut r);
-        let rn = norm2(&r);
+        // x ← x + α·p, r ← r − α·q, ‖r‖ (one pass; the same bits as three).
+        let rn = cg_update(alpha, &p, &q, &mut x, &mut r);
         match run.check(&x, &mut r, rn) {
             Check::Go => {
-                m.apply(&r, &mut z);
-                let rho_new = dot(&r, &z);
+                let rho_new = m.apply_dot(&r, &mut z);
                 xpby(&z, rho_new / rho, &mut p);
                 rho = rho_new;
             }
             Check::Done => return Ok(run.finish(x, it, StopReason::Tolerance)),
             Check::Restart => {
-                m.apply(&r, &mut z);
+                rho = m.apply_dot(&r, &mut z);
                 p.copy_from_slice(&z);
-                rho = dot(&r, &z);
             }
             Check::Gap => {
                 let rel = run.rel(norm2(&r));

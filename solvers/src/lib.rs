@@ -14,7 +14,8 @@
 //! | [`lsqr`], [`lsmr`] | rectangular `A`, `min ‖A·x − b‖` | `A·v`, `Aᵀ·u` |
 //!
 //! Solvers take any [`LinearOperator`] (implemented for `sprs` CSR/CSC matrices with a
-//! rayon-parallel product, [`par_mul_vec`]) and a [`Preconditioner`] ([`Identity`], [`Jacobi`],
+//! rayon-parallel product, [`par_mul_vec`]; [`BlockedCsr`] wraps a CSR matrix for a product
+//! about twice as fast on stencil-like sparsity, with bitwise the same results) and a [`Preconditioner`] ([`Identity`], [`Jacobi`],
 //! [`Ssor`]; zero-diagonal rows get the identity). Every solve takes [`SolveParams`] and returns a
 //! [`Solution`] whose [`SolveReport`] says how many iterations and operator products it took,
 //! the relative-residual history, the time, whether it converged and why it stopped
@@ -41,6 +42,7 @@
 //! assert!(sol.report.converged && sol.report.relative_residual <= 1e-10);
 //! ```
 
+pub mod blocked;
 pub mod error;
 pub mod io;
 pub mod krylov;
@@ -51,6 +53,7 @@ pub mod precond;
 pub mod report;
 pub mod vecops;
 
+pub use blocked::BlockedCsr;
 pub use error::SolverError;
 pub use krylov::{bicgstab, bicgstab_with, pbicg, pbicg_with, pcg, pcg_with};
 pub use lsq::{lsmr, lsqr};

@@ -21,6 +21,12 @@ pub trait Preconditioner: Sync {
     }
     /// Short name for reports (`"none"`, `"jacobi"`, `"ssor"`).
     fn name(&self) -> &'static str;
+    /// `z ← M⁻¹·r` and returns `rᵀz` (what CG does next). Default: [`Preconditioner::apply`]
+    /// then [`crate::vecops::dot`]; [`Jacobi`] fuses both into one pass, with the same bits.
+    fn apply_dot(&self, r: &[f64], z: &mut [f64]) -> f64 {
+        self.apply(r, z);
+        crate::vecops::dot(r, z)
+    }
 }
 
 /// Which preconditioner a solver builds from the matrix (see [`build_preconditioner`]).
@@ -112,6 +118,9 @@ impl Preconditioner for Jacobi {
     }
     fn name(&self) -> &'static str {
         "jacobi"
+    }
+    fn apply_dot(&self, r: &[f64], z: &mut [f64]) -> f64 {
+        crate::vecops::scale_dot(&self.inv_diag, r, z)
     }
 }
 

@@ -5,7 +5,7 @@
 use std::path::PathBuf;
 use std::time::Instant;
 
-use altrep_solvers::{Method, PreconditionerKind, SolveParams, io, solve};
+use altrep_solvers::{BlockedCsr, Method, PreconditionerKind, SolveParams, io, solve};
 use serde_json::json;
 
 use super::{CliResult, parse_sizes};
@@ -180,7 +180,7 @@ pub fn run(args: FitBenchArgs) -> CliResult {
     let design = DesignMatrix::build(&samples, cells, periodic, c)?;
     let design_ms = t_design.elapsed().as_secs_f64() * 1e3;
     println!(
-        "\nsolvers at λ = {DEFAULT_LAMBDA:e} (tolerance {:e}; residual = ‖Aᵀd − (AᵀA+cL)a‖/‖Aᵀd‖ for all; solve ms = median of {}; LSQR/LSMR design matrix {}×{} built in {:.1} ms)",
+        "\nsolvers at λ = {DEFAULT_LAMBDA:e} (tolerance {:e}; residual = ‖Aᵀd − (AᵀA+cL)a‖/‖Aᵀd‖ for all; solve ms = median of {}, square methods with the build of the lane-blocked matrix; LSQR/LSMR design matrix {}×{} built in {:.1} ms)",
         args.tolerance,
         args.repeat.max(1),
         design.matrix.rows(),
@@ -207,12 +207,16 @@ pub fn run(args: FitBenchArgs) -> CliResult {
         };
         let mut times: Vec<f64> = (0..args.repeat.max(1))
             .map(|_| {
-                let s = if method.is_least_squares() {
-                    solve(method, &design.matrix, &design.rhs, &sp)
+                if method.is_least_squares() {
+                    solve(method, &design.matrix, &design.rhs, &sp).map(|s| s.report.time_s * 1e3)
                 } else {
-                    solve(method, &matrix, ne.rhs(), &sp)
-                };
-                s.map(|s| s.report.time_s * 1e3)
+                    // As the fit solves: through the lane-blocked matrix, its build timed too.
+                    let m = matrix.clone();
+                    let t = Instant::now();
+                    BlockedCsr::new(m)
+                        .and_then(|op| solve(method, &op, ne.rhs(), &sp))
+                        .map(|_| t.elapsed().as_secs_f64() * 1e3)
+                }
             })
             .collect::<Result<_, _>>()?;
         // Upper median: a time that was measured (`times` has `repeat.max(1)` entries).

@@ -57,7 +57,8 @@ pub mod quantize;
 use std::time::Instant;
 
 use altrep_solvers::{
-    Method, PreconditionerKind, SolveParams, SolveReport, SolverError, par_mul_vec, solve,
+    BlockedCsr, Method, PreconditionerKind, SolveParams, SolveReport, SolverError, par_mul_vec,
+    solve,
 };
 use rayon::prelude::*;
 use serde::Serialize;
@@ -363,7 +364,7 @@ impl<'a> Fitter<'a> {
             ..FitTiming::default()
         };
         let matrix = self.normal.matrix(params.lambda);
-        let solution = if params.solver.is_least_squares() {
+        let (solution, matrix) = if params.solver.is_least_squares() {
             let t0 = Instant::now();
             let c = params.lambda * self.normal.laplacian_scale();
             let design = DesignMatrix::build(self.samples, layout.cells, layout.periodic, c)?;
@@ -371,12 +372,15 @@ impl<'a> Fitter<'a> {
             let t1 = Instant::now();
             let s = solve(params.solver, &design.matrix, &design.rhs, &solve_params)?;
             timing.solve_s = t1.elapsed().as_secs_f64();
-            s
+            (s, matrix)
         } else {
+            // The lane-blocked product: bitwise the CSR product's results, about twice as fast
+            // on the grid's stencil sparsity; its build is counted in the solve time.
             let t1 = Instant::now();
-            let s = solve(params.solver, &matrix, self.normal.rhs(), &solve_params)?;
+            let op = BlockedCsr::new(matrix)?;
+            let s = solve(params.solver, &op, self.normal.rhs(), &solve_params)?;
             timing.solve_s = t1.elapsed().as_secs_f64();
-            s
+            (s, op.into_csr())
         };
         let t2 = Instant::now();
         let grid = TrilinearGrid::new(layout.cells, layout.periodic, solution.x)?;

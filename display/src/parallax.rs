@@ -304,6 +304,7 @@ impl ParallaxDisplay {
             k0 as u32,
             k3 as u32,
             u32::from(d.rec.fill_holes),
+            u32::from(d.rec.carve_brims),
         ];
         let ubuf = init("U", bytemuck::cast_slice(&u), st);
         let l = [

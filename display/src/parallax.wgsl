@@ -12,7 +12,7 @@ alias real = f32;
 // Integers: 0 Lx, 1 Ly, 2 k1, 3 k2, 4 bound kind (0 cylinder, 1 zmin/zmax, 2 pair, 3 best c,
 // 4 best c split), 5 screen width, 6 screen height, then the reconstruction (warp.rs
 // `Reconstruction`): 7 rows (0 nearest, 1 linear), 8 fallback, 9 soft edges, 10 depth test,
-// 11 k0 = k1 − 1 and 12 k3 = k2 + 1 (the fallback views), 13 fill holes.
+// 11 k0 = k1 − 1 and 12 k3 = k2 + 1 (the fallback views), 13 fill holes, 14 carve brims.
 @group(0) @binding(1) var<storage, read> U: array<u32>;
 // Light: direction xyz (unit, object frame), ambient; then blend weights w1, w2 (f32, as the CPU),
 // then the fallback views' weights w0, w3.
@@ -385,11 +385,55 @@ fn soft(k: u32, j: u32, h: Hit) -> vec4<f32> {
 }
 
 // warp.rs `combine`: the crossings a (view ka, weight wa) and b (view kb, weight wb) of one ray.
-fn combine(ka: u32, kb: u32, wa: f32, wb: f32, j: u32, a: Hit, b: Hit) -> Col {
+// warp.rs `CARVE_DEPTH_TEXELS`.
+const CARVE_DEPTH_TEXELS: f32 = 2.0;
+
+// warp.rs `sticks_out`: whether the hit `a` of view ka on the ray x of row j, which view kb
+// (seen under (co, si)) misses, is a brim sticking out past kb's outline.
+fn sticks_out(ka: u32, kb: u32, co: real, si: real, j: u32, x: real, a: Hit) -> bool {
+    if !on_brim(ka, j, a) {
+        return false;
+    }
+    let xt = x * co - a.z_e * si;
+    let zt = x * si + a.z_e * co;
+    let u = (xt + P[R_CAP]) / P[PITCH];
+    let w = real(U[0]);
+    let i = floor(u);
+    if i >= 0.0 && i < w && geom(kb, j, u32(i)).defined {
+        return false;
+    }
+    let window = real(CARVE_DEPTH_TEXELS) * P[PITCH];
+    for (var d = -1; d <= 1; d += 2) {
+        let n = i + real(d);
+        if n >= 0.0 && n < w {
+            let g = geom(kb, j, u32(n));
+            if g.defined && abs(g.z - zt) <= window {
+                return true;
+            }
+        }
+    }
+    return false;
+}
+
+// warp.rs `combine`; (coa, sia) and (cob, sib) are the cosines and sines of the angles the two
+// views are seen under, x the ray.
+fn combine(ka: u32, kb: u32, wa: f32, wb: f32, j: u32, a: Hit, b: Hit, x: real, coa: real, sia: real, cob: real, sib: real) -> Col {
     var o: Col;
     o.ok = a.ok || b.ok;
     o.c = vec4<f32>(0.0);
     o.z_e = 0.0;
+    if U[14] != 0u && a.ok != b.ok {
+        var cut = false;
+        if a.ok {
+            cut = sticks_out(ka, kb, cob, sib, j, x, a);
+        } else {
+            cut = sticks_out(kb, ka, coa, sia, j, x, b);
+        }
+        if cut {
+            o.ok = false;
+            return o;
+        }
+    }
     if a.ok && b.ok {
         o.z_e = max(a.z_e, b.z_e);
         if U[10] != 0u && abs(a.z_e - b.z_e) > P[THRESH] {
@@ -557,7 +601,7 @@ fn ray_row(j: u32, x: real, px: u32) -> RowOut {
     var o: RowOut;
     o.s1 = m1.steps;
     o.s2 = m2.steps;
-    o.col = combine(k1, k2, L[4], L[5], j, m1.hit, m2.hit);
+    o.col = combine(k1, k2, L[4], L[5], j, m1.hit, m2.hit, x, P[CO1], P[SI1], P[CO2], P[SI2]);
     if !o.col.ok && U[8] != 0u {
         let k0 = U[11];
         let k3 = U[12];
@@ -565,7 +609,7 @@ fn ray_row(j: u32, x: real, px: u32) -> RowOut {
         let m0 = march_row(k0, j, x, P[CO0], P[SI0], q0.x1, q0.x2);
         let q3 = cylinder_range(x, P[CO3], P[SI3]);
         let m3 = march_row(k3, j, x, P[CO3], P[SI3], q3.x1, q3.x2);
-        o.col = combine(k0, k3, L[6], L[7], j, m0.hit, m3.hit);
+        o.col = combine(k0, k3, L[6], L[7], j, m0.hit, m3.hit, x, P[CO0], P[SI0], P[CO3], P[SI3]);
     }
     if !o.col.ok && U[13] != 0u {
         o.col = hole_fill(j, x);

@@ -892,6 +892,7 @@ pub fn render_with(
 /// `carve_brims` finds its brim sticking out past the other view's outline; both hit: blended by weight, nearer
 /// only under `depth_test` when their depths differ by more than `tol`, with brim coverage
 /// under `soft_edges` when both are on brims, else opaque.
+#[allow(clippy::too_many_arguments)]
 pub(crate) fn combine(
     images: &ParallaxImages,
     views: &[(usize, f64, f64); 2],

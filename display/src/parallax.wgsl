@@ -384,7 +384,6 @@ fn soft(k: u32, j: u32, h: Hit) -> vec4<f32> {
     return vec4<f32>(col, 1.0);
 }
 
-// warp.rs `combine`: the crossings a (view ka, weight wa) and b (view kb, weight wb) of one ray.
 // warp.rs `CARVE_DEPTH_TEXELS`.
 const CARVE_DEPTH_TEXELS: f32 = 2.0;
 
@@ -415,8 +414,8 @@ fn sticks_out(ka: u32, kb: u32, co: real, si: real, j: u32, x: real, a: Hit) -> 
     return false;
 }
 
-// warp.rs `combine`; (coa, sia) and (cob, sib) are the cosines and sines of the angles the two
-// views are seen under, x the ray.
+// warp.rs `combine`: the crossings a (view ka, weight wa) and b (view kb, weight wb) of the ray
+// x; (coa, sia) and (cob, sib) are the cosines and sines of the angles the views are seen under.
 fn combine(ka: u32, kb: u32, wa: f32, wb: f32, j: u32, a: Hit, b: Hit, x: real, coa: real, sia: real, cob: real, sib: real) -> Col {
     var o: Col;
     o.ok = a.ok || b.ok;

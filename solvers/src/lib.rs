@@ -15,8 +15,9 @@
 //!
 //! Solvers take any [`LinearOperator`] (implemented for `sprs` CSR/CSC matrices with a
 //! rayon-parallel product, [`par_mul_vec`]; [`BlockedCsr`] wraps a CSR matrix for a product
-//! about twice as fast on stencil-like sparsity, with bitwise the same results) and a [`Preconditioner`] ([`Identity`], [`Jacobi`],
-//! [`Ssor`]; zero-diagonal rows get the identity). Every solve takes [`SolveParams`] and returns a
+//! 3.5× faster on the fit's stencil sparsity, with bitwise the same results) and a
+//! [`Preconditioner`] ([`Identity`], [`Jacobi`], [`Ssor`]; zero-diagonal rows get the
+//! identity). Every solve takes [`SolveParams`] and returns a
 //! [`Solution`] whose [`SolveReport`] says how many iterations and operator products it took,
 //! the relative-residual history, the time, whether it converged and why it stopped
 //! ([`StopReason`]): non-convergence and breakdown are reported, never hidden. Bad input

@@ -226,9 +226,9 @@ pub struct Reconstruction {
     /// point's): the brim sticks out past that view's outline, so the hit is dropped (a miss;
     /// fallback views and hole filling still apply). A miss beside no such texel (a thin part
     /// that the other view's texels step over) keeps the hit. Issue 11, 64², 15 shapes, mean
-    /// PSNR N = 8 / 16: 31.38 / 31.98 → 31.61 / 32.43 dB; the torus, capsule and fandisk had
-    /// N = 16 below N = 8 from brims sticking out. Costs three texel reads per ray that one
-    /// view misses. Default `true`.
+    /// PSNR N = 8 / 16: 31.38 / 31.98 → 31.61 / 32.43 dB; N = 16 is no longer below N = 8 on
+    /// the torus and capsule, where brims stuck out (the fandisk stays 0.33 dB below). Costs
+    /// three texel reads per ray that one view misses. Default `true`.
     pub carve_brims: bool,
 }
 
@@ -888,10 +888,10 @@ pub fn render_with(
 
 /// Combines the crossings `c` of the ray `x` in the two views `views` (`(k, θ, weight)`) on view
 /// row `j` into premultiplied RGBA (`None` where both miss), by the options of `rec`: one view
-/// hits: its colour, with the brim coverage under `soft_edges`, or a miss where
-/// `carve_brims` finds its brim sticking out past the other view's outline; both hit: blended by weight, nearer
-/// only under `depth_test` when their depths differ by more than `tol`, with brim coverage
-/// under `soft_edges` when both are on brims, else opaque.
+/// hits: its colour, with the brim coverage under `soft_edges`, or a miss where `carve_brims`
+/// finds its brim sticking out past the other view's outline; both hit: blended by weight,
+/// nearer only under `depth_test` when their depths differ by more than `tol`, with brim
+/// coverage under `soft_edges` when both are on brims, else opaque.
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn combine(
     images: &ParallaxImages,

@@ -68,8 +68,9 @@ pub struct BlockedCsr {
 
 impl BlockedCsr {
     /// Builds the blocked copy of a CSR matrix (a CSC matrix is converted to CSR first). Errors
-    /// on a non-finite stored value. Cost: O(nnz) plus a sort of the pattern of each block whose
-    /// pattern differs from the previous block's (on a stencil matrix, a few per grid row).
+    /// on a non-finite stored value. Cost: O(slots), a merge of each block's rows with its
+    /// pattern, plus a sort of the pattern of each block that the previous block's pattern does
+    /// not hold (on the fit's default system, 33 of 288 blocks); about 0.2 ms on that system.
     pub fn new(a: CsMat<f64>) -> Result<Self, SolverError> {
         check_finite("matrix", a.data())?;
         let csr = if a.is_csr() { a } else { a.to_csr() };
@@ -82,28 +83,32 @@ impl BlockedCsr {
         // A stencil matrix pads its entries by about a fifth.
         let mut values: Vec<f64> = Vec::with_capacity(csr.nnz() + csr.nnz() / 4);
         let mut scratch: Vec<isize> = Vec::new();
-        // `slot[o + nrows]` = position of offset `o` in the current pattern, or `NONE`. Offsets
-        // lie in `−(nrows − 1) ..= ncols − 1`. A table lookup instead of a search: walking the
-        // pattern mispredicted a branch per entry and cost 4× the rest of the build.
-        const NONE: u32 = u32::MAX;
-        let mut slot = vec![NONE; nrows + ncols];
-        let key = |o: isize| (o + nrows as isize) as usize;
         // The current pattern: (start, len) in `offsets`.
         let mut current: Option<(usize, usize)> = None;
-        // Writes rows `first ..` into `out` (lane-interleaved) through `slot`; false when a row
-        // has an offset outside the pattern or its columns are not sorted.
-        let fill = |slot: &[u32], first: usize, out: &mut [f64]| -> bool {
-            for k in 0..BLOCK_ROWS {
-                let i = first + k;
-                let mut prev: i64 = -1;
-                for e in indptr[i]..indptr[i + 1] {
-                    let t = slot[key(indices[e] as isize - i as isize)];
-                    if t == NONE || i64::from(t) <= prev {
-                        return false;
+        // Appends rows `first .. first + BLOCK_ROWS` laid out on `pattern` (lane-interleaved,
+        // zeros where a row lacks an offset) to `values`, walking the pattern and every row's
+        // entries together (a merge: no lookups, `values` written in order). False, with
+        // `values` unchanged, when a row has an offset outside the pattern or unsorted columns
+        // (its entries are then not all consumed).
+        let fill = |pattern: &[isize], first: usize, values: &mut Vec<f64>| -> bool {
+            let v0 = values.len();
+            let mut cur: [usize; BLOCK_ROWS] = std::array::from_fn(|k| indptr[first + k]);
+            let end: [usize; BLOCK_ROWS] = std::array::from_fn(|k| indptr[first + k + 1]);
+            for &o in pattern {
+                let mut lane = [0.0f64; BLOCK_ROWS];
+                for k in 0..BLOCK_ROWS {
+                    let e = cur[k];
+                    let want = (first + k) as isize + o;
+                    if e < end[k] && indices[e] as isize == want {
+                        lane[k] = data[e];
+                        cur[k] = e + 1;
                     }
-                    prev = i64::from(t);
-                    out[t as usize * BLOCK_ROWS + k] = data[e];
                 }
+                values.extend_from_slice(&lane);
+            }
+            if cur != end {
+                values.truncate(v0);
+                return false;
             }
             true
         };
@@ -124,17 +129,14 @@ impl BlockedCsr {
             // First try the current pattern (on a stencil matrix, nearly every block).
             if let Some((start, len)) = current
                 && fits(&offsets[start..start + len])
+                && fill(&offsets[start..start + len], first, &mut values)
             {
-                values.resize(v0 + len * BLOCK_ROWS, 0.0);
-                if fill(&slot, first, &mut values[v0..]) {
-                    blocks.push(Some(Lanes {
-                        pattern: start,
-                        len,
-                        values: v0,
-                    }));
-                    continue;
-                }
-                values.truncate(v0);
+                blocks.push(Some(Lanes {
+                    pattern: start,
+                    len,
+                    values: v0,
+                }));
+                continue;
             }
             // A new pattern: the union of the rows' offsets.
             scratch.clear();
@@ -147,33 +149,19 @@ impl BlockedCsr {
             }
             scratch.sort_unstable();
             scratch.dedup();
-            if !fits(&scratch) {
+            // Unsorted columns in a row cannot follow a sorted pattern: `fill` refuses them.
+            if !fits(&scratch) || !fill(&scratch, first, &mut values) {
                 blocks.push(None);
                 continue;
-            }
-            if let Some((start, len)) = current {
-                for &o in &offsets[start..start + len] {
-                    slot[key(o)] = NONE;
-                }
-            }
-            for (t, &o) in scratch.iter().enumerate() {
-                slot[key(o)] = t as u32;
             }
             let start = offsets.len();
             offsets.extend_from_slice(&scratch);
             current = Some((start, scratch.len()));
-            values.resize(v0 + scratch.len() * BLOCK_ROWS, 0.0);
-            if fill(&slot, first, &mut values[v0..]) {
-                blocks.push(Some(Lanes {
-                    pattern: start,
-                    len: scratch.len(),
-                    values: v0,
-                }));
-            } else {
-                // Unsorted columns in a row: they cannot follow a sorted pattern.
-                values.truncate(v0);
-                blocks.push(None);
-            }
+            blocks.push(Some(Lanes {
+                pattern: start,
+                len: scratch.len(),
+                values: v0,
+            }));
         }
         Ok(Self {
             csr,

@@ -2,11 +2,11 @@
 //! (inverse warping bounded by the cylinder, any screen size, one ray per pixel, no mip) and of
 //! `altrep::parallax::render_bounded_with` (stored per-pixel bounds of every kind, at the views'
 //! own size), under any `Reconstruction` (the default: tangent brims as the asset's images
-//! define them, linear row filter, fallback views, soft edges, hole filling; or the original path). Two
-//! bracketing views are marched per fragment and view row read, combined by angular proportion
-//! (the next views out, from the cylinder, where both miss), relit from the stored normals with a
-//! diffuse light; the output is premultiplied RGBA and the depth of the nearer crossing is
-//! written.
+//! define them, linear row filter, fallback views, soft edges, hole filling, brim carving; or the
+//! original path). Two bracketing views are marched per fragment and view row read, combined by
+//! angular proportion (the next views out, from the cylinder, where both miss), relit from the
+//! stored normals with a diffuse light; the output is premultiplied RGBA and the depth of the
+//! nearer crossing is written.
 //!
 //! The shader (`parallax.wgsl`) repeats the CPU's formulas in the same order; it runs in `f32`
 //! ([`Precision::F32`], what an engine ships) or, where the adapter has `SHADER_F64`, in `f64`

@@ -384,6 +384,14 @@ fn soft(k: u32, j: u32, h: Hit) -> vec4<f32> {
     return vec4<f32>(col, 1.0);
 }
 
+// warp.rs `project`: the screen point (x, z_e) in the frame of a view seen under (co, si): its
+// texel coordinate u and its depth z_t.
+fn project(co: real, si: real, x: real, z_e: real) -> vec2<real> {
+    let xt = x * co - z_e * si;
+    let zt = x * si + z_e * co;
+    return vec2<real>((xt + P[R_CAP]) / P[PITCH], zt);
+}
+
 // warp.rs `CARVE_DEPTH_TEXELS`.
 const CARVE_DEPTH_TEXELS: f32 = 2.0;
 
@@ -393,9 +401,9 @@ fn sticks_out(ka: u32, kb: u32, co: real, si: real, j: u32, x: real, a: Hit) -> 
     if !on_brim(ka, j, a) {
         return false;
     }
-    let xt = x * co - a.z_e * si;
-    let zt = x * si + a.z_e * co;
-    let u = (xt + P[R_CAP]) / P[PITCH];
+    let pr = project(co, si, x, a.z_e);
+    let u = pr.x;
+    let zt = pr.y;
     let w = real(U[0]);
     let i = floor(u);
     if i >= 0.0 && i < w && geom(kb, j, u32(i)).defined {
@@ -461,9 +469,9 @@ fn combine(ka: u32, kb: u32, wa: f32, wb: f32, j: u32, a: Hit, b: Hit, x: real, 
 // warp.rs `hidden_in`: whether the screen point (x, z_e) lies below the surface of a defined
 // texel of row j of view k seen under (co, si).
 fn hidden_in(k: u32, co: real, si: real, j: u32, x: real, z_e: real) -> bool {
-    let xt = x * co - z_e * si;
-    let zt = x * si + z_e * co;
-    let u = (xt + P[R_CAP]) / P[PITCH];
+    let pr = project(co, si, x, z_e);
+    let u = pr.x;
+    let zt = pr.y;
     if !(u >= 0.0 && u < real(U[0])) {
         return false;
     }

@@ -28,7 +28,7 @@
 //! where the CSR product would not read `x[c]`; the solvers stop on non-finite iterates anyway.)
 
 use crate::error::{SolverError, check_finite};
-use crate::operator::{LinearOperator, PAR_MIN_NNZ, csr_apply_transpose_raw};
+use crate::operator::{LinearOperator, PAR_MIN_NNZ, csr_apply_transpose_raw, csr_rows};
 use crate::parallel::go_parallel;
 use rayon::prelude::*;
 use sprs::CsMat;
@@ -231,13 +231,8 @@ impl BlockedCsr {
     fn rows_portable(&self, x: &[f64], first_block: usize, y: &mut [f64]) {
         let indptr = self.csr.proper_indptr();
         let (indices, data) = (self.csr.indices(), self.csr.data());
-        let row = |i: usize| -> f64 {
-            let mut acc = 0.0;
-            for e in indptr[i]..indptr[i + 1] {
-                acc += data[e] * x[indices[e]];
-            }
-            acc
-        };
+        // Plain rows: the CSR product's own kernel (each row the same serial sum).
+        let plain = |first: usize, y: &mut [f64]| csr_rows(&indptr, indices, data, x, first, y);
         let mut chunks = y.chunks_exact_mut(BLOCK_ROWS);
         for (b, yb) in (first_block..).zip(&mut chunks) {
             let first = b * BLOCK_ROWS;
@@ -256,18 +251,10 @@ impl BlockedCsr {
                     }
                     yb.copy_from_slice(&acc);
                 }
-                None => {
-                    for (k, yi) in yb.iter_mut().enumerate() {
-                        *yi = row(first + k);
-                    }
-                }
+                None => plain(first, yb),
             }
         }
-        let tail_first = self.blocks.len() * BLOCK_ROWS;
-        let rem = chunks.into_remainder();
-        for (k, yi) in rem.iter_mut().enumerate() {
-            *yi = row(tail_first + k);
-        }
+        plain(self.blocks.len() * BLOCK_ROWS, chunks.into_remainder());
     }
 }
 

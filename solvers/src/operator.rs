@@ -73,7 +73,7 @@ const TRANSPOSE_BLOCK_NNZ: usize = 65_536;
 /// floating-point units busy while one row's chain of additions waits; each row's own order of
 /// additions is unchanged.
 #[inline]
-fn csr_rows<I: SpIndex, Iptr: SpIndex>(
+pub(crate) fn csr_rows<I: SpIndex, Iptr: SpIndex>(
     indptr: &[Iptr],
     indices: &[I],
     data: &[f64],

@@ -973,12 +973,8 @@ fn sticks_out(
         return false;
     }
     let (kb, theta) = (views[1 - slot].0, views[1 - slot].1);
-    let (co, si) = (theta.cos(), theta.sin());
-    // The point in the other view's frame (as `hidden_in`).
-    let xt = x * co - a.z_e * si;
-    let zt = x * si + a.z_e * co;
+    let (u, zt) = project(images, theta, x, a.z_e);
     let grid = images.pixel_grid();
-    let u = (xt + grid.cylinder.radius) / grid.pitch_x();
     let v = &images.views[kb];
     let at = |i: f64| (i >= 0.0 && i < v.width as f64).then(|| &v.geom[j * v.width + i as usize]);
     let i = u.floor();
@@ -991,14 +987,20 @@ fn sticks_out(
         .any(|n| at(n).is_some_and(|g| g.defined && (g.z - zt).abs() <= window))
 }
 
-/// Whether the point `(x, z_e)` of the screen (ray `x`, screen depth `z_e`) lies below the
-/// surface of a defined texel of row `j` of view `k` seen under `theta`: hidden from that view.
-fn hidden_in(images: &ParallaxImages, k: usize, theta: f64, j: usize, x: f64, z_e: f64) -> bool {
+/// The screen point `(x, z_e)` (ray `x`, screen depth `z_e`) in the frame of a view seen under
+/// `theta`: its texel coordinate `u` (texel `i` spans `[i, i + 1)`) and its depth `z_t`.
+fn project(images: &ParallaxImages, theta: f64, x: f64, z_e: f64) -> (f64, f64) {
     let grid = images.pixel_grid();
     let (co, si) = (theta.cos(), theta.sin());
     let xt = x * co - z_e * si;
     let zt = x * si + z_e * co;
-    let u = (xt + grid.cylinder.radius) / grid.pitch_x();
+    ((xt + grid.cylinder.radius) / grid.pitch_x(), zt)
+}
+
+/// Whether the point `(x, z_e)` of the screen (ray `x`, screen depth `z_e`) lies below the
+/// surface of a defined texel of row `j` of view `k` seen under `theta`: hidden from that view.
+fn hidden_in(images: &ParallaxImages, k: usize, theta: f64, j: usize, x: f64, z_e: f64) -> bool {
+    let (u, zt) = project(images, theta, x, z_e);
     let v = &images.views[k];
     if !(0.0..v.width as f64).contains(&u) {
         return false;

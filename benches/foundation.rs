@@ -3,10 +3,11 @@
 
 use altrep::mip::{Pyramid, PyramidParams, Texture, WrapMode};
 use altrep_data_gen::{
-    BoundingCylinder, CylinderParams, Mesh, MeshLoadOptions, Shape, ViewParams, capture_cylinder,
-    capture_view, scene_shape,
+    BoundingCylinder, CylinderParams, Hit, Mesh, MeshLoadOptions, Ray, Shape, ViewParams,
+    capture_cylinder, capture_view, scene_shape,
 };
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
+use glam::{DVec3, Vec3};
 
 fn view_params(size: usize) -> ViewParams {
     ViewParams {
@@ -43,6 +44,70 @@ fn capture(c: &mut Criterion) {
     });
 }
 
+/// A mesh traced ray by ray through its BVH: every method but the grid tracer delegates, so the
+/// trait's default tracer (one `Shape::intersect` per ray) runs.
+struct Walk<'a>(&'a Mesh);
+
+impl Shape for Walk<'_> {
+    fn name(&self) -> &str {
+        self.0.name()
+    }
+    fn intersect(&self, ray: &Ray, t_min: f64, t_max: f64) -> Option<Hit> {
+        self.0.intersect(ray, t_min, t_max)
+    }
+    fn contains(&self, p: DVec3) -> bool {
+        self.0.contains(p)
+    }
+    fn bounds(&self) -> (DVec3, DVec3) {
+        self.0.bounds()
+    }
+    fn albedo_at(&self, p: DVec3) -> Vec3 {
+        self.0.albedo_at(p)
+    }
+}
+
+/// `altrep capture --views 8 --size 512` without the files: 8 orthographic views of 512² (hit
+/// distance, normal, colour per ray), traced as grids (`grid`) or ray by ray through the BVH
+/// (`walk`), on 1 thread (the per-core rate) and on all threads.
+fn ray_casting(c: &mut Criterion) {
+    let meshes = concat!(env!("CARGO_MANIFEST_DIR"), "/../shared/data/meshes/");
+    let mut g = c.benchmark_group("ray_casting_8x512");
+    g.throughput(Throughput::Elements(8 * 512 * 512));
+    g.sample_size(10);
+    let one = rayon::ThreadPoolBuilder::new()
+        .num_threads(1)
+        .build()
+        .unwrap();
+    for m in ["teapot", "beetle", "stanford-bunny"] {
+        let mesh = match Mesh::load_obj(format!("{meshes}{m}.obj"), &MeshLoadOptions::default()) {
+            Ok(mesh) => mesh,
+            Err(e) => {
+                eprintln!("skipping {m}: {e}");
+                continue;
+            }
+        };
+        let walk = Walk(&mesh);
+        let views = |shape: &dyn Shape| {
+            for k in 0..8 {
+                let view = ViewParams {
+                    angle: std::f64::consts::TAU * k as f64 / 8.0,
+                    ..view_params(512)
+                };
+                std::hint::black_box(capture_view(shape, &view).unwrap());
+            }
+        };
+        for (name, shape) in [("grid", &mesh as &dyn Shape), ("walk", &walk as &dyn Shape)] {
+            g.bench_function(format!("{m}/{name}/1_thread"), |b| {
+                b.iter(|| one.install(|| views(shape)))
+            });
+            g.bench_function(format!("{m}/{name}/all_threads"), |b| {
+                b.iter(|| views(shape))
+            });
+        }
+    }
+    g.finish();
+}
+
 fn mip(c: &mut Criterion) {
     let tex = Texture::new(
         256,
@@ -71,5 +136,5 @@ fn mip(c: &mut Criterion) {
     });
 }
 
-criterion_group!(benches, capture, mip);
+criterion_group!(benches, capture, ray_casting, mip);
 criterion_main!(benches);

@@ -17,9 +17,11 @@ use glam::{DVec3, Vec3};
 use rayon::prelude::*;
 
 use crate::error::{DataGenError, finite, nonzero};
-use crate::geometry::{BoundingCylinder, PixelGrid, Ray, direction, screen_right};
+use crate::geometry::{
+    BoundingCylinder, Hit, ParallelRays, PixelGrid, Ray, direction, screen_right,
+};
 use crate::image_io::{RgbaImage, write_image};
-use crate::shape::Shape;
+use crate::shape::{Shape, trace_in_groups};
 use crate::truth::Light;
 
 /// What a captured pixel holds when its ray hits.
@@ -198,17 +200,24 @@ fn check_grid(
 fn cast(shape: &dyn Shape, start: DVec3, dir_out: DVec3, radius: f64) -> Option<Sample> {
     let origin = start + 2.0 * radius * dir_out;
     let ray = Ray::new(origin, -dir_out);
-    shape.intersect(&ray, 0.0, 4.0 * radius).map(|hit| {
-        let p = ray.at(hit.t);
-        Sample {
-            albedo: hit.albedo,
-            normal: hit.normal.as_vec3(),
-            depth: (p.dot(dir_out) / radius) as f32,
-        }
-    })
+    shape
+        .intersect(&ray, 0.0, 4.0 * radius)
+        .map(|hit| sample_of(&ray, &hit, dir_out, radius))
 }
 
-/// Captures an orthographic view of `shape` (SPEC §3a). Cost: `width × height` rays.
+/// The sample of `hit` on `ray`, which travels along `−dir_out`: `depth = (p·dir_out)/R`.
+fn sample_of(ray: &Ray, hit: &Hit, dir_out: DVec3, radius: f64) -> Sample {
+    let p = ray.at(hit.t);
+    Sample {
+        albedo: hit.albedo,
+        normal: hit.normal.as_vec3(),
+        depth: (p.dot(dir_out) / radius) as f32,
+    }
+}
+
+/// Captures an orthographic view of `shape` (SPEC §3a). Cost: `width × height` rays, traced
+/// together by [`Shape::parallel_tracer`] in bands of rows (each ray is the one [`cast`] would
+/// trace alone).
 ///
 /// Errors: zero sizes, a non-finite angle or an invalid cylinder.
 pub fn capture_view(shape: &dyn Shape, params: &ViewParams) -> Result<SampleGrid, DataGenError> {
@@ -222,16 +231,35 @@ pub fn capture_view(shape: &dyn Shape, params: &ViewParams) -> Result<SampleGrid
     let d = direction(params.angle);
     let right = screen_right(params.angle);
     let r = params.cylinder.radius;
-    let mut samples = vec![None; params.width * params.height];
-    samples
-        .par_chunks_mut(params.width)
-        .enumerate()
-        .for_each(|(j, row)| {
-            for (i, s) in row.iter_mut().enumerate() {
-                let (x, y) = grid.center(i, j);
-                *s = cast(shape, x * right + DVec3::Y * y, d, r);
+    let columns: Vec<f64> = (0..params.width)
+        .map(|i| grid.x_at(i as f64 + 0.5))
+        .collect();
+    let rows: Vec<f64> = (0..params.height)
+        .map(|j| grid.y_at(j as f64 + 0.5))
+        .collect();
+    let ray = |i: usize, j: usize| {
+        let (x, y) = grid.center(i, j);
+        let start = x * right + DVec3::Y * y;
+        Ray::new(start + 2.0 * r * d, -d)
+    };
+    let rays = ParallelRays {
+        dir: -d,
+        across: [right, DVec3::Y],
+        columns: &columns,
+        rows: &rows,
+        t_min: 0.0,
+        t_max: 4.0 * r,
+        ray: &ray,
+    };
+    let w = params.width;
+    let mut samples = vec![None; w * params.height];
+    trace_in_groups(shape, &rays, 1, w, &mut samples, |first, hits, samples| {
+        for (j, (samples, hits)) in samples.chunks_mut(w).zip(hits.chunks(w)).enumerate() {
+            for (i, (s, hit)) in samples.iter_mut().zip(hits).enumerate() {
+                *s = hit.map(|hit| sample_of(&ray(i, first + j), &hit, d, r));
             }
-        });
+        }
+    });
     Ok(SampleGrid {
         width: params.width,
         height: params.height,

@@ -18,14 +18,13 @@
 //! [`screen_right`]: crate::screen_right
 
 use glam::DVec3;
-use rayon::prelude::*;
 
 use crate::capture::Sample;
 use crate::error::{DataGenError, finite, nonzero};
-use crate::geometry::Ray;
+use crate::geometry::{ParallelRays, Ray};
 use crate::image_io::RgbaImage;
-use crate::shape::Shape;
-use crate::truth::{Light, supersampled};
+use crate::shape::{Shape, trace_in_groups};
+use crate::truth::{Light, shade_groups, sub_sample};
 
 /// An orthographic frame along any direction, over a bounding sphere (see the module docs).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -121,6 +120,44 @@ impl OrthoFrame {
     pub fn ray(&self, x: f64, y: f64) -> Ray {
         Ray::new(self.to_world(DVec3::new(x, y, 2.0)), -self.dir)
     }
+
+    /// Screen positions of the `k × k` sub-sample rays of a `width × height` frame, as world
+    /// coordinates along `right` (columns) and `up` (rows): the grid of
+    /// [`OrthoFrame::parallel_rays`].
+    pub(crate) fn grid(&self, width: usize, height: usize, k: usize) -> (Vec<f64>, Vec<f64>) {
+        let (cr, cu) = (self.centre.dot(self.right), self.centre.dot(self.up));
+        let columns = (0..width * k)
+            .map(|c| {
+                cr + self.radius
+                    * Self::screen_at(sub_sample(c / k, c % k, k), 0.0, width, height).0
+            })
+            .collect();
+        let rows = (0..height * k)
+            .map(|r| {
+                cu + self.radius
+                    * Self::screen_at(0.0, sub_sample(r / k, r % k, k), width, height).1
+            })
+            .collect();
+        (columns, rows)
+    }
+
+    /// The grid of parallel rays of this frame with positions `columns × rows` and rays `ray`.
+    pub(crate) fn parallel_rays<'a>(
+        &self,
+        columns: &'a [f64],
+        rows: &'a [f64],
+        ray: &'a (dyn Fn(usize, usize) -> Ray + Sync),
+    ) -> ParallelRays<'a> {
+        ParallelRays {
+            dir: -self.dir,
+            across: [self.right, self.up],
+            columns,
+            rows,
+            t_min: 0.0,
+            t_max: 4.0 * self.radius,
+            ray,
+        }
+    }
 }
 
 /// One capture along an [`OrthoFrame`]: per pixel an optional [`Sample`] whose `depth` is the
@@ -147,23 +184,35 @@ pub fn capture_frame(
 ) -> Result<FrameCapture, DataGenError> {
     nonzero(width, "frame width")?;
     nonzero(height, "frame height")?;
+    let (columns, rows) = frame.grid(width, height, 1);
+    let ray = |i: usize, j: usize| {
+        let (x, y) = OrthoFrame::screen_at(i as f64 + 0.5, j as f64 + 0.5, width, height);
+        frame.ray(x, y)
+    };
+    let rays = frame.parallel_rays(&columns, &rows, &ray);
     let mut samples = vec![None; width * height];
-    samples
-        .par_chunks_mut(width)
-        .enumerate()
-        .for_each(|(j, row)| {
-            for (i, s) in row.iter_mut().enumerate() {
-                let (x, y) = OrthoFrame::screen_at(i as f64 + 0.5, j as f64 + 0.5, width, height);
-                let ray = frame.ray(x, y);
-                *s = shape
-                    .intersect(&ray, 0.0, 4.0 * frame.radius)
-                    .map(|hit| Sample {
+    trace_in_groups(
+        shape,
+        &rays,
+        1,
+        width,
+        &mut samples,
+        |first, hits, samples| {
+            for (j, (samples, hits)) in samples
+                .chunks_mut(width)
+                .zip(hits.chunks(width))
+                .enumerate()
+            {
+                for (i, (s, hit)) in samples.iter_mut().zip(hits).enumerate() {
+                    *s = hit.map(|hit| Sample {
                         albedo: hit.albedo,
                         normal: hit.normal.as_vec3(),
-                        depth: frame.to_frame(ray.at(hit.t)).z as f32,
+                        depth: frame.to_frame(ray(i, first + j).at(hit.t)).z as f32,
                     });
+                }
             }
-        });
+        },
+    );
     Ok(FrameCapture {
         frame: *frame,
         width,
@@ -186,20 +235,21 @@ pub fn render_truth_frame(
     nonzero(width, "truth width")?;
     nonzero(height, "truth height")?;
     let k = nonzero(supersample, "supersampling factor")?;
+    let (columns, rows) = frame.grid(width, height, k);
+    let ray = |c: usize, r: usize| {
+        let (x, y) = OrthoFrame::screen_at(
+            sub_sample(c / k, c % k, k),
+            sub_sample(r / k, r % k, k),
+            width,
+            height,
+        );
+        frame.ray(x, y)
+    };
+    let rays = frame.parallel_rays(&columns, &rows, &ray);
     let mut pixels = vec![[0.0f32; 4]; width * height];
-    pixels
-        .par_chunks_mut(width)
-        .enumerate()
-        .for_each(|(j, row)| {
-            for (i, px) in row.iter_mut().enumerate() {
-                *px = supersampled(i, j, k, |u, v| {
-                    let (x, y) = OrthoFrame::screen_at(u, v, width, height);
-                    shape
-                        .intersect(&frame.ray(x, y), 0.0, 4.0 * frame.radius)
-                        .map(|hit| light.shade(hit.albedo, hit.normal.as_vec3()))
-                });
-            }
-        });
+    trace_in_groups(shape, &rays, k, width, &mut pixels, |_, hits, pixels| {
+        shade_groups(hits, pixels, width, k, light);
+    });
     Ok(RgbaImage {
         width,
         height,

@@ -128,3 +128,42 @@ impl PixelGrid {
         (x + self.cylinder.radius) / self.pitch_x()
     }
 }
+
+/// Rays that share one direction and start on a grid across it: the rays of an orthographic
+/// view, traced together by [`crate::Shape::intersect_parallel`].
+///
+/// Ray `(c, r)` (column `c < columns.len()`, row `r < rows.len()`) is `ray(c, r)`; the caller
+/// builds it with its own formula, so a grid of rays gives bitwise the rays the caller would
+/// trace one at a time. Every ray must have direction `dir`, and its origin `o` must satisfy
+/// `o·across[0] ≈ columns[c]` and `o·across[1] ≈ rows[r]` (to within rounding); `columns` and
+/// `rows` are each strictly monotonic (either way). A shape that bins its geometry over the
+/// grid checks both per ray and traces a ray that breaks them on its own, so a wrong grid costs
+/// speed, never correctness.
+pub struct ParallelRays<'a> {
+    /// Direction of every ray.
+    pub dir: DVec3,
+    /// Two unit vectors orthogonal to `dir` and to each other: the screen axes of the grid.
+    pub across: [DVec3; 2],
+    /// `o·across[0]` of each column's rays (world units).
+    pub columns: &'a [f64],
+    /// `o·across[1]` of each row's rays (world units).
+    pub rows: &'a [f64],
+    /// The hit window `(t_min, t_max)` of every ray.
+    pub t_min: f64,
+    /// See `t_min`.
+    pub t_max: f64,
+    /// The ray of column `c`, row `r`.
+    pub ray: &'a (dyn Fn(usize, usize) -> Ray + Sync),
+}
+
+impl ParallelRays<'_> {
+    /// Number of rays, `columns × rows`.
+    pub fn len(&self) -> usize {
+        self.columns.len() * self.rows.len()
+    }
+
+    /// Whether the grid has no ray.
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+}

@@ -25,6 +25,7 @@
 //! * Every random choice takes a seed ([`SplitMix64`]).
 
 mod analytic;
+pub mod binned;
 mod capture;
 mod error;
 mod frame;
@@ -43,11 +44,11 @@ pub use capture::{
 };
 pub use error::DataGenError;
 pub use frame::{FrameCapture, OrthoFrame, capture_frame, render_truth_frame};
-pub use geometry::{BoundingCylinder, Hit, PixelGrid, Ray, direction, screen_right};
+pub use geometry::{BoundingCylinder, Hit, ParallelRays, PixelGrid, Ray, direction, screen_right};
 pub use image_io::{RgbaImage, linear_to_srgb, srgb_to_linear};
 pub use mesh::{Mesh, MeshLoadOptions};
 pub use rng::SplitMix64;
-pub use shape::{Albedo, Csg, Part, Primitive, Shape};
+pub use shape::{Albedo, Csg, ParallelTracer, Part, Primitive, Shape, intersect_parallel};
 pub use shapes::{SCENE_SHAPES, scene_shape};
 pub use truth::{Light, TruthParams, render_truth};
 pub use volume::{Volume, Voxel, VoxelParams, voxelize};

@@ -24,9 +24,10 @@ use obvhs::{
     triangle::Triangle,
 };
 
+use crate::binned::MeshTracer;
 use crate::error::DataGenError;
-use crate::geometry::{BoundingCylinder, Hit, Ray};
-use crate::shape::{Albedo, Shape};
+use crate::geometry::{BoundingCylinder, Hit, ParallelRays, Ray};
+use crate::shape::{Albedo, OneByOne, ParallelTracer, Shape};
 
 /// How to load and normalise a mesh.
 #[derive(Clone, Debug)]
@@ -64,11 +65,13 @@ enum TriColor {
 /// A normalised triangle mesh with its BVH. Implements [`Shape`].
 pub struct Mesh {
     name: String,
-    triangles: Vec<Triangle>,
+    pub(crate) triangles: Vec<Triangle>,
+    /// Each triangle's unit geometric normal (`obvhs`'s `compute_normal`, widened to `f64`).
+    normals: Vec<DVec3>,
     colors: Vec<TriColor>,
     fallback: Albedo,
     bvh: CwBvh,
-    bounds: (DVec3, DVec3),
+    pub(crate) bounds: (DVec3, DVec3),
     /// Triangles binned across the parity ray, built on the first [`Shape::contains_row`].
     yz_grid: OnceLock<YzGrid>,
     /// Time spent building the BVH.
@@ -255,14 +258,40 @@ impl Mesh {
             },
         );
         let mut bvh_build_time = Duration::ZERO;
-        let bvh = build_cwbvh_from_tris(
+        let mut bvh = build_cwbvh_from_tris(
             &triangles,
             BvhBuildParams::medium_build(),
             &mut bvh_build_time,
         );
+        // Store the triangles in the BVH's leaf order (spatially coherent), so that neighbouring
+        // rays read neighbouring triangles; the BVH then indexes them directly. Each ray still
+        // tests the same triangles in the same order. Skipped if the leaves are not a
+        // permutation of the triangles.
+        let order = &bvh.primitive_indices;
+        let mut seen = vec![false; triangles.len()];
+        let permutation = order.len() == triangles.len()
+            && order.iter().all(|&i| {
+                (i as usize) < seen.len() && !std::mem::replace(&mut seen[i as usize], true)
+            });
+        if permutation {
+            triangles = order.iter().map(|&i| triangles[i as usize]).collect();
+            kept_colors = order
+                .iter()
+                .map(|&i| kept_colors[i as usize].clone())
+                .collect();
+            bvh.primitive_indices = (0..order.len() as u32).collect();
+        }
+        let normals = triangles
+            .iter()
+            .map(|t| {
+                let g = t.compute_normal();
+                DVec3::new(g.x.into(), g.y.into(), g.z.into())
+            })
+            .collect();
         Ok(Self {
             name,
             triangles,
+            normals,
             colors: kept_colors,
             fallback: options.fallback_albedo.clone(),
             bvh,
@@ -277,7 +306,7 @@ impl Mesh {
         self.triangles.len()
     }
 
-    fn to_bvh_ray(ray: &Ray, t_min: f64, t_max: f64) -> BvhRay {
+    pub(crate) fn to_bvh_ray(ray: &Ray, t_min: f64, t_max: f64) -> BvhRay {
         let o = ray.origin.as_vec3();
         // `+ 0.0` turns −0.0 into +0.0: the BVH's octant logic reads sign bits, and a view at
         // α = 0 has direction (−1, −0, −0).
@@ -289,29 +318,25 @@ impl Mesh {
             t_max.min(f64::from(f32::MAX)) as f32,
         )
     }
-}
 
-impl Shape for Mesh {
-    fn name(&self) -> &str {
-        &self.name
-    }
-
-    fn intersect(&self, ray: &Ray, t_min: f64, t_max: f64) -> Option<Hit> {
+    /// The BVH walk of [`Shape::intersect`]: the nearest triangle on `ray` in `(t_min, t_max)`
+    /// and its `f32` distance.
+    pub(crate) fn first_hit(&self, ray: &Ray, t_min: f64, t_max: f64) -> Option<(usize, f32)> {
         let bray = Self::to_bvh_ray(ray, t_min, t_max);
         let mut hit = RayHit::none();
         let tris = &self.triangles;
         let idx = &self.bvh.primitive_indices;
-        if !self
-            .bvh
+        self.bvh
             .ray_traverse(bray, &mut hit, |r, id| tris[idx[id] as usize].intersect(r))
-        {
-            return None;
-        }
-        let tri_id = idx[hit.primitive_id as usize] as usize;
-        let tri = &tris[tri_id];
-        let t = f64::from(hit.t);
-        let g = tri.compute_normal();
-        let n = DVec3::new(g.x.into(), g.y.into(), g.z.into());
+            .then(|| (idx[hit.primitive_id as usize] as usize, hit.t))
+    }
+
+    /// The hit record of `ray` meeting triangle `tri_id` at distance `t`: the geometric normal
+    /// turned toward the ray and the triangle's colour at the hit point.
+    pub(crate) fn hit_at(&self, ray: &Ray, tri_id: usize, t: f32) -> Hit {
+        let tri = &self.triangles[tri_id];
+        let t = f64::from(t);
+        let n = self.normals[tri_id];
         // Winding is not trusted: the normal faces the incoming ray.
         let n = if n.dot(ray.dir) > 0.0 { -n } else { n };
         let p = ray.at(t);
@@ -323,11 +348,37 @@ impl Shape for Mesh {
             TriColor::Flat(c) => *c,
             TriColor::Procedural => self.fallback.at(p),
         };
-        Some(Hit {
+        Hit {
             t,
             normal: n,
             albedo,
-        })
+        }
+    }
+}
+
+impl Shape for Mesh {
+    fn name(&self) -> &str {
+        &self.name
+    }
+
+    fn intersect(&self, ray: &Ray, t_min: f64, t_max: f64) -> Option<Hit> {
+        self.first_hit(ray, t_min, t_max)
+            .map(|(tri, t)| self.hit_at(ray, tri, t))
+    }
+
+    /// Triangles binned over the grid ([`crate::binned`]) instead of a BVH walk per ray, when
+    /// the grid has at least `3/4` as many rays as the mesh has triangles; smaller grids walk.
+    ///
+    /// Binning costs about 110 ns per triangle and 55 ns per ray on one core, a walk 250–700
+    /// ns per ray (release build, 8 views): at 64² the Stanford bunny (69 k triangles) took
+    /// 62 ms binned against 23 ms walked, the teapot (6.3 k) 9.7 against 8.3 ms; at 128² the
+    /// rocker arm (20 k) 32 against 37 ms; at 512² binning is 1.6–2.2× faster on all three.
+    fn parallel_tracer<'a>(&'a self, rays: &'a ParallelRays<'a>) -> Box<dyn ParallelTracer + 'a> {
+        let worth_it = 4 * rays.len() >= 3 * self.triangles.len();
+        match MeshTracer::new(self, rays).filter(|_| worth_it) {
+            Some(t) => Box::new(t),
+            None => Box::new(OneByOne { shape: self, rays }),
+        }
     }
 
     /// Inside test by ray parity along `+x` (exact for closed meshes; meshes with holes may

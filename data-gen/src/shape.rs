@@ -6,10 +6,13 @@
 //! Rays are assumed to start outside every primitive (data-gen's rays start outside the bounding
 //! cylinder); a primitive reports the first surface crossing with `t > t_min`.
 
+use std::ops::Range;
+
 use glam::{DVec3, Vec3};
+use rayon::prelude::*;
 
 use crate::error::DataGenError;
-use crate::geometry::{Hit, Ray};
+use crate::geometry::{Hit, ParallelRays, Ray};
 
 /// Anything data-gen can sample: ray intersection, inside test, bounds.
 ///
@@ -39,6 +42,109 @@ pub trait Shape: Send + Sync {
     fn contains_row(&self, y: f64, z: f64, xs: &[f64], inside: &mut [bool]) {
         for (x, o) in xs.iter().zip(inside.iter_mut()) {
             *o = self.contains(DVec3::new(*x, y, z));
+        }
+    }
+    /// A tracer of the grid of parallel rays `rays`: whatever work the rays can share (a mesh
+    /// bins its triangles over the grid) is done here, once, and
+    /// [`ParallelTracer::trace_rows`] then traces bands of rows, from any thread. Each hit is
+    /// the one [`Shape::intersect`] finds for that ray, up to the exceptions stated by the
+    /// implementation ([`crate::Mesh`]: where two triangles meet a ray at the same `f32`
+    /// distance, and where its BVH walk culls a hit on a triangle's edge).
+    ///
+    /// The default traces each ray with [`Shape::intersect`]. Cost: up to `O(rays.len())`.
+    fn parallel_tracer<'a>(&'a self, rays: &'a ParallelRays<'a>) -> Box<dyn ParallelTracer + 'a> {
+        Box::new(OneByOne { shape: self, rays })
+    }
+}
+
+/// Traces bands of rows of a [`ParallelRays`] grid; made by [`Shape::parallel_tracer`].
+pub trait ParallelTracer: Sync {
+    /// The number of rows of a band: callers that split the grid into bands of this many rows
+    /// (starting at row 0) let the tracer share its work within each band.
+    fn band_rows(&self) -> usize;
+    /// Traces rows `rows` of the grid into `out[(r − rows.start) · columns + c]`. `out` must hold
+    /// `rows.len() × columns` entries; rows past the grid are not traced.
+    fn trace_rows(&self, rows: Range<usize>, out: &mut [Option<Hit>]);
+}
+
+/// The first hits of every ray of `rays`, `out[r · columns + c]`, traced in bands of rows in
+/// parallel by `shape`'s [`Shape::parallel_tracer`]. Cost: that of the tracer.
+pub fn intersect_parallel(shape: &dyn Shape, rays: &ParallelRays) -> Vec<Option<Hit>> {
+    let mut out = vec![None; rays.len()];
+    trace_in_groups(
+        shape,
+        rays,
+        1,
+        rays.columns.len(),
+        &mut out,
+        |_, hits, out| {
+            out.copy_from_slice(hits);
+        },
+    );
+    out
+}
+
+/// Traces `rays` in bands of rows, in parallel, and hands the hits to `consume` group by group:
+/// the grid's rows come in groups of `rows_per_group` (the sub-sample rows of one pixel row),
+/// each owning `out_per_group` consecutive entries of `out`. `consume(first_group, hits, out)`
+/// gets the hits of whole consecutive groups (`rows × columns`, row-major) and their part of
+/// `out`. Chunks hold whole bands of the tracer, so no band is binned twice.
+pub(crate) fn trace_in_groups<T: Send>(
+    shape: &dyn Shape,
+    rays: &ParallelRays,
+    rows_per_group: usize,
+    out_per_group: usize,
+    out: &mut [T],
+    consume: impl Fn(usize, &[Option<Hit>], &mut [T]) + Sync,
+) {
+    let w = rays.columns.len();
+    if w == 0 || rows_per_group == 0 || out_per_group == 0 {
+        return;
+    }
+    let tracer = shape.parallel_tracer(rays);
+    let band = tracer.band_rows().max(1);
+    // Groups per chunk: the least number whose rows are a whole number of bands.
+    let groups = band / gcd(band, rows_per_group);
+    let groups_total = rays.rows.len() / rows_per_group;
+    let len = (groups_total * out_per_group).min(out.len());
+    let out = &mut out[..len];
+    out.par_chunks_mut(groups * out_per_group)
+        .enumerate()
+        .for_each(|(chunk, out)| {
+            let first = chunk * groups;
+            let rows = first * rows_per_group..(first + out.len() / out_per_group) * rows_per_group;
+            let mut hits = vec![None; rows.len() * w];
+            tracer.trace_rows(rows, &mut hits);
+            consume(first, &hits, out);
+        });
+}
+
+fn gcd(a: usize, b: usize) -> usize {
+    if b == 0 { a } else { gcd(b, a % b) }
+}
+
+/// The default [`ParallelTracer`]: each ray on its own, with [`Shape::intersect`].
+pub(crate) struct OneByOne<'a, S: ?Sized> {
+    pub(crate) shape: &'a S,
+    pub(crate) rays: &'a ParallelRays<'a>,
+}
+
+impl<S: Shape + ?Sized> ParallelTracer for OneByOne<'_, S> {
+    fn band_rows(&self) -> usize {
+        1
+    }
+
+    fn trace_rows(&self, rows: Range<usize>, out: &mut [Option<Hit>]) {
+        let w = self.rays.columns.len();
+        if w == 0 {
+            return;
+        }
+        let rows = rows.start..rows.end.min(self.rays.rows.len());
+        for (r, out) in rows.zip(out.chunks_mut(w)) {
+            for (c, o) in out.iter_mut().enumerate() {
+                let ray = (self.rays.ray)(c, r);
+                *o = self.shape.intersect(&ray, self.rays.t_min, self.rays.t_max);
+            }
         }
     }
 }

@@ -1,12 +1,13 @@
 //! Ground truth: the original shape ray-cast orthographically, shaded, supersampled.
 
 use glam::{DVec3, Vec3};
-use rayon::prelude::*;
 
 use crate::error::{DataGenError, finite, nonzero};
-use crate::geometry::{BoundingCylinder, PixelGrid, Ray, direction, screen_right};
+use crate::geometry::{
+    BoundingCylinder, Hit, ParallelRays, PixelGrid, Ray, direction, screen_right,
+};
 use crate::image_io::RgbaImage;
-use crate::shape::Shape;
+use crate::shape::{Shape, trace_in_groups};
 
 /// A directional light with an ambient term: `colour = albedo·(ambient + (1 − ambient)·max(0, n·l))`.
 ///
@@ -72,21 +73,31 @@ pub fn render_truth(shape: &dyn Shape, params: &TruthParams) -> Result<RgbaImage
     let right = screen_right(params.angle);
     let r = params.cylinder.radius;
     let k = params.supersample;
-    let mut pixels = vec![[0.0f32; 4]; params.width * params.height];
-    pixels
-        .par_chunks_mut(params.width)
-        .enumerate()
-        .for_each(|(j, row)| {
-            for (i, px) in row.iter_mut().enumerate() {
-                *px = supersampled(i, j, k, |u, v| {
-                    let (x, y) = (grid.x_at(u), grid.y_at(v));
-                    let ray = Ray::new(x * right + DVec3::Y * y + 2.0 * r * d, -d);
-                    shape
-                        .intersect(&ray, 0.0, 4.0 * r)
-                        .map(|hit| params.light.shade(hit.albedo, hit.normal.as_vec3()))
-                });
-            }
-        });
+    let (w, h) = (params.width, params.height);
+    // The sub-sample rays of every pixel form one grid of `w·k × h·k` parallel rays.
+    let columns: Vec<f64> = (0..w * k)
+        .map(|c| grid.x_at(sub_sample(c / k, c % k, k)))
+        .collect();
+    let rows: Vec<f64> = (0..h * k)
+        .map(|c| grid.y_at(sub_sample(c / k, c % k, k)))
+        .collect();
+    let ray = |c: usize, row: usize| {
+        let (x, y) = (columns[c], rows[row]);
+        Ray::new(x * right + DVec3::Y * y + 2.0 * r * d, -d)
+    };
+    let rays = ParallelRays {
+        dir: -d,
+        across: [right, DVec3::Y],
+        columns: &columns,
+        rows: &rows,
+        t_min: 0.0,
+        t_max: 4.0 * r,
+        ray: &ray,
+    };
+    let mut pixels = vec![[0.0f32; 4]; w * h];
+    trace_in_groups(shape, &rays, k, w, &mut pixels, |_, hits, pixels| {
+        shade_groups(hits, pixels, w, k, &params.light);
+    });
     Ok(RgbaImage {
         width: params.width,
         height: params.height,
@@ -94,21 +105,41 @@ pub fn render_truth(shape: &dyn Shape, params: &TruthParams) -> Result<RgbaImage
     })
 }
 
-/// Premultiplied linear RGBA of pixel `(i, j)` from `k × k` stratified rays: `shade_at(u, v)`
-/// gives the shaded colour at fractional pixel position `(u, v)` (`u = i + ½` at the centre), or
-/// `None` for a miss; alpha is the share of hits. Shared by every ground-truth renderer.
-pub(crate) fn supersampled(
-    i: usize,
-    j: usize,
+/// Shades the pixel rows of `pixels` (`w` per row) from the hits of their `k × k` sub-sample
+/// rays (`hits` row-major, `w·k` per row, `k` rows per pixel row).
+pub(crate) fn shade_groups(
+    hits: &[Option<Hit>],
+    pixels: &mut [[f32; 4]],
+    w: usize,
     k: usize,
-    shade_at: impl Fn(f64, f64) -> Option<Vec3>,
-) -> [f32; 4] {
+    light: &Light,
+) {
+    let wk = w * k;
+    for (jl, row) in pixels.chunks_mut(w).enumerate() {
+        for (i, px) in row.iter_mut().enumerate() {
+            *px = supersampled(k, |a, b| {
+                hits[(jl * k + b) * wk + i * k + a]
+                    .map(|hit| light.shade(hit.albedo, hit.normal.as_vec3()))
+            });
+        }
+    }
+}
+
+/// Fractional pixel coordinate of sub-sample `a` of pixel `i` in a `k × k` stratification:
+/// `i + (a + ½)/k` (`i + ½` at the centre for `k = 1`).
+#[inline]
+pub(crate) fn sub_sample(i: usize, a: usize, k: usize) -> f64 {
+    i as f64 + (a as f64 + 0.5) / k as f64
+}
+
+/// Premultiplied linear RGBA of one pixel from `k × k` stratified rays: `shade_at(a, b)` gives
+/// the shaded colour of sub-sample column `a`, row `b` (at [`sub_sample`] positions), or `None`
+/// for a miss; alpha is the share of hits. Shared by every ground-truth renderer.
+pub(crate) fn supersampled(k: usize, shade_at: impl Fn(usize, usize) -> Option<Vec3>) -> [f32; 4] {
     let mut acc = [0.0f32; 4];
     for a in 0..k {
         for b in 0..k {
-            let u = i as f64 + (a as f64 + 0.5) / k as f64;
-            let v = j as f64 + (b as f64 + 0.5) / k as f64;
-            if let Some(c) = shade_at(u, v) {
+            if let Some(c) = shade_at(a, b) {
                 acc[0] += c.x;
                 acc[1] += c.y;
                 acc[2] += c.z;

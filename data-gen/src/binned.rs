@@ -1,0 +1,791 @@
+//! Grids of parallel rays traced through a [`Mesh`] by binning its triangles over the grid: the
+//! tracer of [`Shape::parallel_tracer`] for meshes.
+//!
+//! ## Method
+//!
+//! The rays of an orthographic view share their direction, so a triangle can only meet the rays
+//! whose grid positions lie inside its projection on the screen. Each triangle is projected once
+//! (in `f64`, from its `f32` vertices) and goes to the grid cells (rays) within its **footprint**:
+//! its projected bounding box and its three edge lines, all moved out by a margin `m`. Each ray
+//! then runs the BVH walk's own `f32` triangle test ([`obvhs`'s Möller–Trumbore]) on its few
+//! candidates in triangle order, keeping the first strictly nearer distance, as the walk does
+//! along its path.
+//!
+//! ## Exactness
+//!
+//! The result of a ray is exactly the nearest hit of that test over **all** the triangles (the
+//! first in triangle order among equal distances), as long as every triangle the test accepts is
+//! among the ray's candidates. The test works on coordinates of size `s` (the largest coordinate
+//! of the mesh and of the rays' origins) with a few `f32` roundings, so it accepts rays within
+//! about `10⁻⁶·s` of a triangle; the footprint holds every position within `m = 2·10⁻⁵·s` of
+//! the triangle. A ray is binned by its declared grid position; one whose direction differs
+//! from the grid's, or whose origin lies farther from its position than `m` minus the test's
+//! allowance, walks the BVH instead (so a wrong grid costs time, not correctness).
+//!
+//! Against the BVH walk ([`Shape::intersect`]): the distance is bitwise the same, except where
+//! the walk's box tests cull a hit that the triangle test accepts (a ray along an edge lying in
+//! an axis plane, where a box is flat), and the triangle can differ where two triangles meet the
+//! ray at the same `f32` distance (a ray through a shared edge). The tests count both.
+//!
+//! ## Cost
+//!
+//! Rows are cut into bands ([`ParallelTracer::band_rows`]); building the tracer projects every
+//! triangle once for its rows and sorts the triangles into bands. Tracing a band projects its
+//! triangles again, copies them into a contiguous list, sorts the (cell, triangle) pairs by cell
+//! (one pass over the footprints, one over the pairs), then runs about one to three triangle tests per ray
+//! (1.4 on the teapot, 2.5 on the Stanford bunny at 512², bounding boxes alone), where a BVH
+//! walk visits some twenty nodes and triangles.
+//!
+//! [`obvhs`'s Möller–Trumbore]: obvhs::triangle::Triangle::intersect
+
+use std::ops::Range;
+
+use glam::{DVec3, Vec3A};
+use obvhs::triangle::Triangle;
+use rayon::prelude::*;
+
+use crate::geometry::{Hit, ParallelRays, Ray};
+use crate::mesh::Mesh;
+use crate::shape::ParallelTracer;
+
+/// The binning tracer of a [`Mesh`] for one grid of parallel rays.
+pub(crate) struct MeshTracer<'a> {
+    mesh: &'a Mesh,
+    rays: &'a ParallelRays<'a>,
+    cols: Axis<'a>,
+    /// The footprint margin `m` (world units).
+    margin: f64,
+    /// The largest coordinate of the mesh.
+    mesh_scale: f64,
+    /// Each triangle's rows (half-open; empty when it misses the grid's rows).
+    row_spans: Vec<[u32; 2]>,
+    /// Rows per band.
+    band: usize,
+    /// The triangles of band `b`: `in_band[start[b]..start[b + 1]]`, in triangle order.
+    start: Vec<u32>,
+    in_band: Vec<u32>,
+}
+
+impl<'a> MeshTracer<'a> {
+    /// `None` when the grid cannot be binned: no ray, positions not strictly monotonic, a
+    /// non-finite direction or scale. Cost: one projection and one row search per triangle.
+    pub(crate) fn new(mesh: &'a Mesh, rays: &'a ParallelRays<'a>) -> Option<Self> {
+        let (w, h) = (rays.columns.len(), rays.rows.len());
+        let (cols, rows) = (Axis::new(rays.columns)?, Axis::new(rays.rows)?);
+        if w == 0 || h == 0 || !rays.dir.is_finite() {
+            return None;
+        }
+        let mesh_scale = inf(mesh.bounds.0).max(inf(mesh.bounds.1));
+        let corner_scale = [(0, 0), (w - 1, 0), (0, h - 1), (w - 1, h - 1)]
+            .into_iter()
+            .map(|(c, r)| inf((rays.ray)(c, r).origin))
+            .fold(0.0, f64::max);
+        let margin = 2e-5 * (mesh_scale + corner_scale);
+        if !margin.is_finite() {
+            return None;
+        }
+        let across = rays.across;
+        let row_spans: Vec<[u32; 2]> = mesh
+            .triangles
+            .par_iter()
+            .map(|t| {
+                let p = project(t, across);
+                let r = rows.range(
+                    p[0][1].min(p[1][1]).min(p[2][1]) - margin,
+                    p[0][1].max(p[1][1]).max(p[2][1]) + margin,
+                );
+                [r.start as u32, r.end as u32]
+            })
+            .collect();
+        let band = (h / (8 * rayon::current_num_threads())).clamp(1, 16);
+        let bands = h.div_ceil(band);
+        let band_range = |r: &[u32; 2]| r[0] as usize / band..(r[1] as usize).div_ceil(band);
+        let mut start = vec![0u32; bands + 1];
+        for r in &row_spans {
+            for b in band_range(r) {
+                start[b + 1] += 1;
+            }
+        }
+        for b in 1..=bands {
+            start[b] += start[b - 1];
+        }
+        let mut fill = start.clone();
+        let mut in_band = vec![0u32; start[bands] as usize];
+        for (t, r) in row_spans.iter().enumerate() {
+            for b in band_range(r) {
+                in_band[fill[b] as usize] = t as u32;
+                fill[b] += 1;
+            }
+        }
+        Some(Self {
+            mesh,
+            rays,
+            cols,
+            margin,
+            mesh_scale,
+            row_spans,
+            band,
+            start,
+            in_band,
+        })
+    }
+
+    /// Traces rows `rows` (all within band `b`) into `out`, passing each ray and its nearest
+    /// `(triangle, distance)` to `emit`.
+    pub(crate) fn trace_band<T>(
+        &self,
+        b: usize,
+        rows: Range<usize>,
+        out: &mut [T],
+        emit: impl Fn(&Ray, Option<(usize, f32)>) -> T,
+    ) {
+        let (rays, w) = (self.rays, self.rays.columns.len());
+        let (r0, r1) = (rows.start, rows.end);
+        let [a0, a1] = rays.across;
+        // The band's triangles with their footprints, and copies of the triangles, in one
+        // contiguous list each (in triangle order, so that local order is global order).
+        let in_band = &self.in_band[self.start[b] as usize..self.start[b + 1] as usize];
+        let mut ids = Vec::with_capacity(in_band.len());
+        let mut prints = Vec::with_capacity(in_band.len());
+        for &t in in_band {
+            let r = self.row_spans[t as usize];
+            if r[1] as usize <= r0 || r[0] as usize >= r1 {
+                continue;
+            }
+            let tri = self.mesh.triangles[t as usize];
+            let f = Footprint::new(project(&tri, rays.across), self.margin, &self.cols);
+            if !f.columns.is_empty() {
+                ids.push(t);
+                prints.push((f, tri));
+            }
+        }
+        let rows_of = |i: usize| {
+            let r = self.row_spans[ids[i] as usize];
+            (r[0] as usize).max(r0)..(r[1] as usize).min(r1)
+        };
+        // The (cell, triangle) pairs, then a counting sort of them by cell.
+        let mut cell_start = vec![0u32; (r1 - r0) * w + 1];
+        let mut pairs: Vec<(u32, u32)> = Vec::with_capacity(4 * prints.len());
+        for (i, (f, _)) in prints.iter().enumerate() {
+            for r in rows_of(i) {
+                for c in f.row_columns(rays.rows[r], &self.cols) {
+                    let k = (r - r0) * w + c;
+                    cell_start[k + 1] += 1;
+                    pairs.push((k as u32, i as u32));
+                }
+            }
+        }
+        for k in 1..cell_start.len() {
+            cell_start[k] += cell_start[k - 1];
+        }
+        let mut next = cell_start.clone();
+        let mut cell_tris = vec![0u32; pairs.len()];
+        for &(k, i) in &pairs {
+            cell_tris[next[k as usize] as usize] = i;
+            next[k as usize] += 1;
+        }
+        // Every binned ray has direction `rays.dir`: its `f32` ray differs from this one only
+        // in its origin (same bits as `Mesh::to_bvh_ray` gives it).
+        let template = Mesh::to_bvh_ray(&Ray::new(DVec3::ZERO, rays.dir), rays.t_min, rays.t_max);
+        for (r, out) in (r0..r1).zip(out.chunks_mut(w)) {
+            for (c, o) in out.iter_mut().enumerate() {
+                let ray = (rays.ray)(c, r);
+                let off = (ray.origin.dot(a0) - rays.columns[c]).abs()
+                    + (ray.origin.dot(a1) - rays.rows[r]).abs();
+                // Half the margin's rate is left for the triangle test's allowance; the
+                // comparison is false for NaN.
+                let on_grid = ray.dir == rays.dir
+                    && off + 1e-5 * (self.mesh_scale + inf(ray.origin)) <= self.margin;
+                if !on_grid {
+                    *o = emit(&ray, self.mesh.first_hit(&ray, rays.t_min, rays.t_max));
+                    continue;
+                }
+                let k = (r - r0) * w + c;
+                let candidates = &cell_tris[cell_start[k] as usize..cell_start[k + 1] as usize];
+                if candidates.is_empty() {
+                    *o = emit(&ray, None);
+                    continue;
+                }
+                let mut bray = template;
+                bray.origin = ray.origin.as_vec3().into();
+                let mut best = None;
+                for &i in candidates {
+                    let d = prints[i as usize].1.intersect(&bray);
+                    if d < bray.tmax {
+                        bray.tmax = d;
+                        best = Some(ids[i as usize] as usize);
+                    }
+                }
+                *o = emit(&ray, best.map(|t| (t, bray.tmax)));
+            }
+        }
+    }
+
+    /// Traces rows `rows` (any range) band by band.
+    pub(crate) fn trace<T>(
+        &self,
+        rows: Range<usize>,
+        out: &mut [T],
+        emit: impl Fn(&Ray, Option<(usize, f32)>) -> T,
+    ) {
+        let w = self.rays.columns.len();
+        let rows = rows.start..rows.end.min(self.rays.rows.len());
+        let mut r = rows.start;
+        while r < rows.end {
+            let b = r / self.band;
+            let end = ((b + 1) * self.band).min(rows.end);
+            let (lo, hi) = ((r - rows.start) * w, (end - rows.start) * w);
+            let Some(out) = out.get_mut(lo..hi) else {
+                return;
+            };
+            self.trace_band(b, r..end, out, &emit);
+            r = end;
+        }
+    }
+}
+
+impl ParallelTracer for MeshTracer<'_> {
+    fn band_rows(&self) -> usize {
+        self.band
+    }
+
+    fn trace_rows(&self, rows: Range<usize>, out: &mut [Option<Hit>]) {
+        self.trace(rows, out, |ray, hit| {
+            hit.map(|(t, d)| self.mesh.hit_at(ray, t, d))
+        });
+    }
+}
+
+/// The largest absolute coordinate of `v`.
+fn inf(v: DVec3) -> f64 {
+    v.abs().max_element()
+}
+
+/// The screen coordinates `(p·across[0], p·across[1])` of a triangle's vertices, in `f64`.
+fn project(t: &Triangle, across: [DVec3; 2]) -> [[f64; 2]; 3] {
+    let v64 = |a: Vec3A| DVec3::new(a.x.into(), a.y.into(), a.z.into());
+    [t.v0, t.v1, t.v2].map(|v| [v64(v).dot(across[0]), v64(v).dot(across[1])])
+}
+
+/// The grid positions of one axis of a [`ParallelRays`], strictly monotonic either way.
+#[derive(Clone, Copy)]
+struct Axis<'a> {
+    coords: &'a [f64],
+    ascending: bool,
+    /// `(x₀, 1/step)` when the positions are within a quarter step of `x₀ + i·step`: the index
+    /// of a position is then guessed in O(1) and corrected by exact comparisons.
+    uniform: Option<(f64, f64)>,
+}
+
+impl<'a> Axis<'a> {
+    /// `None` unless the coordinates are strictly monotonic (NaN fails both orders).
+    fn new(coords: &'a [f64]) -> Option<Self> {
+        let ascending = coords.windows(2).all(|p| p[0] < p[1]);
+        if !ascending && !coords.windows(2).all(|p| p[0] > p[1]) {
+            return None;
+        }
+        let n = coords.len();
+        let uniform = (n >= 2)
+            .then(|| (coords[0], (coords[n - 1] - coords[0]) / (n - 1) as f64))
+            .filter(|&(x0, step)| {
+                coords
+                    .iter()
+                    .enumerate()
+                    .all(|(i, &x)| (x - (x0 + i as f64 * step)).abs() <= 0.25 * step.abs())
+            })
+            .map(|(x0, step)| (x0, 1.0 / step));
+        Some(Self {
+            coords,
+            ascending,
+            uniform,
+        })
+    }
+
+    /// Indices of the positions in `[lo, hi]` (exact: the guess of a uniform axis is only a
+    /// starting point).
+    fn range(&self, lo: f64, hi: f64) -> Range<usize> {
+        let x = self.coords;
+        let n = x.len();
+        let inside = |i: usize| lo <= x[i] && x[i] <= hi;
+        if let Some((x0, inv_step)) = self.uniform {
+            // Positions are within a quarter step of the line, so the guess is off by at
+            // most one index at each end; the walks below make the range exact.
+            let (a, b) = ((lo - x0) * inv_step, (hi - x0) * inv_step);
+            let (a, b) = (a.min(b), a.max(b));
+            // False for NaN bounds too.
+            let ordered = a <= b;
+            if !ordered || b < -1.0 || a > n as f64 {
+                return 0..0;
+            }
+            // Truncations, not `ceil`/`floor` (library calls without SSE4.1): off by at most
+            // one more, which the walks absorb.
+            let mut s = if a <= 0.0 { 0 } else { (a as usize + 1).min(n) };
+            let mut e = if b < 0.0 { 0 } else { (b as usize + 1).min(n) }.max(s);
+            while s > 0 && inside(s - 1) {
+                s -= 1;
+            }
+            while s < e && !inside(s) {
+                s += 1;
+            }
+            e = e.max(s);
+            while e < n && inside(e) {
+                e += 1;
+            }
+            while e > s && !inside(e - 1) {
+                e -= 1;
+            }
+            return s..e;
+        }
+        if self.ascending {
+            x.partition_point(|&v| v < lo)..x.partition_point(|&v| v <= hi)
+        } else {
+            x.partition_point(|&v| v > hi)..x.partition_point(|&v| v >= lo)
+        }
+    }
+}
+
+/// A triangle's footprint on a grid of parallel rays: the grid columns within its projected
+/// bounding box widened by the margin `m` (its rows are kept apart) and, unless the projection
+/// is degenerate, the points within its three edge lines moved out by `m` (a superset of the
+/// points within `m` of the triangle).
+struct Footprint {
+    columns: Range<usize>,
+    /// The box's screen abscissae, widened by `m`.
+    x_range: (f64, f64),
+    /// Edge lines `a·x + b·y + c ≥ 0` inside, already moved out by at least `m`; `0·x + 0·y + 1` for a
+    /// projection too thin to orient reliably (then the box alone decides).
+    edges: [[f64; 3]; 3],
+}
+
+impl Footprint {
+    fn new(p: [[f64; 2]; 3], m: f64, cols: &Axis) -> Self {
+        let x_range = (
+            p[0][0].min(p[1][0]).min(p[2][0]) - m,
+            p[0][0].max(p[1][0]).max(p[2][0]) + m,
+        );
+        let columns = cols.range(x_range.0, x_range.1);
+        let e = [0, 1, 2].map(|i| {
+            let (a, b) = (p[i], p[(i + 1) % 3]);
+            [b[0] - a[0], b[1] - a[1]]
+        });
+        let area = e[0][0] * e[1][1] - e[0][1] * e[1][0];
+        let longest = e
+            .iter()
+            .map(|v| v[0] * v[0] + v[1] * v[1])
+            .fold(0.0, f64::max);
+        // Rounding of the projected coordinates moves `area` by about 1e-16·longest: far
+        // below this threshold, so the orientation below is the exact one.
+        let edges = if area.abs() > 1e-9 * longest {
+            let s = area.signum();
+            [0, 1, 2].map(|i| {
+                let (nx, ny) = (-s * e[i][1], s * e[i][0]);
+                // `|nx| + |ny| ≥ |n|`: the line moves out by at least `m`.
+                [
+                    nx,
+                    ny,
+                    -(nx * p[i][0] + ny * p[i][1]) + m * (nx.abs() + ny.abs()),
+                ]
+            })
+        } else {
+            [[0.0, 0.0, 1.0]; 3]
+        };
+        Self {
+            columns,
+            x_range,
+            edges,
+        }
+    }
+
+    /// The columns of the footprint on the row at height `y` (a row already inside the box):
+    /// the box's columns cut by the three moved edge lines, each solved for `x`. Each bound
+    /// is moved out by `10⁻⁹` of its terms, far more than the rounding of the division, so the
+    /// columns are a superset of the positions where every `a·x + b·y + c ≥ 0`.
+    fn row_columns(&self, y: f64, cols: &Axis) -> Range<usize> {
+        let x = cols.coords;
+        if self.columns.len() <= 4 {
+            // A small footprint: evaluate the lines at its few columns (no division). The
+            // covered columns of a convex region are contiguous; the range spans them.
+            let covers = |c: usize| {
+                self.edges
+                    .iter()
+                    .all(|l| l[0] * x[c] + l[1] * y + l[2] >= 0.0)
+            };
+            let mut r = self.columns.clone();
+            while r.start < r.end && !covers(r.start) {
+                r.start += 1;
+            }
+            while r.end > r.start && !covers(r.end - 1) {
+                r.end -= 1;
+            }
+            return r;
+        }
+        let (mut lo, mut hi) = self.x_range;
+        for &[a, b, c] in &self.edges {
+            let v = -(b * y + c);
+            let slack = 1e-9 * ((b * y).abs() + c.abs());
+            if a > 0.0 {
+                let bound = (v - slack) / a;
+                if bound > lo {
+                    lo = bound;
+                }
+            } else if a < 0.0 {
+                let bound = (v - slack) / a;
+                if bound < hi {
+                    hi = bound;
+                }
+            } else if v > slack {
+                return 0..0;
+            }
+        }
+        let ordered = lo <= hi;
+        if !ordered {
+            return 0..0;
+        }
+        let r = cols.range(lo, hi);
+        r.start.max(self.columns.start)..r.end.min(self.columns.end)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use std::f64::consts::{PI, TAU};
+
+    use proptest::prelude::*;
+
+    use super::*;
+    use crate::frame::OrthoFrame;
+    use crate::geometry::{BoundingCylinder, PixelGrid, direction, screen_right};
+    use crate::mesh::MeshLoadOptions;
+    use crate::rng::SplitMix64;
+    use crate::truth::sub_sample;
+
+    /// Checks the binned grid ray by ray against every triangle (the nearest hit of the same
+    /// `f32` triangle test, the first in triangle order among equal distances: exactly) and
+    /// against the BVH walk (never nearer than the binned hit; where the triangles differ at
+    /// the same distance both meet the ray there). Returns `(ties, culled)`: the rays where the
+    /// walk reports another triangle at the same distance, and the rays where the walk's box
+    /// culling drops a hit that the triangle test accepts (the walk misses or hits farther).
+    fn check_grid(mesh: &Mesh, rays: &ParallelRays) -> (usize, usize) {
+        let mut binned = vec![None; rays.len()];
+        let tracer = MeshTracer::new(mesh, rays).expect("the grid was not binned");
+        tracer.trace(0..rays.rows.len(), &mut binned, |_, h| h);
+        let w = rays.columns.len();
+        let (mut ties, mut culled) = (0, 0);
+        for (k, b) in binned.iter().enumerate() {
+            let ray = (rays.ray)(k % w, k / w);
+            let mut bray = Mesh::to_bvh_ray(&ray, rays.t_min, rays.t_max);
+            let mut all = None;
+            for (t, tri) in mesh.triangles.iter().enumerate() {
+                let d = tri.intersect(&bray);
+                if d < bray.tmax {
+                    bray.tmax = d;
+                    all = Some((t, d));
+                }
+            }
+            assert_eq!(
+                *b, all,
+                "ray {k}: binned {b:?}, nearest of all triangles {all:?}"
+            );
+            match (mesh.first_hit(&ray, rays.t_min, rays.t_max), *b) {
+                (None, None) => {}
+                (Some((ta, da)), Some((tb, db))) if da.to_bits() == db.to_bits() => {
+                    if ta != tb {
+                        let bray = Mesh::to_bvh_ray(&ray, rays.t_min, rays.t_max);
+                        for t in [ta, tb] {
+                            assert_eq!(
+                                mesh.triangles[t].intersect(&bray).to_bits(),
+                                da.to_bits(),
+                                "ray {k}: triangles {ta} / {tb} do not tie"
+                            );
+                        }
+                        ties += 1;
+                    }
+                }
+                (Some((_, da)), Some((_, db))) if db < da => culled += 1,
+                (None, Some(_)) => culled += 1,
+                (a, b) => panic!("ray {k}: walked {a:?}, binned {b:?}"),
+            }
+        }
+        (ties, culled)
+    }
+
+    /// The `k × k` sub-sample grid of a `w × h` frame along `dir`, as
+    /// [`crate::render_truth_frame`] lays out its rays.
+    fn check_frame(mesh: &Mesh, dir: DVec3, w: usize, h: usize) -> (usize, usize) {
+        let (centre, radius) = OrthoFrame::bounding_sphere(mesh);
+        let frame = OrthoFrame::new(centre, radius, dir).unwrap();
+        let k = 2;
+        let (columns, rows) = frame.grid(w, h, k);
+        let ray = |c: usize, r: usize| {
+            let sub = |i: usize| sub_sample(i / k, i % k, k);
+            let (x, y) = OrthoFrame::screen_at(sub(c), sub(r), w, h);
+            frame.ray(x, y)
+        };
+        check_grid(mesh, &frame.parallel_rays(&columns, &rows, &ray))
+    }
+
+    fn check_view(mesh: &Mesh, angle: f64, w: usize, h: usize) -> (usize, usize) {
+        let grid = PixelGrid {
+            width: w,
+            height: h,
+            cylinder: BoundingCylinder::default(),
+        };
+        let (d, right) = (direction(angle), screen_right(angle));
+        let columns: Vec<f64> = (0..w).map(|i| grid.x_at(i as f64 + 0.5)).collect();
+        let rows: Vec<f64> = (0..h).map(|j| grid.y_at(j as f64 + 0.5)).collect();
+        let ray = |i: usize, j: usize| {
+            let (x, y) = grid.center(i, j);
+            Ray::new(x * right + DVec3::Y * y + 2.0 * d, -d)
+        };
+        check_grid(
+            mesh,
+            &ParallelRays {
+                dir: -d,
+                across: [right, DVec3::Y],
+                columns: &columns,
+                rows: &rows,
+                t_min: 0.0,
+                t_max: 4.0,
+                ray: &ray,
+            },
+        )
+    }
+
+    /// A UV sphere of `n` × `2n` quads (two triangles each).
+    fn sphere(n: usize) -> Vec<[[f64; 3]; 3]> {
+        let p = |a: usize, b: usize| {
+            let (th, ph) = (PI * a as f64 / n as f64, TAU * b as f64 / (2 * n) as f64);
+            [th.sin() * ph.cos(), th.cos(), th.sin() * ph.sin()]
+        };
+        let mut tris = Vec::new();
+        for a in 0..n {
+            for b in 0..2 * n {
+                tris.push([p(a, b), p(a + 1, b), p(a + 1, b + 1)]);
+                tris.push([p(a, b), p(a + 1, b + 1), p(a, b + 1)]);
+            }
+        }
+        tris
+    }
+
+    /// An axis-aligned box: faces seen edge-on from the axis views, quads split along diagonals
+    /// that axis-aligned rays can meet exactly.
+    fn cube() -> Vec<[[f64; 3]; 3]> {
+        let v = |i: usize| [(i & 1) as f64, (i >> 1 & 1) as f64, (i >> 2 & 1) as f64];
+        let quads = [
+            [0, 1, 3, 2],
+            [4, 6, 7, 5],
+            [0, 4, 5, 1],
+            [2, 3, 7, 6],
+            [0, 2, 6, 4],
+            [1, 5, 7, 3],
+        ];
+        quads
+            .iter()
+            .flat_map(|q| [[v(q[0]), v(q[1]), v(q[2])], [v(q[0]), v(q[2]), v(q[3])]])
+            .collect()
+    }
+
+    /// Random triangles, a third of them slivers (two vertices within 1e-4 of each other).
+    fn soup(seed: u64, n: usize) -> Vec<[[f64; 3]; 3]> {
+        let mut rng = SplitMix64::new(seed);
+        (0..n)
+            .map(|k| {
+                let mut p = || {
+                    [
+                        rng.range(-1.0, 1.0),
+                        rng.range(-1.0, 1.0),
+                        rng.range(-1.0, 1.0),
+                    ]
+                };
+                let (a, b) = (p(), p());
+                let c = if k % 3 == 0 { a.map(|x| x + 1e-4) } else { p() };
+                [a, b, c]
+            })
+            .collect()
+    }
+
+    fn mesh(tris: Vec<[[f64; 3]; 3]>) -> Mesh {
+        Mesh::from_raw_triangles("test", tris, &MeshLoadOptions::default()).unwrap()
+    }
+
+    #[test]
+    fn binned_parallel_rays_find_the_hits_of_the_bvh_walk() {
+        let diagonal = DVec3::new(1.0, 1.0, 1.0);
+        for (name, m) in [
+            ("sphere", mesh(sphere(24))),
+            ("cube", mesh(cube())),
+            ("soup", mesh(soup(7, 400))),
+        ] {
+            let (mut ties, mut culled, mut rays) = (0, 0, 0);
+            let mut add = |(t, c): (usize, usize), n: usize| {
+                (ties, culled, rays) = (ties + t, culled + c, rays + n);
+            };
+            for (angle, w, h) in [
+                (0.0, 64, 64),
+                (PI / 2.0, 37, 23),
+                (0.3, 50, 71),
+                (2.1, 1, 9),
+            ] {
+                add(check_view(&m, angle, w, h), w * h);
+            }
+            for (dir, w, h) in [
+                (diagonal, 48, 40),
+                (DVec3::Y, 33, 33),
+                (DVec3::new(0.2, -0.9, 0.1), 20, 31),
+            ] {
+                add(check_frame(&m, dir, w, h), w * h);
+            }
+            eprintln!("{name}: {rays} rays, {ties} ties, {culled} hits culled by the BVH walk");
+            // Both are exceptional: rays along a shared edge or grazing a box face.
+            assert!(
+                (ties + culled) * 100 <= rays,
+                "{name}: {ties} ties, {culled} culled in {rays} rays"
+            );
+        }
+    }
+
+    /// The shipped meshes (`../shared/data/meshes`), when present: every binned ray is exactly
+    /// the nearest hit over all triangles, on views and frames of each mesh.
+    #[test]
+    fn shipped_meshes_are_traced_exactly() {
+        let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/data/meshes");
+        let mut paths: Vec<_> = std::fs::read_dir(&dir)
+            .map(|d| {
+                d.filter_map(|e| e.ok().map(|e| e.path()))
+                    .filter(|p| p.extension().is_some_and(|x| x == "obj"))
+                    .collect()
+            })
+            .unwrap_or_default();
+        paths.sort();
+        if paths.is_empty() {
+            eprintln!(
+                "\n*** skipped: ../shared absent ({} has no meshes) ***\n",
+                dir.display()
+            );
+            return;
+        }
+        for path in paths {
+            let m = Mesh::load_obj(&path, &MeshLoadOptions::default()).unwrap();
+            let (mut ties, mut culled, mut rays) = (0, 0, 0);
+            for (angle, n) in [(0.0, 24), (PI / 2.0, 19), (2.0, 21)] {
+                let (t, c) = check_view(&m, angle, n, n);
+                (ties, culled, rays) = (ties + t, culled + c, rays + n * n);
+            }
+            let (t, c) = check_frame(&m, DVec3::new(0.3, 0.8, -0.5), 14, 14);
+            (ties, culled, rays) = (ties + t, culled + c, rays + 4 * 14 * 14);
+            eprintln!(
+                "{}: {rays} rays, {ties} ties, {culled} hits culled by the BVH walk",
+                path.display()
+            );
+            assert!(
+                (ties + culled) * 100 <= rays,
+                "{}: {ties} ties, {culled} culled",
+                path.display()
+            );
+        }
+    }
+
+    #[test]
+    fn rays_off_their_declared_grid_still_get_the_bvh_walks_hits() {
+        let m = mesh(sphere(16));
+        let (w, h) = (24, 24);
+        let grid = PixelGrid {
+            width: w,
+            height: h,
+            cylinder: BoundingCylinder::default(),
+        };
+        let columns: Vec<f64> = (0..w).map(|i| grid.x_at(i as f64 + 0.5)).collect();
+        let rows: Vec<f64> = (0..h).map(|j| grid.y_at(j as f64 + 0.5)).collect();
+        let (d, right) = (direction(0.4), screen_right(0.4));
+        // Every third ray is shifted by a quarter pixel, every fifth tilted.
+        let ray = |i: usize, j: usize| {
+            let (x, y) = grid.center(i, j);
+            let shift = if (i + j).is_multiple_of(3) { 0.02 } else { 0.0 };
+            let tilt = if (i + j).is_multiple_of(5) {
+                DVec3::new(0.0, 0.01, 0.0)
+            } else {
+                DVec3::ZERO
+            };
+            Ray::new(
+                (x + shift) * right + DVec3::Y * y + 2.0 * d,
+                (tilt - d).normalize(),
+            )
+        };
+        let rays = ParallelRays {
+            dir: -d,
+            across: [right, DVec3::Y],
+            columns: &columns,
+            rows: &rows,
+            t_min: 0.0,
+            t_max: 4.0,
+            ray: &ray,
+        };
+        check_grid(&m, &rays);
+        let mut shuffled = rows.clone();
+        shuffled.swap(0, 1);
+        let bad = ParallelRays {
+            rows: &shuffled,
+            ..rays
+        };
+        assert!(
+            MeshTracer::new(&m, &bad).is_none(),
+            "non-monotonic rows were binned"
+        );
+    }
+
+    proptest! {
+        /// The index range of a position interval is exactly the positions inside it, on
+        /// uniform grids (with rounding-sized jitter) either way and on uneven ones.
+        #[test]
+        fn axis_ranges_are_exact(
+            n in 1usize..40,
+            x0 in -3.0f64..3.0,
+            step in 0.01f64..1.0,
+            descending in any::<bool>(),
+            uneven in any::<bool>(),
+            lo in -40.0f64..40.0,
+            len in 0.0f64..20.0,
+        ) {
+            let step = if descending { -step } else { step };
+            let coords: Vec<f64> = (0..n)
+                .map(|i| {
+                    let i = i as f64;
+                    x0 + step * if uneven { i + 0.3 * i * i / n as f64 } else { i } + 1e-15 * i
+                })
+                .collect();
+            let axis = Axis::new(&coords).unwrap();
+            prop_assert!(uneven || n < 2 || axis.uniform.is_some());
+            let hi = lo + len;
+            let expect: Vec<usize> = (0..n).filter(|&i| lo <= coords[i] && coords[i] <= hi).collect();
+            let got: Vec<usize> = axis.range(lo, hi).collect();
+            prop_assert_eq!(got, expect);
+        }
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(48))]
+        /// Adversarial geometry: random triangle soups with slivers, nearly collinear and
+        /// nearly edge-on triangles, seen along any direction on grids of any shape.
+        #[test]
+        fn binned_rays_match_the_bvh_walk_on_random_soups(
+            seed in any::<u64>(),
+            n in 1usize..60,
+            flat in 0.0f64..1.0,
+            dx in -1.0f64..1.0, dy in -1.0f64..1.0, dz in -1.0f64..1.0,
+            w in 1usize..24, h in 1usize..24,
+        ) {
+            let mut tris = soup(seed, n);
+            // Squash a share of the soup into the plane y = 0.5 (edge-on from horizontal views).
+            for t in tris.iter_mut().take((flat * n as f64) as usize) {
+                for v in t.iter_mut() {
+                    v[1] = 0.5 + 1e-7 * v[1];
+                }
+            }
+            let m = mesh(tris);
+            let dir = DVec3::new(dx, dy, dz);
+            prop_assume!(dir.length() > 1e-3);
+            check_frame(&m, dir, w, h);
+            check_view(&m, dx * PI, w, h);
+        }
+    }
+}

@@ -405,10 +405,13 @@ impl Footprint {
         if self.columns.len() <= 4 {
             // A small footprint: evaluate the lines at its few columns (no division). The
             // covered columns of a convex region are contiguous; the range spans them.
+            // Branch-free: all three lines are evaluated.
+            let [e0, e1, e2] = &self.edges;
             let covers = |c: usize| {
-                self.edges
-                    .iter()
-                    .all(|l| l[0] * x[c] + l[1] * y + l[2] >= 0.0)
+                let x = x[c];
+                (e0[0] * x + e0[1] * y + e0[2] >= 0.0)
+                    & (e1[0] * x + e1[1] * y + e1[2] >= 0.0)
+                    & (e2[0] * x + e2[1] * y + e2[2] >= 0.0)
             };
             let mut r = self.columns.clone();
             while r.start < r.end && !covers(r.start) {

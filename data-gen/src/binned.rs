@@ -1,5 +1,5 @@
 //! Grids of parallel rays traced through a [`Mesh`] by binning its triangles over the grid: the
-//! tracer of [`Shape::parallel_tracer`] for meshes.
+//! tracer of [`crate::Shape::parallel_tracer`] for meshes.
 //!
 //! ## Method
 //!
@@ -22,7 +22,7 @@
 //! from the grid's, or whose origin lies farther from its position than `m` minus the test's
 //! allowance, walks the BVH instead (so a wrong grid costs time, not correctness).
 //!
-//! Against the BVH walk ([`Shape::intersect`]): the distance is bitwise the same, except where
+//! Against the BVH walk ([`crate::Shape::intersect`]): the distance is bitwise the same, except where
 //! the walk's box tests cull a hit that the triangle test accepts (a ray along an edge lying in
 //! an axis plane, where a box is flat), and the triangle can differ where two triangles meet the
 //! ray at the same `f32` distance (a ray through a shared edge). The tests count both.

@@ -216,8 +216,8 @@ fn sample_of(ray: &Ray, hit: &Hit, dir_out: DVec3, radius: f64) -> Sample {
 }
 
 /// Captures an orthographic view of `shape` (SPEC §3a). Cost: `width × height` rays, traced
-/// together by [`Shape::parallel_tracer`] in bands of rows (each ray is the one [`cast`] would
-/// trace alone).
+/// together by [`Shape::parallel_tracer`] in bands of rows (each ray starts `2R` in front of
+/// its pixel centre, as a single cast would).
 ///
 /// Errors: zero sizes, a non-finite angle or an invalid cylinder.
 pub fn capture_view(shape: &dyn Shape, params: &ViewParams) -> Result<SampleGrid, DataGenError> {

@@ -130,7 +130,7 @@ impl PixelGrid {
 }
 
 /// Rays that share one direction and start on a grid across it: the rays of an orthographic
-/// view, traced together by [`crate::Shape::intersect_parallel`].
+/// view, traced together by [`crate::Shape::parallel_tracer`].
 ///
 /// Ray `(c, r)` (column `c < columns.len()`, row `r < rows.len()`) is `ray(c, r)`; the caller
 /// builds it with its own formula, so a grid of rays gives bitwise the rays the caller would

@@ -79,7 +79,7 @@ pub fn render_truth(shape: &dyn Shape, params: &TruthParams) -> Result<RgbaImage
         .map(|c| grid.x_at(sub_sample(c / k, c % k, k)))
         .collect();
     let rows: Vec<f64> = (0..h * k)
-        .map(|c| grid.y_at(sub_sample(c / k, c % k, k)))
+        .map(|r| grid.y_at(sub_sample(r / k, r % k, k)))
         .collect();
     let ray = |c: usize, row: usize| {
         let (x, y) = (columns[c], rows[row]);

@@ -8,8 +8,9 @@
 use std::path::PathBuf;
 
 use altrep_data_gen::{
-    BoundingCylinder, Hit, Light, Mesh, MeshLoadOptions, OrthoFrame, Ray, SampleGrid, Shape,
-    TruthParams, ViewParams, capture_frame, capture_view, render_truth, render_truth_frame,
+    BoundingCylinder, Hit, Light, Mesh, MeshLoadOptions, OrthoFrame, ParallelRays, Ray, SampleGrid,
+    Shape, TruthParams, ViewParams, capture_frame, capture_view, intersect_parallel, render_truth,
+    render_truth_frame,
 };
 use glam::{DVec3, Vec3};
 
@@ -181,5 +182,52 @@ fn grid_captures_and_truths_are_those_of_the_ray_by_ray_walk() {
             "{}: {differ} of {pixels} pixels differ",
             mesh.name()
         );
+    }
+}
+
+/// The public grid entry point on a hand-made grid (uneven columns, ascending rows, a tilted
+/// direction): the same hit distances as the walk, and a grid whose rays leave their declared
+/// positions still gets every hit.
+#[test]
+fn intersect_parallel_on_a_hand_made_grid() {
+    let mesh = torus(10);
+    let walk = OneByOne(&mesh);
+    let dir = DVec3::new(-0.6, -0.3, -0.74).normalize();
+    let right = DVec3::Y.cross(-dir).normalize();
+    let up = (-dir).cross(right);
+    let columns: Vec<f64> = (0..70)
+        .map(|i| -1.2 + 2.4 * (i as f64 / 69.0).powf(1.3))
+        .collect();
+    let rows: Vec<f64> = (0..50).map(|j| -0.2 + 2.4 * j as f64 / 49.0).collect();
+    for shift in [0.0, 0.05] {
+        let ray = |c: usize, r: usize| {
+            let x = columns[c] + if c % 7 == 0 { shift } else { 0.0 };
+            Ray::new(x * right + rows[r] * up - 3.0 * dir, dir)
+        };
+        let rays = ParallelRays {
+            dir,
+            across: [right, up],
+            columns: &columns,
+            rows: &rows,
+            t_min: 0.0,
+            t_max: 8.0,
+            ray: &ray,
+        };
+        let (g, w) = (
+            intersect_parallel(&mesh, &rays),
+            intersect_parallel(&walk, &rays),
+        );
+        assert_eq!(g.len(), columns.len() * rows.len());
+        let hits = g.iter().filter(|h| h.is_some()).count();
+        assert!(hits > 500, "{hits} hits: the grid misses the torus");
+        for (k, (a, b)) in g.iter().zip(&w).enumerate() {
+            match (a, b) {
+                (Some(a), Some(b)) => {
+                    assert!(a.t <= b.t, "ray {k}: {} on the grid, {} walked", a.t, b.t)
+                }
+                (None, Some(_)) => panic!("ray {k}: the grid misses a hit of the walk"),
+                _ => {}
+            }
+        }
     }
 }

@@ -201,7 +201,7 @@ fn intersect_parallel_on_a_hand_made_grid() {
     let rows: Vec<f64> = (0..50).map(|j| -0.2 + 2.4 * j as f64 / 49.0).collect();
     for shift in [0.0, 0.05] {
         let ray = |c: usize, r: usize| {
-            let x = columns[c] + if c % 7 == 0 { shift } else { 0.0 };
+            let x = columns[c] + if c.is_multiple_of(7) { shift } else { 0.0 };
             Ray::new(x * right + rows[r] * up - 3.0 * dir, dir)
         };
         let rays = ParallelRays {

@@ -3,11 +3,10 @@
 
 use altrep::mip::{Pyramid, PyramidParams, Texture, WrapMode};
 use altrep_data_gen::{
-    BoundingCylinder, CylinderParams, Hit, Mesh, MeshLoadOptions, Ray, Shape, ViewParams,
+    BoundingCylinder, CylinderParams, Mesh, MeshLoadOptions, RayByRay, Shape, ViewParams,
     capture_cylinder, capture_view, scene_shape,
 };
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
-use glam::{DVec3, Vec3};
 
 fn view_params(size: usize) -> ViewParams {
     ViewParams {
@@ -44,28 +43,6 @@ fn capture(c: &mut Criterion) {
     });
 }
 
-/// A mesh traced ray by ray through its BVH: every method but the grid tracer delegates, so the
-/// trait's default tracer (one `Shape::intersect` per ray) runs.
-struct Walk<'a>(&'a Mesh);
-
-impl Shape for Walk<'_> {
-    fn name(&self) -> &str {
-        self.0.name()
-    }
-    fn intersect(&self, ray: &Ray, t_min: f64, t_max: f64) -> Option<Hit> {
-        self.0.intersect(ray, t_min, t_max)
-    }
-    fn contains(&self, p: DVec3) -> bool {
-        self.0.contains(p)
-    }
-    fn bounds(&self) -> (DVec3, DVec3) {
-        self.0.bounds()
-    }
-    fn albedo_at(&self, p: DVec3) -> Vec3 {
-        self.0.albedo_at(p)
-    }
-}
-
 /// `altrep capture --views 8 --size 512` without the files: 8 orthographic views of 512² (hit
 /// distance, normal, colour per ray), traced as grids (`grid`) or ray by ray through the BVH
 /// (`walk`), on 1 thread (the per-core rate) and on all threads.
@@ -86,7 +63,7 @@ fn ray_casting(c: &mut Criterion) {
                 continue;
             }
         };
-        let walk = Walk(&mesh);
+        let walk = RayByRay(&mesh);
         let views = |shape: &dyn Shape| {
             for k in 0..8 {
                 let view = ViewParams {

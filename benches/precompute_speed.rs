@@ -3,37 +3,23 @@
 //! `tree` scene voxelised once in the setup; only the build is timed).
 //!
 //! The shipped meshes are read from `../shared/data/meshes` (or `$ALTREP_MESHES`); without them
-//! the bounds group prints "skipped: ../shared absent" and times nothing.
+//! the bounds group prints that it is skipped and times nothing.
 //!
 //! Run: `cargo bench --bench precompute_speed` (add `-- --quick` for a short run).
 
 use std::hint::black_box;
-use std::path::PathBuf;
 use std::time::Duration;
 
-use altrep::data_gen::{Mesh, MeshLoadOptions, VoxelParams, scene_shape, voxelize};
+use altrep::data_gen::{
+    Mesh, MeshLoadOptions, VoxelParams, scene_shape, shared_mesh_paths, voxelize,
+};
 use altrep::ellipsoid::octree::{Octree, OctreeParams};
 use altrep::parallax::{BoundKind, BoundParams, ParallaxImages, ParallaxParams, build_bounds};
 use criterion::{Criterion, criterion_group, criterion_main};
 
-fn mesh_dir() -> PathBuf {
-    std::env::var_os("ALTREP_MESHES").map_or_else(
-        || PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shared/data/meshes"),
-        PathBuf::from,
-    )
-}
-
 fn bounds(c: &mut Criterion) {
-    let mut paths: Vec<PathBuf> = std::fs::read_dir(mesh_dir())
-        .map(|d| {
-            d.filter_map(|e| e.ok().map(|e| e.path()))
-                .filter(|p| p.extension().is_some_and(|x| x == "obj"))
-                .collect()
-        })
-        .unwrap_or_default();
-    paths.sort();
+    let paths = shared_mesh_paths("the bounds group");
     if paths.is_empty() {
-        eprintln!("skipped: ../shared absent (no meshes for the bounds group)");
         return;
     }
     let mut g = c.benchmark_group("parallax_bounds_best_c_N8_64");

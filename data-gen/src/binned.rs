@@ -540,18 +540,7 @@ mod tests {
             let (x, y) = grid.center(i, j);
             Ray::new(x * right + DVec3::Y * y + 2.0 * d, -d)
         };
-        check_grid(
-            mesh,
-            &ParallelRays {
-                dir: -d,
-                across: [right, DVec3::Y],
-                columns: &columns,
-                rows: &rows,
-                t_min: 0.0,
-                t_max: 4.0,
-                ray: &ray,
-            },
-        )
+        check_grid(mesh, &ParallelRays::view(angle, 1.0, &columns, &rows, &ray))
     }
 
     /// A UV sphere of `n` × `2n` quads (two triangles each).
@@ -651,22 +640,7 @@ mod tests {
     /// the nearest hit over all triangles, on views and frames of each mesh.
     #[test]
     fn shipped_meshes_are_traced_exactly() {
-        let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/data/meshes");
-        let mut paths: Vec<_> = std::fs::read_dir(&dir)
-            .map(|d| {
-                d.filter_map(|e| e.ok().map(|e| e.path()))
-                    .filter(|p| p.extension().is_some_and(|x| x == "obj"))
-                    .collect()
-            })
-            .unwrap_or_default();
-        paths.sort();
-        if paths.is_empty() {
-            eprintln!(
-                "\n*** skipped: ../shared absent ({} has no meshes) ***\n",
-                dir.display()
-            );
-            return;
-        }
+        let paths = crate::shared::shared_mesh_paths("the shipped meshes");
         for path in paths {
             let m = Mesh::load_obj(&path, &MeshLoadOptions::default()).unwrap();
             let (mut ties, mut culled, mut rays) = (0, 0, 0);
@@ -714,15 +688,7 @@ mod tests {
                 (tilt - d).normalize(),
             )
         };
-        let rays = ParallelRays {
-            dir: -d,
-            across: [right, DVec3::Y],
-            columns: &columns,
-            rows: &rows,
-            t_min: 0.0,
-            t_max: 4.0,
-            ray: &ray,
-        };
+        let rays = ParallelRays::view(0.4, 1.0, &columns, &rows, &ray);
         check_grid(&m, &rays);
         let mut shuffled = rows.clone();
         shuffled.swap(0, 1);

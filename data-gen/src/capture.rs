@@ -242,15 +242,7 @@ pub fn capture_view(shape: &dyn Shape, params: &ViewParams) -> Result<SampleGrid
         let start = x * right + DVec3::Y * y;
         Ray::new(start + 2.0 * r * d, -d)
     };
-    let rays = ParallelRays {
-        dir: -d,
-        across: [right, DVec3::Y],
-        columns: &columns,
-        rows: &rows,
-        t_min: 0.0,
-        t_max: 4.0 * r,
-        ray: &ray,
-    };
+    let rays = ParallelRays::view(params.angle, r, &columns, &rows, &ray);
     let w = params.width;
     let mut samples = vec![None; w * params.height];
     trace_in_groups(shape, &rays, 1, w, &mut samples, |first, hits, samples| {

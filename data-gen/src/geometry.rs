@@ -156,7 +156,28 @@ pub struct ParallelRays<'a> {
     pub ray: &'a (dyn Fn(usize, usize) -> Ray + Sync),
 }
 
-impl ParallelRays<'_> {
+impl<'a> ParallelRays<'a> {
+    /// The grid of an orthographic view at angle `alpha` over a cylinder of radius `radius`
+    /// (crate docs): rays along `−d(α)`, screen axes `[right(α), +y]`, hit window `(0, 4R)`;
+    /// `ray` starts each ray `2R` in front of its screen point.
+    pub(crate) fn view(
+        alpha: f64,
+        radius: f64,
+        columns: &'a [f64],
+        rows: &'a [f64],
+        ray: &'a (dyn Fn(usize, usize) -> Ray + Sync),
+    ) -> Self {
+        ParallelRays {
+            dir: -direction(alpha),
+            across: [screen_right(alpha), DVec3::Y],
+            columns,
+            rows,
+            t_min: 0.0,
+            t_max: 4.0 * radius,
+            ray,
+        }
+    }
+
     /// Number of rays, `columns × rows`.
     pub fn len(&self) -> usize {
         self.columns.len() * self.rows.len()

@@ -44,6 +44,7 @@ mod mesh;
 mod rng;
 mod shape;
 mod shapes;
+mod shared;
 mod truth;
 mod volume;
 
@@ -57,7 +58,11 @@ pub use geometry::{BoundingCylinder, Hit, ParallelRays, PixelGrid, Ray, directio
 pub use image_io::{RgbaImage, linear_to_srgb, srgb_to_linear};
 pub use mesh::{Mesh, MeshLoadOptions};
 pub use rng::SplitMix64;
-pub use shape::{Albedo, Csg, ParallelTracer, Part, Primitive, Shape, intersect_parallel};
+pub use shape::{
+    Albedo, Csg, ParallelTracer, Part, Primitive, RayByRay, Shape, intersect_parallel,
+};
 pub use shapes::{SCENE_SHAPES, scene_shape};
+#[doc(hidden)]
+pub use shared::{shared_mesh_paths, shared_meshes};
 pub use truth::{Light, TruthParams, render_truth};
 pub use volume::{Volume, Voxel, VoxelParams, voxelize};

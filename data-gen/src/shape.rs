@@ -57,6 +57,35 @@ pub trait Shape: Send + Sync {
     }
 }
 
+/// A shape traced one ray at a time: every method delegates to the inner shape except
+/// [`Shape::parallel_tracer`], which keeps the default (one [`Shape::intersect`] per ray). For
+/// comparing a shape's grid tracer with its own per-ray casts (tests, benchmarks).
+pub struct RayByRay<'a>(pub &'a dyn Shape);
+
+impl Shape for RayByRay<'_> {
+    fn name(&self) -> &str {
+        self.0.name()
+    }
+    fn intersect(&self, ray: &Ray, t_min: f64, t_max: f64) -> Option<Hit> {
+        self.0.intersect(ray, t_min, t_max)
+    }
+    fn contains(&self, p: DVec3) -> bool {
+        self.0.contains(p)
+    }
+    fn bounds(&self) -> (DVec3, DVec3) {
+        self.0.bounds()
+    }
+    fn albedo_at(&self, p: DVec3) -> Vec3 {
+        self.0.albedo_at(p)
+    }
+    fn sdf(&self, p: DVec3) -> Option<f64> {
+        self.0.sdf(p)
+    }
+    fn contains_row(&self, y: f64, z: f64, xs: &[f64], inside: &mut [bool]) {
+        self.0.contains_row(y, z, xs, inside);
+    }
+}
+
 /// Traces bands of rows of a [`ParallelRays`] grid; made by [`Shape::parallel_tracer`].
 pub trait ParallelTracer: Sync {
     /// The number of rows of a band: callers that split the grid into bands of this many rows

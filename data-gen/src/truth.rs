@@ -85,15 +85,7 @@ pub fn render_truth(shape: &dyn Shape, params: &TruthParams) -> Result<RgbaImage
         let (x, y) = (columns[c], rows[row]);
         Ray::new(x * right + DVec3::Y * y + 2.0 * r * d, -d)
     };
-    let rays = ParallelRays {
-        dir: -d,
-        across: [right, DVec3::Y],
-        columns: &columns,
-        rows: &rows,
-        t_min: 0.0,
-        t_max: 4.0 * r,
-        ray: &ray,
-    };
+    let rays = ParallelRays::view(params.angle, r, &columns, &rows, &ray);
     let mut pixels = vec![[0.0f32; 4]; w * h];
     trace_in_groups(shape, &rays, k, w, &mut pixels, |_, hits, pixels| {
         shade_groups(hits, pixels, w, k, &params.light);

@@ -3,9 +3,8 @@
 //! gives the same densities as the per-point loop it replaced, bit for bit.
 
 use std::f64::consts::TAU;
-use std::path::PathBuf;
 
-use altrep_data_gen::{Mesh, MeshLoadOptions, Shape, VoxelParams, voxelize};
+use altrep_data_gen::{Mesh, MeshLoadOptions, Shape, VoxelParams, shared_meshes, voxelize};
 use glam::DVec3;
 
 /// A closed torus (a hole through it, so parity rays cross up to four faces) of `n × m` quads.
@@ -25,28 +24,6 @@ fn torus(n: usize, m: usize) -> Mesh {
         }
     }
     Mesh::from_raw_triangles("torus", tris, &MeshLoadOptions::default()).unwrap()
-}
-
-fn shipped_meshes() -> Vec<Mesh> {
-    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../shared/data/meshes");
-    let mut paths: Vec<PathBuf> = std::fs::read_dir(&dir)
-        .map(|d| {
-            d.filter_map(|e| e.ok().map(|e| e.path()))
-                .filter(|p| p.extension().is_some_and(|x| x == "obj"))
-                .collect()
-        })
-        .unwrap_or_default();
-    paths.sort();
-    if paths.is_empty() {
-        eprintln!(
-            "\n*** skipped: ../shared absent ({} has no meshes) ***\n",
-            dir.display()
-        );
-    }
-    paths
-        .iter()
-        .map(|p| Mesh::load_obj(p, &MeshLoadOptions::default()).unwrap())
-        .collect()
 }
 
 /// Rows over and beyond the mesh's box, with points far to the left (the per-point fallback)
@@ -121,7 +98,7 @@ fn per_point_density(shape: &dyn Shape, p: &VoxelParams) -> Vec<f32> {
 #[test]
 fn mesh_row_inside_test_matches_the_point_test() {
     check_rows(&torus(48, 24));
-    for mesh in shipped_meshes() {
+    for mesh in shared_meshes("the shipped meshes") {
         check_rows(&mesh);
     }
 }
@@ -129,7 +106,7 @@ fn mesh_row_inside_test_matches_the_point_test() {
 #[test]
 fn voxelisation_by_rows_gives_the_per_point_densities() {
     let mut meshes = vec![torus(40, 20)];
-    meshes.extend(shipped_meshes());
+    meshes.extend(shared_meshes("the shipped meshes"));
     for mesh in &meshes {
         for (supersample, periodic) in [(2, [false; 3]), (1, [true, false, true])] {
             let params = VoxelParams {

@@ -3,7 +3,7 @@
 //! - [`primitive`]: the [`Ellipsoid`] (basis + lengths ⇄ quadratic form), projected area, normal
 //!   distribution `f_Q`, Phong reflectance by two independent methods.
 //! - [`eigen`]: fast robust 3×3 symmetric eigen-decomposition (`f32`, `f64`), adversarial suite.
-//! - [`filter`]: merging weighted ellipsoids by the 1995 rule and the SGGX rule, and their errors
+//! - [`filter`](mod@filter): merging weighted ellipsoids by the 1995 rule and the SGGX rule, and their errors
 //!   against the true summed normal distribution and projected area.
 //! - [`octree`]: the multiscale octree volume (leaves from voxels, levels by filtering, pruning,
 //!   lookup by footprint).

@@ -13,7 +13,7 @@
 //! - normal distribution (surface area per unit solid angle of normals):
 //!   `f_Q(N) = det(Q⁻¹) / (NᵀQ⁻¹N)²`, which integrates over the sphere to the surface area, and
 //!   satisfies `∫ f_Q(n) max(0, n·ω) dn = A(ω)`;
-//! - SGGX matrix (Heitz et al. 2015, see [`super::filter`]): `S = π² det(Q⁻¹) Q
+//! - SGGX matrix (Heitz et al. 2015, see [`super::filter`](mod@super::filter)): `S = π² det(Q⁻¹) Q
 //!   = π² R diag((l₁l₂)², (l₀l₂)², (l₀l₁)²) Rᵀ`, so that `√(ωᵀSω) = A(ω)` and the SGGX
 //!   distribution `D(m) = 1/(π√|S| (mᵀS⁻¹m)²)` equals `f_Q(m)` exactly.
 //!

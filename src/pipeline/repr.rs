@@ -85,7 +85,7 @@ pub trait Representation {
 
     /// Decides what to compute and what to skip, each with its reason. May capture a little to
     /// decide (e.g. a coverage check); a representation that cannot hold the object returns a
-    /// plan whose [`Plan::unusable`] says why.
+    /// plan whose [`Plan::refused`] says why.
     fn plan(
         spec: &Self::Spec,
         needs: &Needs,

@@ -4,7 +4,7 @@
 //! functions (nothing is re-measured here: each sweep calls the function the representation's
 //! own command calls), gathered into one table of [`Point`]s: what a setting **costs**
 //! (precompute time, bytes, shader steps) against what it **loses** (PSNR against the ray-cast or
-//! ray-marched ground truth, or an error in the representation's own unit). [`write`] stores the
+//! ray-marched ground truth, or an error in the representation's own unit). [`write`](fn@write) stores the
 //! table as CSV and JSON and draws one plot per representation ([`plot`]), SVG and PNG, with the
 //! source documents' operating points marked.
 //!
@@ -13,7 +13,7 @@
 //! | `fit` | grid, λ, solver + preconditioner, tolerance | [`crate::fit::Fitter`] on `fit-bench`'s test function |
 //! | `parallax` | views N, view size, bound kind | [`crate::parallax::measure_steps`], [`crate::parallax::measure_quality`] |
 //! | `cylinder` | offset grid, λ, renderer (exact, fitted, hybrid, bounded) | [`crate::cylinder::sweep`], [`crate::cylinder::evaluate`] |
-//! | `slices` | slice count (level), merge rule | [`crate::slices::measure`] |
+//! | `slices` | slice count (level), merge rule | [`crate::slices::measure`](fn@crate::slices::measure) |
 //! | `octree` | leaf resolution, filter rule | the pipeline's octree build and measurement |
 //! | `pyramid` | prefilter, lookup (mip, rip, fip, EWA) | [`crate::pyramid::measure_sweep`] |
 //!

@@ -355,7 +355,7 @@ pub fn cylinder(quick: bool, mesh: Option<&Path>) -> Result<RepresentationReport
     })
 }
 
-/// Slices: [`crate::slices::measure`]'s error against level (slice count) for every merge rule,
+/// Slices: [`crate::slices::measure`](fn@crate::slices::measure)'s error against level (slice count) for every merge rule,
 /// averaged over the tiles, and the criterion's choice among three directions as the
 /// operating point (the seed's rule `h·tan a / d ≤ 1`).
 pub fn slices(quick: bool) -> Result<RepresentationReport, ReportError> {

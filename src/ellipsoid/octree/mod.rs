@@ -12,7 +12,7 @@
 //!
 //! - `density`: mean coverage of its voxels (padding counts as empty), in `[0, 1]`;
 //! - `color`: density-weighted mean of the voxels' linear RGB;
-//! - `ellipsoid`: the filter ([`FilterRule`]) of its voxels' micro-primitives weighted by density,
+//! - `ellipsoid`: the filter ([`FilterRule`](crate::ellipsoid::filter::FilterRule)) of its voxels' micro-primitives weighted by density,
 //!   `None` where the density is zero. Because both rules average a moment matrix linearly, filtering
 //!   children is exactly filtering all voxels below (the build keeps the `f64` moment sums; each
 //!   node's ellipsoid comes from one eigen-decomposition of its own mean).

@@ -73,7 +73,7 @@ impl Octree {
     /// - extinction `σ = τ ρ A(v)/π` per voxel length (density modulated by the micro-primitive's
     ///   projected area along the view, `π` being a normalised primitive's mean);
     /// - emitted colour `albedo × (ambient + (1 − ambient) π ρ_d(l, v))`, with `ρ_d` the diffuse
-    ///   reflectance of the node's ellipsoid ([`Ellipsoid::reflectance_apparent_ellipse`], 72
+    ///   reflectance of the node's ellipsoid ([`Ellipsoid::reflectance_apparent_ellipse`](crate::ellipsoid::primitive::Ellipsoid::reflectance_apparent_ellipse), 72
     ///   samples per node, computed once per node);
     /// - front-to-back compositing, `steps_per_voxel` samples per voxel length; no shadow rays.
     ///

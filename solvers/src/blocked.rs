@@ -15,7 +15,7 @@
 //! On a matrix with a grid stencil's sparsity (the trilinear fit's normal equations: 27-point
 //! stencil, rows in grid order) nearly every block is lane-blocked and consecutive blocks share a
 //! pattern, so the patterns cost almost nothing and the explicit zeros are few (the fit's default
-//! system: 45 860 entries become 55 440 lane slots).
+//! system: 45 860 entries become 59 688 slots, 95.8 % of the rows lane-blocked).
 //!
 //! # Results
 //!
@@ -54,7 +54,7 @@ struct Lanes {
 
 /// A CSR matrix (kept for the transpose product, the preconditioners and [`LinearOperator::to_csr`])
 /// with a lane-blocked copy of its rows used by [`LinearOperator::apply`]: see the module docs.
-/// Memory: the CSR matrix plus the lane slots (about `1.2·nnz` values on a stencil matrix).
+/// Memory: the CSR matrix plus the lane slots (about `1.3·nnz` values on a stencil matrix).
 #[derive(Debug, Clone)]
 pub struct BlockedCsr {
     csr: CsMat<f64>,
@@ -80,8 +80,9 @@ impl BlockedCsr {
         let nblocks = nrows / BLOCK_ROWS;
         let mut blocks = Vec::with_capacity(nblocks);
         let mut offsets: Vec<isize> = Vec::new();
-        // A stencil matrix pads its entries by about a fifth.
-        let mut values: Vec<f64> = Vec::with_capacity(csr.nnz() + csr.nnz() / 4);
+        // A stencil matrix pads its entries by about a third (the fit's: 1.30), so this
+        // capacity holds it without a reallocation.
+        let mut values: Vec<f64> = Vec::with_capacity(csr.nnz() + csr.nnz() / 2);
         let mut scratch: Vec<isize> = Vec::new();
         // The current pattern: (start, len) in `offsets`.
         let mut current: Option<(usize, usize)> = None;

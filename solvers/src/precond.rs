@@ -112,9 +112,7 @@ impl Jacobi {
 
 impl Preconditioner for Jacobi {
     fn apply(&self, r: &[f64], z: &mut [f64]) {
-        z.iter_mut()
-            .zip(r.iter().zip(&self.inv_diag))
-            .for_each(|(zi, (ri, di))| *zi = ri * di);
+        crate::vecops::scale_into(&self.inv_diag, r, z);
     }
     fn name(&self) -> &'static str {
         "jacobi"

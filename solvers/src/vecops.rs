@@ -51,11 +51,7 @@ fn dot_serial(x: &[f64], y: &[f64]) -> f64 {
             acc[k] += a[k] * b[k];
         }
     }
-    let mut s = (acc[0] + acc[1]) + (acc[2] + acc[3]);
-    for (a, b) in rx.iter().zip(ry) {
-        s += a * b;
-    }
-    s
+    finish4(acc, rx.iter().zip(ry).map(|(a, b)| a * b))
 }
 
 /// The end of [`dot_serial`]'s sum: its four accumulators (over groups of four), then the
@@ -114,9 +110,7 @@ pub fn scale_dot(d: &[f64], r: &[f64], z: &mut [f64]) -> f64 {
     let n = z.len();
     debug_assert!(d.len() == n && r.len() == n);
     if n >= 2 * PAR_CHUNK {
-        z.iter_mut()
-            .zip(r.iter().zip(d))
-            .for_each(|(zi, (ri, di))| *zi = ri * di);
+        scale_into(d, r, z);
         return dot(r, z);
     }
     let mut acc = [0.0f64; 4];
@@ -138,6 +132,13 @@ pub fn scale_dot(d: &[f64], r: &[f64], z: &mut [f64]) -> f64 {
             ri * *zi
         });
     finish4(acc, rest)
+}
+
+/// `z ← d ⊙ r` (elementwise, `r[i]·d[i]`): the Jacobi preconditioner's step. Cost: `n` flops.
+pub fn scale_into(d: &[f64], r: &[f64], z: &mut [f64]) {
+    z.iter_mut()
+        .zip(r.iter().zip(d))
+        .for_each(|(zi, (ri, di))| *zi = ri * di);
 }
 
 /// Euclidean norm `‖x‖₂`, computed as `sqrt(xᵀx)`. Cost: `2n` flops.
@@ -216,7 +217,7 @@ mod tests {
                 (bits(&x1), bits(&r1), n1.to_bits()),
                 (bits(&x2), bits(&r2), n2.to_bits())
             );
-            let mut z1: Vec<f64> = r1.iter().zip(&d).map(|(r, d)| r * d).collect();
+            let z1: Vec<f64> = r1.iter().zip(&d).map(|(r, d)| r * d).collect();
             let s1 = dot(&r1, &z1);
             let mut z2 = vec![0.0; n];
             let s2 = scale_dot(&d, &r1, &mut z2);
@@ -225,7 +226,6 @@ mod tests {
                 (bits(&z2), s2.to_bits()),
                 "n = {n}"
             );
-            z1.clear();
         }
     }
 

@@ -237,9 +237,9 @@ pub fn capture_view(shape: &dyn Shape, params: &ViewParams) -> Result<SampleGrid
     let rows: Vec<f64> = (0..params.height)
         .map(|j| grid.y_at(j as f64 + 0.5))
         .collect();
+    // `columns[i]` and `rows[j]` are `grid.center(i, j)`, bit for bit, without its divisions.
     let ray = |i: usize, j: usize| {
-        let (x, y) = grid.center(i, j);
-        let start = x * right + DVec3::Y * y;
+        let start = columns[i] * right + DVec3::Y * rows[j];
         Ray::new(start + 2.0 * r * d, -d)
     };
     let rays = ParallelRays::view(params.angle, r, &columns, &rows, &ray);

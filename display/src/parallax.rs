@@ -2,7 +2,8 @@
 //! (inverse warping bounded by the cylinder, any screen size, one ray per pixel, no mip) and of
 //! `altrep::parallax::render_bounded_with` (stored per-pixel bounds of every kind, at the views'
 //! own size), under any `Reconstruction` (the default: tangent brims as the asset's images
-//! define them, linear row filter, fallback views, soft edges, hole filling, brim carving; or the
+//! define them, linear row filter, fallback views (doubtful hits at half coverage), soft edges,
+//! hole filling, brim carving; or the
 //! original path). Two bracketing views are marched per fragment and view row read, combined by
 //! angular proportion (the next views out, from the cylinder, where both miss), relit from the
 //! stored normals with a diffuse light; the output is premultiplied RGBA and the depth of the
@@ -305,6 +306,7 @@ impl ParallaxDisplay {
             k3 as u32,
             u32::from(d.rec.fill_holes),
             u32::from(d.rec.carve_brims),
+            u32::from(d.rec.soft_fallback),
         ];
         let ubuf = init("U", bytemuck::cast_slice(&u), st);
         let l = [

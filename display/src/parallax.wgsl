@@ -12,7 +12,8 @@ alias real = f32;
 // Integers: 0 Lx, 1 Ly, 2 k1, 3 k2, 4 bound kind (0 cylinder, 1 zmin/zmax, 2 pair, 3 best c,
 // 4 best c split), 5 screen width, 6 screen height, then the reconstruction (warp.rs
 // `Reconstruction`): 7 rows (0 nearest, 1 linear), 8 fallback, 9 soft edges, 10 depth test,
-// 11 k0 = k1 − 1 and 12 k3 = k2 + 1 (the fallback views), 13 fill holes, 14 carve brims.
+// 11 k0 = k1 − 1 and 12 k3 = k2 + 1 (the fallback views), 13 fill holes, 14 carve brims,
+// 15 soft fallback.
 @group(0) @binding(1) var<storage, read> U: array<u32>;
 // Light: direction xyz (unit, object frame), ambient; then blend weights w1, w2 (f32, as the CPU),
 // then the fallback views' weights w0, w3.
@@ -395,6 +396,9 @@ fn project(co: real, si: real, x: real, z_e: real) -> vec2<real> {
 // warp.rs `CARVE_DEPTH_TEXELS`.
 const CARVE_DEPTH_TEXELS: f32 = 2.0;
 
+// warp.rs `DOUBTFUL_FALLBACK_COVERAGE`.
+const DOUBTFUL_FALLBACK_COVERAGE: f32 = 0.5;
+
 // warp.rs `sticks_out`: whether the hit `a` of view ka on the ray x of row j, which view kb
 // (seen under (co, si)) misses, is a brim sticking out past kb's outline.
 fn sticks_out(ka: u32, kb: u32, co: real, si: real, j: u32, x: real, a: Hit) -> bool {
@@ -617,6 +621,19 @@ fn ray_row(j: u32, x: real, px: u32) -> RowOut {
         let q3 = cylinder_range(x, P[CO3], P[SI3]);
         let m3 = march_row(k3, j, x, P[CO3], P[SI3], q3.x1, q3.x2);
         o.col = combine(k0, k3, L[6], L[7], j, m0.hit, m3.hit, x, P[CO0], P[SI0], P[CO3], P[SI3]);
+        // warp.rs `fallback_coverage`: one fallback view alone hits, on a brim sticking out
+        // past a bracketing view's outline.
+        if o.col.ok && U[15] != 0u && m0.hit.ok != m3.hit.ok {
+            var ka = k0;
+            var h = m0.hit;
+            if m3.hit.ok {
+                ka = k3;
+                h = m3.hit;
+            }
+            if sticks_out(ka, k1, P[CO1], P[SI1], j, x, h) || sticks_out(ka, k2, P[CO2], P[SI2], j, x, h) {
+                o.col.c = o.col.c * DOUBTFUL_FALLBACK_COVERAGE;
+            }
+        }
     }
     if !o.col.ok && U[13] != 0u {
         o.col = hole_fill(j, x);

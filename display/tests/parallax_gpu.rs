@@ -128,6 +128,13 @@ fn gpu_image_matches_cpu_renderer_for_every_bound_kind_f32() {
     let dir = tempfile::tempdir().unwrap();
     let light = Light::default();
     let mut worst = f64::INFINITY;
+    // Pixels where halving doubtful fallback hits (`Reconstruction::soft_fallback`) changes the
+    // CPU picture: the GPU must draw them as the CPU does, and there must be some.
+    let no_soft = Reconstruction {
+        soft_fallback: false,
+        ..Reconstruction::DEFAULT
+    };
+    let mut halved = 0;
     for shape in SHAPES {
         let data = asset(shape, dir.path());
         let disp = ParallaxDisplay::new(&gpu, &data, Precision::F32).unwrap();
@@ -139,6 +146,25 @@ fn gpu_image_matches_cpu_renderer_for_every_bound_kind_f32() {
                 let name = format!("{shape}-{}-{alpha:.2}", b.kind.slug());
                 let (db, _) = check_image(&name, &frame.image, &cpu, 40.0, 0.02);
                 worst = worst.min(db);
+                let full = render_bounded_with(&data.images, b, alpha, &light, &no_soft).unwrap();
+                for ((g, c), f) in frame
+                    .image
+                    .pixels
+                    .iter()
+                    .zip(&cpu.pixels)
+                    .zip(&full.image.pixels)
+                {
+                    if c != f {
+                        halved += 1;
+                        assert!(
+                            (g[3] - c[3]).abs() < (g[3] - f[3]).abs(),
+                            "{name}: GPU coverage {} is not the halved {} (unhalved {})",
+                            g[3],
+                            c[3],
+                            f[3]
+                        );
+                    }
+                }
                 // Depth is written exactly where a colour is.
                 for (p, &z) in frame.image.pixels.iter().zip(&frame.depth) {
                     assert_eq!(p[3] > 0.0, z < 1.0, "{name}: depth written where drawn");
@@ -147,7 +173,14 @@ fn gpu_image_matches_cpu_renderer_for_every_bound_kind_f32() {
             }
         }
     }
-    eprintln!("worst GPU(f32)-vs-CPU PSNR over shapes, kinds and angles: {worst:.1} dB");
+    eprintln!(
+        "worst GPU(f32)-vs-CPU PSNR over shapes, kinds and angles: {worst:.1} dB; \
+         {halved} pixels with doubtful fallback hits halved"
+    );
+    assert!(
+        halved > 0,
+        "no doubtful fallback hit: the shader's branch went untested"
+    );
 }
 
 #[test]

@@ -439,8 +439,8 @@ impl Variant {
     }
 
     /// The best combination measured (issue 11), the default since: tangent brims (max slope 4,
-    /// [`Brim::DEFAULT`]), linear row filter, fallback to the next views out, soft edges, hole
-    /// filling, brim carving ([`Reconstruction::DEFAULT`]; the depth test, measured alone at
+    /// [`Brim::DEFAULT`]), linear row filter, fallback to the next views out (doubtful hits at
+    /// half coverage), soft edges, hole filling, brim carving ([`Reconstruction::DEFAULT`]; the depth test, measured alone at
     /// ±0.05 dB, is left out).
     pub fn best() -> Self {
         Self {
@@ -475,6 +475,12 @@ impl Variant {
                 // Carving acts on brim hits: with the tangent brim of the default.
                 v.brim = Brim::DEFAULT;
                 v.rec.carve_brims = true
+            }),
+            with("+ fallback, doubtful hits halved", &|v| {
+                // Acts on fallback brim hits: with the fallback and the tangent brim.
+                v.brim = Brim::DEFAULT;
+                v.rec.fallback = true;
+                v.rec.soft_fallback = true
             }),
             Self::best(),
         ]

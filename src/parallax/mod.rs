@@ -20,9 +20,9 @@
 //! **Reconstruction** (issue 11): the surface at unjoined texel ends ([`Brim`],
 //! [`ParallaxImages::with_brim`]: along the stored normal's tangent by default, or flat as
 //! originally), and in [`render_with`] / [`render_bounded_with`] a linear filter between view
-//! rows, a fallback to the next views out where both miss, soft coverage at silhouette brims
-//! (all three on by default, [`Reconstruction::DEFAULT`]) and a depth test between the two views
-//! (off). [`Brim::Flat`] with [`Reconstruction::ORIGINAL`] is the original path.
+//! rows, a fallback to the next views out where both miss (doubtful fallback hits at half
+//! coverage), soft coverage at silhouette brims, hole filling, brim carving (all on by default,
+//! [`Reconstruction::DEFAULT`]) and a depth test between the two views (off). [`Brim::Flat`] with [`Reconstruction::ORIGINAL`] is the original path.
 //! [`measure_quality_sweep`] measures each option alone and all together, with the error split
 //! by distance to the true outline ([`error_split`]).
 //!

@@ -412,21 +412,9 @@ impl Footprint {
     /// the box's columns cut by the three moved edge lines, each solved for `x`. Each bound
     /// is moved out by `10⁻⁹` of its terms, far more than the rounding of the division, so the
     /// columns are a superset of the positions where every `a·x + b·y + c ≥ 0`.
+    /// Footprints at most [`SMALL`] columns wide are tested column by column with
+    /// [`Self::covers`] instead (no division).
     fn row_columns(&self, y: f64, cols: &Axis) -> Range<usize> {
-        let x = cols.coords;
-        if self.columns.len() <= SMALL {
-            // A small footprint: evaluate the lines at its few columns (no division). The
-            // covered columns of a convex region are contiguous; the range spans them.
-            let covers = |c: usize| self.covers(x[c], y);
-            let mut r = self.columns.clone();
-            while r.start < r.end && !covers(r.start) {
-                r.start += 1;
-            }
-            while r.end > r.start && !covers(r.end - 1) {
-                r.end -= 1;
-            }
-            return r;
-        }
         let (mut lo, mut hi) = self.x_range;
         for &[a, b, c] in &self.edges {
             let v = -(b * y + c);

@@ -99,9 +99,9 @@ pub use measure::{
     measure_quality_sweep, measure_steps,
 };
 pub use warp::{
-    BoundedRender, CARVE_DEPTH_TEXELS, Crossing, MarchResult, Reconstruction, RenderParams,
-    RowFilter, WarpMethod, cylinder_range, march, render, render_bounded, render_bounded_with,
-    render_with, warp_row_direct, warp_view,
+    BoundedRender, CARVE_DEPTH_TEXELS, Crossing, DOUBTFUL_FALLBACK_COVERAGE, MarchResult,
+    Reconstruction, RenderParams, RowFilter, WarpMethod, cylinder_range, march, render,
+    render_bounded, render_bounded_with, render_with, warp_row_direct, warp_view,
 };
 
 use altrep_data_gen::DataGenError;

@@ -13,7 +13,7 @@ use altrep::cylinder::{
     RadiusModel, RenderParams, SWEEP_GRIDS, render_exact, sample_offsets,
 };
 use altrep::data_gen::{
-    CylinderParams, Light, Mesh, MeshLoadOptions, Shape, TruthParams, render_truth, scene_shape,
+    CylinderParams, Light, Shape, TruthParams, render_truth, scene_shape, shared_mesh,
 };
 use altrep::metrics::psnr;
 use criterion::{Criterion, criterion_group, criterion_main};
@@ -108,10 +108,8 @@ fn offset_fit(c: &mut Criterion) {
 
 fn capture(c: &mut Criterion) {
     let mut shapes: Vec<Box<dyn Shape>> = vec![Box::new(scene_shape("truck").unwrap())];
-    let meshes = concat!(env!("CARGO_MANIFEST_DIR"), "/../shared/data/meshes/");
-    match Mesh::load_obj(format!("{meshes}beetle.obj"), &MeshLoadOptions::default()) {
-        Ok(mesh) => shapes.push(Box::new(mesh)),
-        Err(e) => eprintln!("skipping the beetle: {e}"),
+    if let Some(mesh) = shared_mesh("beetle", "the cylinder_capture group's beetle") {
+        shapes.push(Box::new(mesh));
     }
     let mut g = c.benchmark_group("cylinder_capture");
     g.sample_size(10);

@@ -3,8 +3,8 @@
 
 use altrep::mip::{Pyramid, PyramidParams, Texture, WrapMode};
 use altrep_data_gen::{
-    BoundingCylinder, CylinderParams, Mesh, MeshLoadOptions, RayByRay, Shape, ViewParams,
-    capture_cylinder, capture_view, scene_shape,
+    BoundingCylinder, CylinderParams, RayByRay, Shape, ViewParams, capture_cylinder, capture_view,
+    scene_shape, shared_mesh,
 };
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
 
@@ -24,11 +24,9 @@ fn capture(c: &mut Criterion) {
         .iter()
         .map(|n| Box::new(scene_shape(n).unwrap()) as Box<dyn Shape>)
         .collect();
-    let meshes = concat!(env!("CARGO_MANIFEST_DIR"), "/../shared/data/meshes/");
     for m in ["beetle", "stanford-bunny"] {
-        match Mesh::load_obj(format!("{meshes}{m}.obj"), &MeshLoadOptions::default()) {
-            Ok(mesh) => shapes.push(Box::new(mesh)),
-            Err(e) => eprintln!("skipping {m}: {e}"),
+        if let Some(mesh) = shared_mesh(m, "a capture_view_128 mesh") {
+            shapes.push(Box::new(mesh));
         }
     }
     for shape in &shapes {
@@ -47,7 +45,6 @@ fn capture(c: &mut Criterion) {
 /// distance, normal, colour per ray), traced as grids (`grid`) or ray by ray through the BVH
 /// (`walk`), on 1 thread (the per-core rate) and on all threads.
 fn ray_casting(c: &mut Criterion) {
-    let meshes = concat!(env!("CARGO_MANIFEST_DIR"), "/../shared/data/meshes/");
     let mut g = c.benchmark_group("ray_casting_8x512");
     g.throughput(Throughput::Elements(8 * 512 * 512));
     g.sample_size(10);
@@ -56,12 +53,8 @@ fn ray_casting(c: &mut Criterion) {
         .build()
         .unwrap();
     for m in ["teapot", "beetle", "stanford-bunny"] {
-        let mesh = match Mesh::load_obj(format!("{meshes}{m}.obj"), &MeshLoadOptions::default()) {
-            Ok(mesh) => mesh,
-            Err(e) => {
-                eprintln!("skipping {m}: {e}");
-                continue;
-            }
+        let Some(mesh) = shared_mesh(m, "a ray_casting_8x512 mesh") else {
+            continue;
         };
         let walk = RayByRay(&mesh);
         let views = |shape: &dyn Shape| {

@@ -3,11 +3,9 @@
 //! the report's pair. Meshes from `../shared/data/meshes/` are used when present, skipped with a
 //! message otherwise.
 
-use std::path::Path;
-
 use altrep::data_gen::{
-    BoundingCylinder, Light, Mesh, MeshLoadOptions, RgbaImage, Shape, TruthParams, ViewParams,
-    capture_view, render_truth, scene_shape,
+    BoundingCylinder, Light, Mesh, RgbaImage, Shape, TruthParams, ViewParams, capture_view,
+    render_truth, scene_shape, shared_mesh,
 };
 use altrep::metrics::{CompareOptions, compare, psnr, silhouette_iou};
 use altrep::parallax::{
@@ -18,7 +16,6 @@ use altrep::parallax::{
 };
 use approx::assert_abs_diff_eq;
 
-const MESHES: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../shared/data/meshes/");
 const PROCEDURAL: [&str; 3] = ["truck", "tree", "building"];
 
 fn small(views: usize, size: usize) -> ParallaxParams {
@@ -31,12 +28,7 @@ fn small(views: usize, size: usize) -> ParallaxParams {
 }
 
 fn mesh(name: &str) -> Option<Mesh> {
-    let path = Path::new(MESHES).join(format!("{name}.obj"));
-    if !path.exists() {
-        eprintln!("skipping {name}: {} not found", path.display());
-        return None;
-    }
-    Some(Mesh::load_obj(&path, &MeshLoadOptions::default()).expect("shared mesh loads"))
+    shared_mesh(name, &format!("the {name} checks"))
 }
 
 #[test]

@@ -450,10 +450,9 @@ mod tests {
 
     use super::*;
     use crate::frame::OrthoFrame;
-    use crate::geometry::{BoundingCylinder, PixelGrid, direction, screen_right};
+    use crate::geometry::{BoundingCylinder, PixelGrid, ViewGrid, direction, screen_right};
     use crate::mesh::MeshLoadOptions;
     use crate::rng::SplitMix64;
-    use crate::truth::sub_sample;
 
     /// Checks the binned grid ray by ray against every triangle (the nearest hit of the same
     /// `f32` triangle test, the first in triangle order among equal distances: exactly) and
@@ -512,11 +511,7 @@ mod tests {
         let frame = OrthoFrame::new(centre, radius, dir).unwrap();
         let k = 2;
         let (columns, rows) = frame.grid(w, h, k);
-        let ray = |c: usize, r: usize| {
-            let sub = |i: usize| sub_sample(i / k, i % k, k);
-            let (x, y) = OrthoFrame::screen_at(sub(c), sub(r), w, h);
-            frame.ray(x, y)
-        };
+        let ray = |c: usize, r: usize| frame.grid_ray(c, r, w, h, k);
         check_grid(mesh, &frame.parallel_rays(&columns, &rows, &ray))
     }
 
@@ -526,14 +521,9 @@ mod tests {
             height: h,
             cylinder: BoundingCylinder::default(),
         };
-        let (d, right) = (direction(angle), screen_right(angle));
-        let columns: Vec<f64> = (0..w).map(|i| grid.x_at(i as f64 + 0.5)).collect();
-        let rows: Vec<f64> = (0..h).map(|j| grid.y_at(j as f64 + 0.5)).collect();
-        let ray = |i: usize, j: usize| {
-            let (x, y) = grid.center(i, j);
-            Ray::new(x * right + DVec3::Y * y + 2.0 * d, -d)
-        };
-        check_grid(mesh, &ParallelRays::view(angle, 1.0, &columns, &rows, &ray))
+        let view = ViewGrid::new(&grid, angle, 1);
+        let ray = |i: usize, j: usize| view.ray(i, j);
+        check_grid(mesh, &view.parallel_rays(&ray))
     }
 
     /// A UV sphere of `n` × `2n` quads (two triangles each).
@@ -664,12 +654,11 @@ mod tests {
             height: h,
             cylinder: BoundingCylinder::default(),
         };
-        let columns: Vec<f64> = (0..w).map(|i| grid.x_at(i as f64 + 0.5)).collect();
-        let rows: Vec<f64> = (0..h).map(|j| grid.y_at(j as f64 + 0.5)).collect();
+        let view = ViewGrid::new(&grid, 0.4, 1);
         let (d, right) = (direction(0.4), screen_right(0.4));
         // Every third ray is shifted by a quarter pixel, every fifth tilted.
         let ray = |i: usize, j: usize| {
-            let (x, y) = grid.center(i, j);
+            let (x, y) = (view.columns[i], view.rows[j]);
             let shift = if (i + j).is_multiple_of(3) { 0.02 } else { 0.0 };
             let tilt = if (i + j).is_multiple_of(5) {
                 DVec3::new(0.0, 0.01, 0.0)
@@ -681,9 +670,9 @@ mod tests {
                 (tilt - d).normalize(),
             )
         };
-        let rays = ParallelRays::view(0.4, 1.0, &columns, &rows, &ray);
+        let rays = view.parallel_rays(&ray);
         check_grid(&m, &rays);
-        let mut shuffled = rows.clone();
+        let mut shuffled = view.rows.clone();
         shuffled.swap(0, 1);
         let bad = ParallelRays {
             rows: &shuffled,

@@ -17,9 +17,7 @@ use glam::{DVec3, Vec3};
 use rayon::prelude::*;
 
 use crate::error::{DataGenError, finite, nonzero};
-use crate::geometry::{
-    BoundingCylinder, Hit, ParallelRays, PixelGrid, Ray, direction, screen_right,
-};
+use crate::geometry::{BoundingCylinder, Hit, PixelGrid, Ray, ViewGrid, direction};
 use crate::image_io::{RgbaImage, write_image};
 use crate::shape::{Shape, trace_in_groups};
 use crate::truth::Light;
@@ -228,21 +226,11 @@ pub fn capture_view(shape: &dyn Shape, params: &ViewParams) -> Result<SampleGrid
         height: params.height,
         cylinder: params.cylinder,
     };
-    let d = direction(params.angle);
-    let right = screen_right(params.angle);
-    let r = params.cylinder.radius;
-    let columns: Vec<f64> = (0..params.width)
-        .map(|i| grid.x_at(i as f64 + 0.5))
-        .collect();
-    let rows: Vec<f64> = (0..params.height)
-        .map(|j| grid.y_at(j as f64 + 0.5))
-        .collect();
-    // `columns[i]` and `rows[j]` are `grid.center(i, j)`, bit for bit, without its divisions.
-    let ray = |i: usize, j: usize| {
-        let start = columns[i] * right + DVec3::Y * rows[j];
-        Ray::new(start + 2.0 * r * d, -d)
-    };
-    let rays = ParallelRays::view(params.angle, r, &columns, &rows, &ray);
+    // One ray per pixel, through its centre (`grid.center`, bit for bit).
+    let view = ViewGrid::new(&grid, params.angle, 1);
+    let ray = |i: usize, j: usize| view.ray(i, j);
+    let rays = view.parallel_rays(&ray);
+    let (d, r) = (view.d(), params.cylinder.radius);
     let w = params.width;
     let mut samples = vec![None; w * params.height];
     trace_in_groups(shape, &rays, 1, w, &mut samples, |first, hits, samples| {

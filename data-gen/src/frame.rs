@@ -21,10 +21,10 @@ use glam::DVec3;
 
 use crate::capture::Sample;
 use crate::error::{DataGenError, finite, nonzero};
-use crate::geometry::{ParallelRays, Ray};
+use crate::geometry::{ParallelRays, Ray, sub_sample};
 use crate::image_io::RgbaImage;
 use crate::shape::{Shape, trace_in_groups};
-use crate::truth::{Light, shade_groups, sub_sample};
+use crate::truth::{Light, shade_groups};
 
 /// An orthographic frame along any direction, over a bounding sphere (see the module docs).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -141,6 +141,25 @@ impl OrthoFrame {
         (columns, rows)
     }
 
+    /// Ray `(c, r)` of the grid of [`OrthoFrame::grid`]: through sub-sample `(c mod k, r mod
+    /// k)` of pixel `(c / k, r / k)` of a `width × height` frame.
+    pub(crate) fn grid_ray(
+        &self,
+        c: usize,
+        r: usize,
+        width: usize,
+        height: usize,
+        k: usize,
+    ) -> Ray {
+        let (x, y) = Self::screen_at(
+            sub_sample(c / k, c % k, k),
+            sub_sample(r / k, r % k, k),
+            width,
+            height,
+        );
+        self.ray(x, y)
+    }
+
     /// The grid of parallel rays of this frame with positions `columns × rows` and rays `ray`.
     pub(crate) fn parallel_rays<'a>(
         &self,
@@ -185,10 +204,7 @@ pub fn capture_frame(
     nonzero(width, "frame width")?;
     nonzero(height, "frame height")?;
     let (columns, rows) = frame.grid(width, height, 1);
-    let ray = |i: usize, j: usize| {
-        let (x, y) = OrthoFrame::screen_at(i as f64 + 0.5, j as f64 + 0.5, width, height);
-        frame.ray(x, y)
-    };
+    let ray = |i: usize, j: usize| frame.grid_ray(i, j, width, height, 1);
     let rays = frame.parallel_rays(&columns, &rows, &ray);
     let mut samples = vec![None; width * height];
     trace_in_groups(
@@ -236,15 +252,7 @@ pub fn render_truth_frame(
     nonzero(height, "truth height")?;
     let k = nonzero(supersample, "supersampling factor")?;
     let (columns, rows) = frame.grid(width, height, k);
-    let ray = |c: usize, r: usize| {
-        let (x, y) = OrthoFrame::screen_at(
-            sub_sample(c / k, c % k, k),
-            sub_sample(r / k, r % k, k),
-            width,
-            height,
-        );
-        frame.ray(x, y)
-    };
+    let ray = |c: usize, r: usize| frame.grid_ray(c, r, width, height, k);
     let rays = frame.parallel_rays(&columns, &rows, &ray);
     let mut pixels = vec![[0.0f32; 4]; width * height];
     trace_in_groups(shape, &rays, k, width, &mut pixels, |_, hits, pixels| {

@@ -157,27 +157,6 @@ pub struct ParallelRays<'a> {
 }
 
 impl<'a> ParallelRays<'a> {
-    /// The grid of an orthographic view at angle `alpha` over a cylinder of radius `radius`
-    /// (crate docs): rays along `−d(α)`, screen axes `[right(α), +y]`, hit window `(0, 4R)`;
-    /// `ray` starts each ray `2R` in front of its screen point.
-    pub(crate) fn view(
-        alpha: f64,
-        radius: f64,
-        columns: &'a [f64],
-        rows: &'a [f64],
-        ray: &'a (dyn Fn(usize, usize) -> Ray + Sync),
-    ) -> Self {
-        ParallelRays {
-            dir: -direction(alpha),
-            across: [screen_right(alpha), DVec3::Y],
-            columns,
-            rows,
-            t_min: 0.0,
-            t_max: 4.0 * radius,
-            ray,
-        }
-    }
-
     /// Number of rays, `columns × rows`.
     pub fn len(&self) -> usize {
         self.columns.len() * self.rows.len()
@@ -186,5 +165,72 @@ impl<'a> ParallelRays<'a> {
     /// Whether the grid has no ray.
     pub fn is_empty(&self) -> bool {
         self.len() == 0
+    }
+}
+
+/// Fractional pixel coordinate of sub-sample `a` of pixel `i` in a `k × k` stratification:
+/// `i + (a + ½)/k` (`i + ½` at the centre for `k = 1`).
+#[inline]
+pub(crate) fn sub_sample(i: usize, a: usize, k: usize) -> f64 {
+    i as f64 + (a as f64 + 0.5) / k as f64
+}
+
+/// The `k × k` sub-sample rays of every pixel of an orthographic view at angle `alpha` (crate
+/// docs), as one grid of `width·k × height·k` parallel rays: their screen positions, and the
+/// ray through each, along `−d(α)` from `2R` in front of its screen point. The one formula of
+/// captures (`k = 1`) and ground truths.
+pub(crate) struct ViewGrid {
+    radius: f64,
+    d: DVec3,
+    right: DVec3,
+    /// Screen abscissa of each column of rays, `x_at(sub_sample(i, a, k))`.
+    pub(crate) columns: Vec<f64>,
+    /// Height of each row of rays, `y_at(sub_sample(j, b, k))`.
+    pub(crate) rows: Vec<f64>,
+}
+
+impl ViewGrid {
+    /// The sub-sample grid of `grid` viewed at angle `alpha`, `k` rays across each pixel.
+    pub(crate) fn new(grid: &PixelGrid, alpha: f64, k: usize) -> Self {
+        Self {
+            radius: grid.cylinder.radius,
+            d: direction(alpha),
+            right: screen_right(alpha),
+            columns: (0..grid.width * k)
+                .map(|c| grid.x_at(sub_sample(c / k, c % k, k)))
+                .collect(),
+            rows: (0..grid.height * k)
+                .map(|r| grid.y_at(sub_sample(r / k, r % k, k)))
+                .collect(),
+        }
+    }
+
+    /// The ray of column `c`, row `r`.
+    #[inline]
+    pub(crate) fn ray(&self, c: usize, r: usize) -> Ray {
+        let start = self.columns[c] * self.right + DVec3::Y * self.rows[r];
+        Ray::new(start + 2.0 * self.radius * self.d, -self.d)
+    }
+
+    /// The view direction `d(α)` (rays travel along `−d`).
+    pub(crate) fn d(&self) -> DVec3 {
+        self.d
+    }
+
+    /// The grid as [`ParallelRays`] with rays `ray` (the caller's closure over [`Self::ray`]):
+    /// screen axes `[right(α), +y]`, hit window `(0, 4R)`.
+    pub(crate) fn parallel_rays<'a>(
+        &'a self,
+        ray: &'a (dyn Fn(usize, usize) -> Ray + Sync),
+    ) -> ParallelRays<'a> {
+        ParallelRays {
+            dir: -self.d,
+            across: [self.right, DVec3::Y],
+            columns: &self.columns,
+            rows: &self.rows,
+            t_min: 0.0,
+            t_max: 4.0 * self.radius,
+            ray,
+        }
     }
 }

@@ -1,11 +1,9 @@
 //! Ground truth: the original shape ray-cast orthographically, shaded, supersampled.
 
-use glam::{DVec3, Vec3};
+use glam::Vec3;
 
 use crate::error::{DataGenError, finite, nonzero};
-use crate::geometry::{
-    BoundingCylinder, Hit, ParallelRays, PixelGrid, Ray, direction, screen_right,
-};
+use crate::geometry::{BoundingCylinder, Hit, PixelGrid, ViewGrid};
 use crate::image_io::RgbaImage;
 use crate::shape::{Shape, trace_in_groups};
 
@@ -69,23 +67,12 @@ pub fn render_truth(shape: &dyn Shape, params: &TruthParams) -> Result<RgbaImage
         height: params.height,
         cylinder: params.cylinder,
     };
-    let d = direction(params.angle);
-    let right = screen_right(params.angle);
-    let r = params.cylinder.radius;
     let k = params.supersample;
     let (w, h) = (params.width, params.height);
     // The sub-sample rays of every pixel form one grid of `w·k × h·k` parallel rays.
-    let columns: Vec<f64> = (0..w * k)
-        .map(|c| grid.x_at(sub_sample(c / k, c % k, k)))
-        .collect();
-    let rows: Vec<f64> = (0..h * k)
-        .map(|r| grid.y_at(sub_sample(r / k, r % k, k)))
-        .collect();
-    let ray = |c: usize, row: usize| {
-        let (x, y) = (columns[c], rows[row]);
-        Ray::new(x * right + DVec3::Y * y + 2.0 * r * d, -d)
-    };
-    let rays = ParallelRays::view(params.angle, r, &columns, &rows, &ray);
+    let view = ViewGrid::new(&grid, params.angle, k);
+    let ray = |c: usize, r: usize| view.ray(c, r);
+    let rays = view.parallel_rays(&ray);
     let mut pixels = vec![[0.0f32; 4]; w * h];
     trace_in_groups(shape, &rays, k, w, &mut pixels, |_, hits, pixels| {
         shade_groups(hits, pixels, w, k, &params.light);
@@ -115,13 +102,6 @@ pub(crate) fn shade_groups(
             });
         }
     }
-}
-
-/// Fractional pixel coordinate of sub-sample `a` of pixel `i` in a `k × k` stratification:
-/// `i + (a + ½)/k` (`i + ½` at the centre for `k = 1`).
-#[inline]
-pub(crate) fn sub_sample(i: usize, a: usize, k: usize) -> f64 {
-    i as f64 + (a as f64 + 0.5) / k as f64
 }
 
 /// Premultiplied linear RGBA of one pixel from `k × k` stratified rays: `shade_at(a, b)` gives

@@ -4,6 +4,7 @@ use std::io::Write;
 
 use altrep_data_gen::{
     BoundingCylinder, DataGenError, Mesh, MeshLoadOptions, Ray, Shape, ViewParams, capture_view,
+    shared_mesh,
 };
 use glam::DVec3;
 
@@ -82,16 +83,9 @@ fn small_box_mesh_is_normalised_and_ray_cast() {
 
 #[test]
 fn teapot_loads_when_shared_meshes_exist() {
-    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../../shared/data/meshes/teapot.obj");
-    if !path.exists() {
-        eprintln!(
-            "skipped: {} not found (shared meshes are optional)",
-            path.display()
-        );
+    let Some(mesh) = shared_mesh("teapot", "teapot_loads_when_shared_meshes_exist") else {
         return;
-    }
-    let mesh = Mesh::load_obj(&path, &MeshLoadOptions::default()).unwrap();
+    };
     assert!(
         mesh.triangle_count() > 1000,
         "{} triangles",

@@ -353,8 +353,8 @@ struct Footprint {
     columns: Range<usize>,
     /// The box's screen abscissae, widened by `m`.
     x_range: (f64, f64),
-    /// Edge lines `a·x + b·y + c ≥ 0` inside, already moved out by at least `m`; `0·x + 0·y + 1` for a
-    /// projection too thin to orient reliably (then the box alone decides).
+    /// Edge lines `a·x + b·y + c ≥ 0` inside, already moved out by at least `m`; `0·x + 0·y + 1`
+    /// for a projection too thin to orient reliably (then the box alone decides).
     edges: [[f64; 3]; 3],
 }
 

@@ -440,8 +440,8 @@ impl Variant {
 
     /// The best combination measured (issue 11), the default since: tangent brims (max slope 4,
     /// [`Brim::DEFAULT`]), linear row filter, fallback to the next views out (doubtful hits at
-    /// half coverage), soft edges, hole filling, brim carving ([`Reconstruction::DEFAULT`]; the depth test, measured alone at
-    /// ±0.05 dB, is left out).
+    /// half coverage), soft edges, hole filling, brim carving ([`Reconstruction::DEFAULT`]; the
+    /// depth test, measured alone at ±0.05 dB, is left out).
     pub fn best() -> Self {
         Self {
             name: "inverse warp (default)".into(),

@@ -22,7 +22,8 @@
 //! originally), and in [`render_with`] / [`render_bounded_with`] a linear filter between view
 //! rows, a fallback to the next views out where both miss (doubtful fallback hits at half
 //! coverage), soft coverage at silhouette brims, hole filling, brim carving (all on by default,
-//! [`Reconstruction::DEFAULT`]) and a depth test between the two views (off). [`Brim::Flat`] with [`Reconstruction::ORIGINAL`] is the original path.
+//! [`Reconstruction::DEFAULT`]) and a depth test between the two views (off). [`Brim::Flat`]
+//! with [`Reconstruction::ORIGINAL`] is the original path.
 //! [`measure_quality_sweep`] measures each option alone and all together, with the error split
 //! by distance to the true outline ([`error_split`]).
 //!

@@ -68,6 +68,8 @@ pub struct Mesh {
     pub(crate) triangles: Vec<Triangle>,
     /// Each triangle's unit geometric normal (`obvhs`'s `compute_normal`, widened to `f64`).
     normals: Vec<DVec3>,
+    /// Each triangle's colour; empty when every triangle takes the fallback (a mesh without
+    /// colours then reads no colour record per hit).
     colors: Vec<TriColor>,
     fallback: Albedo,
     bvh: CwBvh,
@@ -281,6 +283,12 @@ impl Mesh {
                 .collect();
             bvh.primitive_indices = (0..order.len() as u32).collect();
         }
+        if kept_colors
+            .iter()
+            .all(|c| matches!(c, TriColor::Procedural))
+        {
+            kept_colors = Vec::new();
+        }
         let normals = triangles
             .iter()
             .map(|t| {
@@ -340,13 +348,13 @@ impl Mesh {
         // Winding is not trusted: the normal faces the incoming ray.
         let n = if n.dot(ray.dir) > 0.0 { -n } else { n };
         let p = ray.at(t);
-        let albedo = match &self.colors[tri_id] {
-            TriColor::Vertex(c) => {
+        let albedo = match self.colors.get(tri_id) {
+            Some(TriColor::Vertex(c)) => {
                 let w = barycentric(tri, p);
                 c[0] * w[0] + c[1] * w[1] + c[2] * w[2]
             }
-            TriColor::Flat(c) => *c,
-            TriColor::Procedural => self.fallback.at(p),
+            Some(TriColor::Flat(c)) => *c,
+            Some(TriColor::Procedural) | None => self.fallback.at(p),
         };
         Hit {
             t,

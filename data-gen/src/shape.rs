@@ -284,11 +284,13 @@ fn stripe(x: f64, z: f64, count: u32) -> i64 {
     // The polynomial's error in sector units, ×4 for the roundings of both formulas (each
     // far below 10⁻¹² of a sector at any count for which the margin is below ½).
     let margin = 4.0 * ATAN_01_ERROR * per_radian;
-    let k = q.floor();
-    let f = q - k;
+    // Truncation is the floor for `q ≥ 0`; a negative `q` gets `f < 0` and the exact path
+    // (`floor` is a libm call without SSE4.1, the cast one instruction).
+    let k = q as i64;
+    let f = q - k as f64;
     // False for NaN (0/0 at the axis, non-finite input).
     if f > margin && f < 1.0 - margin {
-        k as i64
+        k
     } else {
         exact()
     }

@@ -106,5 +106,85 @@ fn mip(c: &mut Criterion) {
     });
 }
 
-criterion_group!(benches, capture, ray_casting, mip);
+/// The two costs every ray-cast view pays at least, for the lower bound of `ray_casting_8x512`
+/// (`bench/RESULTS.md`): one triangle test per hit (`obvhs`'s Möller–Trumbore, the test of both
+/// tracers, on 65 536 rays that each hit their own triangle) and the output grid of one view of
+/// 512² (a fresh `Vec<Option<Sample>>`, a third of it empty). One thread. Also prints each
+/// shipped mesh's hits over the 8 views (the count the bound multiplies).
+fn ray_casting_bound(c: &mut Criterion) {
+    use altrep_data_gen::{Sample, SplitMix64};
+    use glam::{Vec3, Vec3A};
+    use obvhs::{ray::Ray, triangle::Triangle};
+    let one = rayon::ThreadPoolBuilder::new()
+        .num_threads(1)
+        .build()
+        .unwrap();
+    for m in ["teapot", "beetle", "stanford-bunny"] {
+        let Some(mesh) = shared_mesh(m, "a ray_casting_bound mesh") else {
+            continue;
+        };
+        let hits: usize = one.install(|| {
+            (0..8)
+                .map(|k| {
+                    let view = ViewParams {
+                        angle: std::f64::consts::TAU * k as f64 / 8.0,
+                        ..view_params(512)
+                    };
+                    let grid = capture_view(&mesh, &view).unwrap();
+                    grid.samples.iter().filter(|s| s.is_some()).count()
+                })
+                .sum()
+        });
+        eprintln!("ray_casting_bound: {m}: {hits} hits in 8 views of 512²");
+    }
+    let mut g = c.benchmark_group("ray_casting_bound");
+    let n = 65_536;
+    let mut rng = SplitMix64::new(7);
+    let mut r = || rng.next_f64() as f32;
+    let (tris, rays): (Vec<Triangle>, Vec<Ray>) = (0..n)
+        .map(|_| {
+            let v0 = Vec3A::new(r(), r(), r());
+            let tri = Triangle {
+                v0,
+                v1: v0 + Vec3A::new(0.01 + r() * 0.01, r() * 0.002, 0.0),
+                v2: v0 + Vec3A::new(r() * 0.002, 0.01 + r() * 0.01, 0.001),
+            };
+            let target = (tri.v0 + tri.v1 + tri.v2) / 3.0;
+            let dir = Vec3A::new(0.0, 0.0, -1.0);
+            (tri, Ray::new(target - 2.0 * dir, dir, 0.0, 4.0))
+        })
+        .unzip();
+    assert!(
+        tris.iter()
+            .zip(&rays)
+            .all(|(t, r)| t.intersect(r).is_finite())
+    );
+    g.throughput(Throughput::Elements(n as u64));
+    g.bench_function("triangle_test_hits", |b| {
+        b.iter(|| {
+            tris.iter()
+                .zip(&rays)
+                .map(|(t, r)| t.intersect(std::hint::black_box(r)))
+                .sum::<f32>()
+        })
+    });
+    let cells = 512 * 512;
+    g.throughput(Throughput::Elements(cells as u64));
+    let sample = Sample {
+        albedo: Vec3::new(0.5, 0.25, 0.125),
+        normal: Vec3::Z,
+        depth: 0.5,
+    };
+    g.bench_function("view_grid_512_writes", |b| {
+        b.iter(|| {
+            let v: Vec<Option<Sample>> = (0..cells)
+                .map(|i| (i % 3 != 0).then_some(std::hint::black_box(sample)))
+                .collect();
+            v
+        })
+    });
+    g.finish();
+}
+
+criterion_group!(benches, capture, ray_casting, ray_casting_bound, mip);
 criterion_main!(benches);

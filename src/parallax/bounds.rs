@@ -854,8 +854,20 @@ struct SlotHull {
     c_star: f64,
 }
 
+/// `v_max − v_min` of [`v_range`] for the family `c`, for comparing candidates. The extremes are
+/// taken with plain comparisons (`maxsd`/`minsd`) instead of `f64::max`/`min` (NaN checks): the
+/// same values except possibly the sign of a zero extreme, which no comparison of spreads sees
+/// (the stored ranges still come from [`v_range`]).
 fn spread(h: &SlotHull, x: f64, c: f64) -> f64 {
-    let (lo, hi) = v_range(&h.upper, &h.lower, (1.0 + c) * x);
+    let a = (1.0 + c) * x;
+    let hi = h.upper.iter().fold(f64::NEG_INFINITY, |m, p| {
+        let v = p.1 + a * p.0;
+        if v > m { v } else { m }
+    });
+    let lo = h.lower.iter().fold(f64::INFINITY, |m, p| {
+        let v = p.1 + a * p.0;
+        if v < m { v } else { m }
+    });
     hi - lo
 }
 

@@ -41,6 +41,22 @@ fn capture(c: &mut Criterion) {
     });
 }
 
+/// A pool of one thread: the per-core rates.
+fn one_thread() -> rayon::ThreadPool {
+    rayon::ThreadPoolBuilder::new()
+        .num_threads(1)
+        .build()
+        .unwrap()
+}
+
+/// The views of `altrep capture --views 8 --size 512`: angles `2πk/8`, 512².
+fn eight_views_512() -> impl Iterator<Item = ViewParams> {
+    (0..8).map(|k| ViewParams {
+        angle: std::f64::consts::TAU * k as f64 / 8.0,
+        ..view_params(512)
+    })
+}
+
 /// `altrep capture --views 8 --size 512` without the files: 8 orthographic views of 512² (hit
 /// distance, normal, colour per ray), traced as grids (`grid`) or ray by ray through the BVH
 /// (`walk`), on 1 thread (the per-core rate) and on all threads.
@@ -48,21 +64,14 @@ fn ray_casting(c: &mut Criterion) {
     let mut g = c.benchmark_group("ray_casting_8x512");
     g.throughput(Throughput::Elements(8 * 512 * 512));
     g.sample_size(10);
-    let one = rayon::ThreadPoolBuilder::new()
-        .num_threads(1)
-        .build()
-        .unwrap();
+    let one = one_thread();
     for m in ["teapot", "beetle", "stanford-bunny"] {
         let Some(mesh) = shared_mesh(m, "a ray_casting_8x512 mesh") else {
             continue;
         };
         let walk = RayByRay(&mesh);
         let views = |shape: &dyn Shape| {
-            for k in 0..8 {
-                let view = ViewParams {
-                    angle: std::f64::consts::TAU * k as f64 / 8.0,
-                    ..view_params(512)
-                };
+            for view in eight_views_512() {
                 std::hint::black_box(capture_view(shape, &view).unwrap());
             }
         };
@@ -115,21 +124,14 @@ fn ray_casting_bound(c: &mut Criterion) {
     use altrep_data_gen::{Sample, SplitMix64};
     use glam::{Vec3, Vec3A};
     use obvhs::{ray::Ray, triangle::Triangle};
-    let one = rayon::ThreadPoolBuilder::new()
-        .num_threads(1)
-        .build()
-        .unwrap();
+    let one = one_thread();
     for m in ["teapot", "beetle", "stanford-bunny"] {
         let Some(mesh) = shared_mesh(m, "a ray_casting_bound mesh") else {
             continue;
         };
         let hits: usize = one.install(|| {
-            (0..8)
-                .map(|k| {
-                    let view = ViewParams {
-                        angle: std::f64::consts::TAU * k as f64 / 8.0,
-                        ..view_params(512)
-                    };
+            eight_views_512()
+                .map(|view| {
                     let grid = capture_view(&mesh, &view).unwrap();
                     grid.samples.iter().filter(|s| s.is_some()).count()
                 })

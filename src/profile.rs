@@ -11,10 +11,17 @@
 //!   the scope's total, and the rest ([`StageTable::rows`]' `other`) is the time no stage claims
 //!   (planning, cache checks, setup between stages);
 //! - a stage is timed on the thread that opened the scope; the work inside may fan out over
-//!   rayon. Scopes nest by stack discipline, so a rayon worker that steals another asset's job
-//!   while it waits records that job's stages in that asset's scope (its time still counts in the
-//!   outer stage's wall time: per-stage figures are only clean when assets run one at a time,
-//!   which `--profile` does).
+//!   rayon. Scopes nest by stack discipline, so a rayon worker that steals another job while it
+//!   waits records that job's stages in that job's own scope, and the stolen job's time still
+//!   counts in the waiting stage's wall time. `--profile` runs assets one at a time, so an
+//!   asset's figures hold no other asset's work; the representations of one asset run
+//!   concurrently, so their stages overlap and the rows of one asset may add up to more than
+//!   its wall time;
+//! - a scope may be opened more than once for the same asset and representation (the pipeline
+//!   builds, then measures): the table adds its totals into one row;
+//! - per asset, [`Profile::asset`] records the wall time from the start of loading its mesh or
+//!   texture to its last file committed (**mesh to files**: what a renderer needs; measure and
+//!   report excluded) and to its end ([`AssetTime`]).
 
 use std::cell::RefCell;
 use std::collections::BTreeMap;
@@ -54,10 +61,26 @@ pub const STAGES: [&str; 13] = [
     "report",
 ];
 
+/// Wall-clock times of one asset as a whole (see [`Profile::asset`]).
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct AssetTime {
+    /// Asset name.
+    pub asset: String,
+    /// Seconds to read and prepare its mesh, shape or texture.
+    pub load_seconds: f64,
+    /// Seconds from the start of loading to its last representation's files committed: the
+    /// precompute itself, measure and report excluded.
+    pub files_seconds: f64,
+    /// Seconds from the start of loading to the end of its last report.
+    pub total_seconds: f64,
+}
+
 #[derive(Debug, Default)]
 struct Sink {
     stages: Vec<StageTime>,
     totals: Vec<(String, String, f64)>,
+    order: Vec<(String, String)>,
+    assets: Vec<AssetTime>,
 }
 
 /// A thread-safe collector of stage times. Cheap to share: clone the [`Arc`] it lives in.
@@ -104,6 +127,25 @@ impl Profile {
         }
     }
 
+    /// Declares the row of `asset` / `representation`, so that the table lists rows in
+    /// declaration order whatever order concurrent scopes end in (undeclared rows follow, in the
+    /// order their first scope ended).
+    pub fn declare(&self, asset: &str, representation: &str) {
+        if let Ok(mut s) = self.sink.lock() {
+            let key = (asset.to_string(), representation.to_string());
+            if !s.order.contains(&key) {
+                s.order.push(key);
+            }
+        }
+    }
+
+    /// Records the wall times of `asset` as a whole (see [`AssetTime`]).
+    pub fn asset(&self, time: AssetTime) {
+        if let Ok(mut s) = self.sink.lock() {
+            s.assets.push(time);
+        }
+    }
+
     fn record(&self, t: StageTime) {
         if let Ok(mut s) = self.sink.lock() {
             s.stages.push(t);
@@ -121,12 +163,16 @@ impl Profile {
     /// The table of stages per asset and representation (see [`StageTable`]), with the run's
     /// wall time `wall_seconds`.
     pub fn table(&self, wall_seconds: f64) -> StageTable {
-        let (stages, totals) = self
-            .sink
-            .lock()
-            .map(|s| (s.stages.clone(), s.totals.clone()))
-            .unwrap_or_default();
-        StageTable::new(&stages, &totals, wall_seconds)
+        let Ok(s) = self.sink.lock() else {
+            return StageTable::new(&[], &[], &[], Vec::new(), wall_seconds);
+        };
+        StageTable::new(
+            &s.stages,
+            &s.totals,
+            &s.order,
+            s.assets.clone(),
+            wall_seconds,
+        )
     }
 }
 
@@ -211,7 +257,8 @@ pub struct StageRow {
     pub representation: String,
     /// Seconds per stage (stages that did not run are absent).
     pub stages: BTreeMap<String, f64>,
-    /// Wall seconds of the whole representation (plan to report, cache checks included).
+    /// Wall seconds of the whole representation (plan to report, cache checks included; the
+    /// sum over its scopes).
     pub total_seconds: f64,
     /// `total − Σ stages`: time no stage claims (≥ 0 up to clock rounding).
     pub other_seconds: f64,
@@ -222,8 +269,11 @@ pub struct StageRow {
 pub struct StageTable {
     /// Stage names present, in [`STAGES`] order.
     pub stage_names: Vec<String>,
-    /// One row per representation of each asset, in completion order.
+    /// One row per representation of each asset, in declaration order
+    /// ([`Profile::declare`]), then in completion order.
     pub rows: Vec<StageRow>,
+    /// Per asset, its wall times as a whole, in recording order.
+    pub assets: Vec<AssetTime>,
     /// Per stage, the sum over every row.
     pub stage_sums: BTreeMap<String, f64>,
     /// Sum of the rows' totals.
@@ -233,7 +283,13 @@ pub struct StageTable {
 }
 
 impl StageTable {
-    fn new(stages: &[StageTime], totals: &[(String, String, f64)], wall_seconds: f64) -> Self {
+    fn new(
+        stages: &[StageTime],
+        totals: &[(String, String, f64)],
+        declared: &[(String, String)],
+        assets: Vec<AssetTime>,
+        wall_seconds: f64,
+    ) -> Self {
         let order = |s: &str| STAGES.iter().position(|n| *n == s).unwrap_or(STAGES.len());
         let mut names: Vec<String> = Vec::new();
         for s in stages {
@@ -242,7 +298,19 @@ impl StageTable {
             }
         }
         names.sort_by_key(|n| order(n));
-        let rows: Vec<StageRow> = totals
+        // One total per row: declared rows first, then the rest by first completion.
+        let mut keyed: Vec<(String, String, f64)> = declared
+            .iter()
+            .filter(|(a, r)| totals.iter().any(|t| &t.0 == a && &t.1 == r))
+            .map(|(a, r)| (a.clone(), r.clone(), 0.0))
+            .collect();
+        for (asset, repr, total) in totals {
+            match keyed.iter_mut().find(|k| &k.0 == asset && &k.1 == repr) {
+                Some(k) => k.2 += total,
+                None => keyed.push((asset.clone(), repr.clone(), *total)),
+            }
+        }
+        let rows: Vec<StageRow> = keyed
             .iter()
             .map(|(asset, repr, total)| {
                 let mut map = BTreeMap::new();
@@ -272,13 +340,14 @@ impl StageTable {
             stage_names: names,
             total_seconds: rows.iter().map(|r| r.total_seconds).sum(),
             rows,
+            assets,
             stage_sums,
             wall_seconds,
         }
     }
 
     /// The table in Markdown: milliseconds per stage, one row per representation of each asset,
-    /// then the sums.
+    /// then the sums; then, when recorded, the per-asset table (load, mesh to files, total).
     pub fn markdown(&self) -> String {
         let mut s = String::from("| asset | representation |");
         for n in &self.stage_names {
@@ -305,11 +374,27 @@ impl StageTable {
         }
         let claimed: f64 = self.stage_sums.values().sum();
         s += &format!(
-            " {:.1} | {:.1} |\n\nMilliseconds, wall clock; run wall time {:.1} ms (assets one at a time).\n",
+            " {:.1} | {:.1} |\n\nMilliseconds, wall clock; run wall time {:.1} ms. Assets run one at a \
+             time; the representations of an asset run concurrently, so their rows overlap.\n",
             (self.total_seconds - claimed) * 1e3,
             self.total_seconds * 1e3,
             self.wall_seconds * 1e3
         );
+        if !self.assets.is_empty() {
+            s += "\n| asset | load | mesh to files | total |\n|---|---|---|---|\n";
+            for a in &self.assets {
+                s += &format!(
+                    "| {} | {:.1} | {:.1} | {:.1} |\n",
+                    a.asset,
+                    a.load_seconds * 1e3,
+                    a.files_seconds * 1e3,
+                    a.total_seconds * 1e3
+                );
+            }
+            s += "\nMilliseconds, wall clock. Mesh to files: from the start of loading to the \
+                  asset's last file committed (measure and report excluded); total: to the end of \
+                  its last report.\n";
+        }
         s
     }
 }
@@ -345,5 +430,45 @@ mod tests {
         assert_eq!(b.stages.keys().collect::<Vec<_>>(), ["octree"]);
         assert_eq!(t.stage_names, ["capture", "bounds", "octree"]);
         assert!(t.markdown().contains("| a | parallax |"));
+    }
+
+    #[test]
+    fn scopes_of_one_row_add_up_and_declared_rows_come_first() {
+        let p = Profile::new();
+        p.declare("a", "parallax");
+        p.declare("a", "octree");
+        for _ in 0..2 {
+            let _s = p.scope("a", "octree");
+            stage("octree", || {
+                std::thread::sleep(std::time::Duration::from_millis(1))
+            });
+        }
+        {
+            let _s = p.scope("b", "cylinder");
+        }
+        {
+            let _s = p.scope("a", "parallax");
+        }
+        p.asset(super::AssetTime {
+            asset: "a".into(),
+            load_seconds: 0.001,
+            files_seconds: 0.002,
+            total_seconds: 0.003,
+        });
+        let t = p.table(1.0);
+        let rows: Vec<(&str, &str)> = t
+            .rows
+            .iter()
+            .map(|r| (r.asset.as_str(), r.representation.as_str()))
+            .collect();
+        assert_eq!(
+            rows,
+            [("a", "parallax"), ("a", "octree"), ("b", "cylinder")]
+        );
+        let octree = &t.rows[1];
+        assert!(octree.stages["octree"] >= 0.002);
+        assert!(octree.total_seconds >= octree.stages["octree"]);
+        let md = t.markdown();
+        assert!(md.contains("| a | 1.0 | 2.0 | 3.0 |"), "{md}");
     }
 }

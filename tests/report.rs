@@ -257,13 +257,48 @@ fn profile_stages_are_finite_non_negative_and_add_up_to_at_most_the_wall_time() 
     }
     let stage_sum: f64 = t.stage_sums.values().sum();
     assert!(stage_sum <= t.total_seconds);
-    // Assets run one at a time under --profile: the rows' totals fit in the run's wall time.
+    // Assets run one at a time under --profile: their wall times fit in the run's. Each asset's
+    // representations run concurrently inside its own wall time: every row fits in it.
+    let names: Vec<&str> = t.assets.iter().map(|a| a.asset.as_str()).collect();
+    let mut expected: Vec<&str> = s.outcomes.iter().map(|o| o.asset.as_str()).collect();
+    expected.dedup();
+    assert_eq!(names, expected);
+    let asset_sum: f64 = t.assets.iter().map(|a| a.total_seconds).sum();
     assert!(
-        t.total_seconds <= s.wall_seconds,
-        "{} > {}",
-        t.total_seconds,
+        asset_sum <= s.wall_seconds,
+        "{asset_sum} > {}",
         s.wall_seconds
     );
+    for a in &t.assets {
+        assert!(
+            0.0 <= a.load_seconds
+                && a.load_seconds <= a.files_seconds
+                && a.files_seconds <= a.total_seconds,
+            "{a:?}"
+        );
+        for r in t.rows.iter().filter(|r| r.asset == a.asset) {
+            assert!(
+                r.total_seconds <= a.total_seconds,
+                "{}/{}: {} > {}",
+                r.asset,
+                r.representation,
+                r.total_seconds,
+                a.total_seconds
+            );
+        }
+    }
+    // Rows in manifest order, whatever order the concurrent builds ended in.
+    let rows: Vec<(&str, &str)> = t
+        .rows
+        .iter()
+        .map(|r| (r.asset.as_str(), r.representation.as_str()))
+        .collect();
+    let outcomes: Vec<(&str, &str)> = s
+        .outcomes
+        .iter()
+        .map(|o| (o.asset.as_str(), o.representation.as_str()))
+        .collect();
+    assert_eq!(rows, outcomes);
     for stage in [
         "plan",
         "capture",
@@ -283,6 +318,7 @@ fn profile_stages_are_finite_non_negative_and_add_up_to_at_most_the_wall_time() 
     }
     let md = std::fs::read_to_string(dir.path().join("report.md")).unwrap();
     assert!(md.contains("Per-stage profile") && md.contains("| pear | parallax |"));
+    assert!(md.contains("| asset | load | mesh to files | total |"));
     let json: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(dir.path().join("report.json")).unwrap())
             .unwrap();

@@ -395,8 +395,9 @@ pub fn run_scene(manifest: &Manifest, options: &RunOptions) -> Result<RunSummary
     std::fs::create_dir_all(&pictures_dir).map_err(io(&pictures_dir))?;
     let profile = options.profile.then(crate::profile::Profile::new);
     let one = |spec: &&AssetSpec| {
-        let mut v = Vec::new();
+        let t_asset = Instant::now();
         let loaded = load_source(spec);
+        let load_seconds = t_asset.elapsed().as_secs_f64();
         let needs = effective_needs(spec, options.everything);
         let fail = |repr: &str, e: &PipelineError| AssetOutcome {
             asset: spec.name.clone(),
@@ -410,89 +411,81 @@ pub fn run_scene(manifest: &Manifest, options: &RunOptions) -> Result<RunSummary
             measurement: None,
             pictures: Vec::new(),
         };
-        match loaded {
-            Err(e) => {
-                for repr in wanted(spec) {
-                    v.push(fail(repr, &e));
-                }
-            }
-            Ok((loaded, input_hash)) => {
-                let source = loaded.source(&spec.name, light);
-                let mut go = |repr: &str, r: Result<AssetOutcome, PipelineError>| {
-                    v.push(r.unwrap_or_else(|e| fail(repr, &e)));
-                    bar.inc(1);
-                };
-                bar.set_message(spec.name.clone());
-                if let Some(p) = &spec.parallax {
-                    go(
-                        Parallax::NAME,
-                        run_one::<Parallax>(
-                            p,
-                            &needs,
-                            &source,
-                            &input_hash,
-                            options,
-                            profile.as_ref(),
-                        ),
-                    );
-                }
-                if let Some(p) = &spec.cylinder {
-                    go(
-                        Cylinder::NAME,
-                        run_one::<Cylinder>(
-                            p,
-                            &needs,
-                            &source,
-                            &input_hash,
-                            options,
-                            profile.as_ref(),
-                        ),
-                    );
-                }
-                if let Some(p) = &spec.octree {
-                    go(
-                        OctreeRepr::NAME,
-                        run_one::<OctreeRepr>(
-                            p,
-                            &needs,
-                            &source,
-                            &input_hash,
-                            options,
-                            profile.as_ref(),
-                        ),
-                    );
-                }
-                if let Some(p) = &spec.pyramid {
-                    go(
-                        PyramidRepr::NAME,
-                        run_one::<PyramidRepr>(
-                            p,
-                            &needs,
-                            &source,
-                            &input_hash,
-                            options,
-                            profile.as_ref(),
-                        ),
-                    );
-                }
-                if let Some(p) = &spec.sphere {
-                    go(
-                        SphereRepr::NAME,
-                        run_one::<SphereRepr>(
-                            p,
-                            &needs,
-                            &source,
-                            &input_hash,
-                            options,
-                            profile.as_ref(),
-                        ),
-                    );
-                }
+        let (loaded, input_hash) = match loaded {
+            Ok(l) => l,
+            Err(e) => return wanted(spec).into_iter().map(|r| fail(r, &e)).collect(),
+        };
+        let source = loaded.source(&spec.name, light);
+        bar.set_message(spec.name.clone());
+        let p = profile.as_ref();
+        if let Some(p) = p {
+            for repr in wanted(spec) {
+                p.declare(&spec.name, repr);
             }
         }
-        v
+        // First every representation is built and committed, concurrently (writing files
+        // overlaps the others' computing); then each is read back and measured.
+        let (source, needs, hash) = (&source, &needs, input_hash.as_str());
+        let mut builds: Vec<(&'static str, BuildJob<'_>)> = Vec::new();
+        if let Some(s) = &spec.parallax {
+            builds.push((
+                Parallax::NAME,
+                Box::new(move || build_one::<Parallax>(s, needs, source, hash, options, p)),
+            ));
+        }
+        if let Some(s) = &spec.cylinder {
+            builds.push((
+                Cylinder::NAME,
+                Box::new(move || build_one::<Cylinder>(s, needs, source, hash, options, p)),
+            ));
+        }
+        if let Some(s) = &spec.octree {
+            builds.push((
+                OctreeRepr::NAME,
+                Box::new(move || build_one::<OctreeRepr>(s, needs, source, hash, options, p)),
+            ));
+        }
+        if let Some(s) = &spec.pyramid {
+            builds.push((
+                PyramidRepr::NAME,
+                Box::new(move || build_one::<PyramidRepr>(s, needs, source, hash, options, p)),
+            ));
+        }
+        if let Some(s) = &spec.sphere {
+            builds.push((
+                SphereRepr::NAME,
+                Box::new(move || build_one::<SphereRepr>(s, needs, source, hash, options, p)),
+            ));
+        }
+        let built: Vec<(&str, Result<Built<'_>, PipelineError>)> = builds
+            .into_par_iter()
+            .map(|(repr, job)| (repr, job()))
+            .collect();
+        let files_seconds = t_asset.elapsed().as_secs_f64();
+        let outcomes: Vec<AssetOutcome> = built
+            .into_par_iter()
+            .map(|(repr, b)| {
+                let o = match b {
+                    Ok(Built::Done(o)) => Ok(*o),
+                    Ok(Built::Committed(finish)) => finish(),
+                    Err(e) => Err(e),
+                };
+                bar.inc(1);
+                o.unwrap_or_else(|e| fail(repr, &e))
+            })
+            .collect();
+        if let Some(p) = p {
+            p.asset(crate::profile::AssetTime {
+                asset: spec.name.clone(),
+                load_seconds,
+                files_seconds,
+                total_seconds: t_asset.elapsed().as_secs_f64(),
+            });
+        }
+        outcomes
     };
-    // With --profile, assets run one at a time: each stage's time is then its own.
+    // With --profile, assets run one at a time: an asset's stage times then hold no other
+    // asset's work.
     let outcomes: Vec<AssetOutcome> = if profile.is_some() {
         mine.iter().flat_map(one).collect()
     } else {
@@ -552,16 +545,29 @@ fn cache_key<R: Representation>(
     crate::asset::hash_hex(key.to_string().as_bytes())
 }
 
-fn run_one<R: Representation>(
-    spec: &R::Spec,
-    needs: &Needs,
-    source: &Source,
+/// A representation's build job (see [`build_one`]).
+type BuildJob<'a> = Box<dyn FnOnce() -> Result<Built<'a>, PipelineError> + Send + 'a>;
+
+/// What [`build_one`] leaves: a finished outcome (refused, cached), or a representation built
+/// and committed whose measuring and report remain (the closure).
+enum Built<'a> {
+    Done(Box<AssetOutcome>),
+    Committed(Box<dyn FnOnce() -> Result<AssetOutcome, PipelineError> + Send + 'a>),
+}
+
+/// Plans representation `R` of `source`, reuses its cached folder when valid, else builds and
+/// commits it; the returned closure then reads the committed files back, measures them and
+/// writes the report pictures.
+fn build_one<'a, R: Representation>(
+    spec: &'a R::Spec,
+    needs: &'a Needs,
+    source: &'a Source<'a>,
     input_hash: &str,
-    options: &RunOptions,
-    profile: Option<&std::sync::Arc<crate::profile::Profile>>,
-) -> Result<AssetOutcome, PipelineError> {
+    options: &'a RunOptions,
+    profile: Option<&'a std::sync::Arc<crate::profile::Profile>>,
+) -> Result<Built<'a>, PipelineError> {
     let t0 = Instant::now();
-    let _scope = profile.map(|p| p.scope(source.name, R::NAME));
+    let scope = profile.map(|p| p.scope(source.name, R::NAME));
     let (plan, decisions) = crate::profile::stage("plan", || R::plan(spec, needs, source))?;
     let dir = options.out.join(source.name).join(R::NAME);
     if let Some(reason) = &plan.refused {
@@ -569,7 +575,7 @@ fn run_one<R: Representation>(
         if dir.exists() {
             std::fs::remove_dir_all(&dir).map_err(io(&dir))?;
         }
-        return Ok(AssetOutcome {
+        return Ok(Built::Done(Box::new(AssetOutcome {
             asset: source.name.into(),
             representation: R::NAME.into(),
             outcome: Outcome::Refused(reason.clone()),
@@ -580,7 +586,7 @@ fn run_one<R: Representation>(
             cache_note: None,
             measurement: None,
             pictures: Vec::new(),
-        });
+        })));
     }
     let key = cache_key::<R>(spec, &decisions, needs, input_hash, &source.light);
     let mut cache_note = None;
@@ -589,7 +595,7 @@ fn run_one<R: Representation>(
             Ok(r) if r.description().cache_key == key => {
                 let rep = &r.description().report;
                 if let Ok(m) = serde_json::from_value::<Measurement>(rep["measurement"].clone()) {
-                    return Ok(AssetOutcome {
+                    return Ok(Built::Done(Box::new(AssetOutcome {
                         asset: source.name.into(),
                         representation: R::NAME.into(),
                         outcome: Outcome::Cached,
@@ -601,7 +607,7 @@ fn run_one<R: Representation>(
                         measurement: Some(m),
                         pictures: serde_json::from_value(rep["pictures"].clone())
                             .unwrap_or_default(),
-                    });
+                    })));
                 }
                 cache_note = Some("cached folder has no measurement (interrupted run)".into());
             }
@@ -616,7 +622,7 @@ fn run_one<R: Representation>(
     let mut w = AssetWriter::new(&options.out, source.name, R::NAME)?;
     let metadata = R::write(&data, &mut w)?;
     drop(data);
-    let mut report = json!({
+    let report = json!({
         "build_seconds": build_seconds,
         "build": build_report,
         "plan": plan,
@@ -630,36 +636,44 @@ fn run_one<R: Representation>(
         report.clone(),
     )?;
     writing.stop();
-    // Measure what a renderer would load: the files just written.
-    let measuring = crate::profile::timer("measure");
-    let loaded = R::read(&AssetReader::open(&dir)?)?;
-    let (measurement, pictures) = R::measure(&loaded, needs, source)?;
-    measuring.stop();
-    let _reporting = crate::profile::timer("report");
-    let mut written = Vec::new();
-    for p in pictures {
-        let rel = format!("pictures/{}", p.file);
-        magnify(&p.image.over([1.0, 1.0, 1.0]), 192).write_png(&options.out.join(&rel))?;
-        written.push((rel, p.caption));
-    }
-    report["measurement"] = serde_json::to_value(&measurement).unwrap_or_default();
-    report["pictures"] = serde_json::to_value(&written).unwrap_or_default();
-    let mut desc = desc;
-    desc.report = report;
-    let text = serde_json::to_vec_pretty(&desc).map_err(|e| PipelineError::Spec(e.to_string()))?;
-    write_atomic(&dir.join(DESCRIPTION_FILE), &text)?;
-    Ok(AssetOutcome {
-        asset: source.name.into(),
-        representation: R::NAME.into(),
-        outcome: Outcome::Built,
-        plan,
-        seconds: t0.elapsed().as_secs_f64(),
-        build_seconds,
-        bytes: desc.data_bytes(),
-        cache_note,
-        measurement: Some(measurement),
-        pictures: written,
-    })
+    drop(scope);
+    let built_for = t0.elapsed();
+    Ok(Built::Committed(Box::new(move || {
+        let t1 = Instant::now();
+        let _scope = profile.map(|p| p.scope(source.name, R::NAME));
+        // Measure what a renderer would load: the files just written.
+        let measuring = crate::profile::timer("measure");
+        let loaded = R::read(&AssetReader::open(&dir)?)?;
+        let (measurement, pictures) = R::measure(&loaded, needs, source)?;
+        measuring.stop();
+        let _reporting = crate::profile::timer("report");
+        let mut written = Vec::new();
+        for p in pictures {
+            let rel = format!("pictures/{}", p.file);
+            magnify(&p.image.over([1.0, 1.0, 1.0]), 192).write_png(&options.out.join(&rel))?;
+            written.push((rel, p.caption));
+        }
+        let mut report = report;
+        report["measurement"] = serde_json::to_value(&measurement).unwrap_or_default();
+        report["pictures"] = serde_json::to_value(&written).unwrap_or_default();
+        let mut desc = desc;
+        desc.report = report;
+        let text =
+            serde_json::to_vec_pretty(&desc).map_err(|e| PipelineError::Spec(e.to_string()))?;
+        write_atomic(&dir.join(DESCRIPTION_FILE), &text)?;
+        Ok(AssetOutcome {
+            asset: source.name.into(),
+            representation: R::NAME.into(),
+            outcome: Outcome::Built,
+            plan,
+            seconds: (built_for + t1.elapsed()).as_secs_f64(),
+            build_seconds,
+            bytes: desc.data_bytes(),
+            cache_note,
+            measurement: Some(measurement),
+            pictures: written,
+        })
+    })))
 }
 
 /// `image` with every pixel repeated so that it is at least `min_height` pixels high (nearest

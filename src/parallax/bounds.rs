@@ -403,20 +403,97 @@ impl Bounds {
     }
 }
 
-/// Upper and lower corner points `(τ, z_e)` of one half range, ascending in `τ = tan(θ/2)`.
+/// Upper and lower corner points `(τ, z_e)` of one half range, ascending in `τ = tan(θ/2)`
+/// (the sweep's points as lists, for the tests).
+#[cfg(test)]
 #[derive(Default, Clone, Debug)]
 struct HalfPoints {
     upper: Vec<(f64, f64)>,
     lower: Vec<(f64, f64)>,
 }
 
+#[cfg(test)]
 impl HalfPoints {
-    fn is_empty(&self) -> bool {
-        self.upper.is_empty()
-    }
     fn clear(&mut self) {
         self.upper.clear();
         self.lower.clear();
+    }
+}
+
+/// Where [`pixel_points`] puts the corner points of each half range: kept as lists
+/// (`[HalfPoints; 2]`, for the tests) or fed straight into hulls ([`SlotHulls`]). Points of a half
+/// arrive in ascending τ, and every point of half 0 arrives before any point of half 1.
+trait Corners {
+    /// An upper corner point of half `half`.
+    fn upper(&mut self, half: usize, p: (f64, f64));
+    /// A lower corner point of half `half`.
+    fn lower(&mut self, half: usize, p: (f64, f64));
+}
+
+#[cfg(test)]
+impl Corners for [HalfPoints; 2] {
+    #[inline]
+    fn upper(&mut self, half: usize, p: (f64, f64)) {
+        self[half].upper.push(p);
+    }
+    #[inline]
+    fn lower(&mut self, half: usize, p: (f64, f64)) {
+        self[half].lower.push(p);
+    }
+}
+
+/// A hull's vertices `(τ, z)`, ascending in τ.
+type Chain = Vec<(f64, f64)>;
+
+/// The hulls of a pixel's slots built as the sweep pushes its corner points: one slot over both
+/// halves, or (`split`) one per half. The same hulls as [`hull`] over the concatenated lists
+/// (half 0's points, then half 1's), since the builder takes the same steps on the same
+/// sequence of points; without storing the points.
+struct SlotHulls {
+    split: bool,
+    /// `[slot] = (upper, lower)`.
+    hulls: [(HullBuilder, HullBuilder); 2],
+}
+
+impl SlotHulls {
+    fn new(split: bool) -> Self {
+        let pair = || (HullBuilder::new(true), HullBuilder::new(false));
+        Self {
+            split,
+            hulls: [pair(), pair()],
+        }
+    }
+    fn clear(&mut self) {
+        for (u, l) in &mut self.hulls {
+            u.points.clear();
+            l.points.clear();
+        }
+    }
+    #[inline]
+    fn slot(&self, half: usize) -> usize {
+        if self.split { half } else { 0 }
+    }
+    /// Copies of the upper and lower hulls of `slot` (`None` if no point reached it); the
+    /// builders keep their buffers for the next pixel.
+    fn take(&self, slot: usize) -> Option<(Chain, Chain)> {
+        let (u, l) = &self.hulls[slot];
+        if u.points.is_empty() {
+            return None;
+        }
+        Some((u.points.to_vec(), l.points.to_vec()))
+    }
+}
+
+impl Corners for SlotHulls {
+    #[inline]
+    fn upper(&mut self, half: usize, p: (f64, f64)) {
+        let s = self.slot(half);
+        self.hulls[s].0.push(p);
+    }
+    #[inline]
+    fn lower(&mut self, half: usize, p: (f64, f64)) {
+        let s = self.slot(half);
+        self.hulls[s].1.push(p);
     }
 }
 
@@ -446,16 +523,51 @@ struct RowSweep {
     existing: Vec<u32>,
     /// End points: `(|E|, ψ_E)` and the one or two pieces they bound (`u32::MAX` = none).
     ends: Vec<(f64, f64, [u32; 2])>,
+    /// Per end point, an interval of screen abscissae `X` outside which none of its events
+    /// falls in the sweep's window (see [`x_window`]).
+    x_windows: Vec<(f64, f64)>,
+}
+
+/// Angle margin of [`x_window`] (radians) beyond the sweep's window `±(Δθ + WINDOW)`: far
+/// above the error of a computed event angle (below 2e-8 rad even where `acos` is
+/// ill-conditioned, `X ≈ ±|E|`), far below the window.
+const PREFILTER_MARGIN: f64 = 1e-6;
+
+/// An interval of `X` containing `x_e(E, θ) = |E| cos(θ − ψ_E)` for every `θ` within
+/// `Δθ + WINDOW + PREFILTER_MARGIN` of 0 (end values, and `±|E|` where `ψ_E` or `ψ_E + π` lies
+/// inside), padded by `1e-9·|E|` for rounding. A pixel whose `X` is outside it has no event of
+/// `E` that [`pixel_points`] would keep (its computed events lie within `2e-8` rad of true
+/// solutions, and those lie outside the widened window), so the sweep skips `E` without solving
+/// for its events: the same events, fewer `acos`.
+fn x_window((ex, ez): (f64, f64), rho: f64, psi: f64, delta: f64) -> (f64, f64) {
+    let a = delta + WINDOW + PREFILTER_MARGIN;
+    let (ca, sa) = (a.cos(), a.sin());
+    let (f0, f1) = (ex * ca - ez * sa, ex * ca + ez * sa);
+    let (mut lo, mut hi) = (f0.min(f1), f0.max(f1));
+    if psi.abs() <= a + PREFILTER_MARGIN {
+        hi = rho;
+    }
+    if wrap(psi + PI).abs() <= a + PREFILTER_MARGIN {
+        lo = -rho;
+    }
+    let pad = 1e-9 * rho;
+    (lo - pad, hi + pad)
 }
 
 const NONE: u32 = u32::MAX;
 
 impl RowSweep {
-    fn new(grid: &PixelGrid, row: &[TexelGeom]) -> Self {
+    /// The row `row` of a view on `grid`, for sweeps over `[−delta, delta]`.
+    fn new(grid: &PixelGrid, row: &[TexelGeom], delta: f64) -> Self {
         let mut pieces = vec![None; 2 * row.len()];
         let mut existing = Vec::new();
         let mut ends = Vec::new();
-        let polar = |(x, z): (f64, f64)| (x.hypot(z), z.atan2(x));
+        let mut x_windows = Vec::new();
+        let mut polar = |e: (f64, f64)| {
+            let (rho, psi) = (e.0.hypot(e.1), e.1.atan2(e.0));
+            x_windows.push(x_window(e, rho, psi, delta));
+            (rho, psi)
+        };
         for (i, g) in row.iter().enumerate() {
             if !g.defined {
                 continue;
@@ -480,6 +592,7 @@ impl RowSweep {
             pieces,
             existing,
             ends,
+            x_windows,
         }
     }
 
@@ -566,15 +679,13 @@ fn pixel_points(
     delta: f64,
     angles: &AngleGrid,
     sc: &mut Scratch,
-    halves: &mut [HalfPoints; 2],
+    halves: &mut impl Corners,
 ) {
-    halves[0].clear();
-    halves[1].clear();
     let events = &mut sc.events;
     events.clear();
     events.extend([(-delta, NONE), (0.0, NONE), (delta, NONE)]);
-    for (e, &(rho, psi, _)) in rs.ends.iter().enumerate() {
-        if rho < x.abs() {
+    for (e, (&(rho, psi, _), &(x_lo, x_hi))) in rs.ends.iter().zip(&rs.x_windows).enumerate() {
+        if rho < x.abs() || x < x_lo || x > x_hi {
             continue;
         }
         let phi = (x / rho).clamp(-1.0, 1.0).acos();
@@ -690,25 +801,13 @@ fn pixel_points(
             continue;
         };
         let half = usize::from(mid >= 0.0);
-        push_piece_boxes(
-            &mut halves[half],
-            a,
-            b,
-            x,
-            r,
-            (ea, eb),
-            (trig_a, trig_b),
-            angles,
-        );
-    }
-    for hp in halves.iter() {
-        debug_assert!(hp.upper.windows(2).all(|w| w[0].0 <= w[1].0));
+        push_piece_boxes(halves, half, a, b, x, r, (ea, eb), (trig_a, trig_b), angles);
     }
 }
 
 /// Pushes an exact crossing `p = (τ, z_e)` seen at angle `th` as both an upper and a lower
 /// point of the half range it belongs to (`θ < 0`: half 0, `θ > 0`: half 1, `θ = 0`: both).
-fn push_exact(halves: &mut [HalfPoints; 2], th: f64, p: (f64, f64)) {
+fn push_exact(halves: &mut impl Corners, th: f64, p: (f64, f64)) {
     let which: &[usize] = if th == 0.0 {
         &[0, 1]
     } else if th > 0.0 {
@@ -717,8 +816,8 @@ fn push_exact(halves: &mut [HalfPoints; 2], th: f64, p: (f64, f64)) {
         &[0]
     };
     for &half in which {
-        halves[half].upper.push(p);
-        halves[half].lower.push(p);
+        halves.upper(half, p);
+        halves.lower(half, p);
     }
 }
 
@@ -732,7 +831,8 @@ fn push_exact(halves: &mut [HalfPoints; 2], th: f64, p: (f64, f64)) {
 /// corners at `τ(s_a)` and `τ(s_b)`.
 #[allow(clippy::too_many_arguments)]
 fn push_piece_boxes(
-    hp: &mut HalfPoints,
+    hp: &mut impl Corners,
+    half: usize,
     a: (f64, f64),
     b: (f64, f64),
     x: f64,
@@ -794,10 +894,10 @@ fn push_piece_boxes(
             }
         }
         let (zlo, zhi) = (zlo - EPS * r, zhi + EPS * r);
-        hp.upper.push((ta, zhi));
-        hp.upper.push((tb, zhi));
-        hp.lower.push((ta, zlo));
-        hp.lower.push((tb, zlo));
+        hp.upper(half, (ta, zhi));
+        hp.upper(half, (tb, zhi));
+        hp.lower(half, (ta, zlo));
+        hp.lower(half, (tb, zlo));
         if last {
             break;
         }
@@ -809,15 +909,42 @@ fn push_piece_boxes(
 
 /// Upper (`upper = true`) or lower convex hull of points sorted by τ (monotone chain; of points
 /// with equal τ only the extreme one is kept).
+#[cfg(test)]
 fn hull(points: impl IntoIterator<Item = (f64, f64)>, upper: bool) -> Vec<(f64, f64)> {
-    let better = |p: f64, q: f64| if upper { p > q } else { p < q };
-    let mut h: Vec<(f64, f64)> = Vec::with_capacity(16);
+    let mut h = HullBuilder::new(upper);
     for p in points {
+        h.push(p);
+    }
+    h.points
+}
+
+/// The upper or lower convex hull of points pushed in ascending τ, kept as they arrive
+/// ([`hull`] over the same points gives the same vertices).
+struct HullBuilder {
+    upper: bool,
+    points: Vec<(f64, f64)>,
+}
+
+impl HullBuilder {
+    fn new(upper: bool) -> Self {
+        Self {
+            upper,
+            points: Vec::with_capacity(16),
+        }
+    }
+
+    /// Adds `p` (τ not below the last point's): monotone chain, of points with equal τ only
+    /// the extreme one (the first among equals) is kept.
+    #[inline]
+    fn push(&mut self, p: (f64, f64)) {
+        let upper = self.upper;
+        let h = &mut self.points;
         if let Some(&last) = h.last()
             && last.0 == p.0
         {
-            if !better(p.1, last.1) {
-                continue;
+            let better = if upper { p.1 > last.1 } else { p.1 < last.1 };
+            if !better {
+                return;
             }
             h.pop();
         }
@@ -832,7 +959,6 @@ fn hull(points: impl IntoIterator<Item = (f64, f64)>, upper: bool) -> Vec<(f64, 
         }
         h.push(p);
     }
-    h
 }
 
 /// `(v_min, v_max)` for `a = (1 + c)·X` over (hulls of) corner points.
@@ -1014,12 +1140,13 @@ pub fn build_bounds(
                 let rows: Vec<Vec<[Option<SlotHull>; 2]>> = (0..h)
                     .into_par_iter()
                     .map(|j| {
-                        let rs = RowSweep::new(&grid, &view.geom[j * w..(j + 1) * w]);
+                        let rs = RowSweep::new(&grid, &view.geom[j * w..(j + 1) * w], delta);
                         let mut scratch = Scratch::default();
-                        let mut halves = [HalfPoints::default(), HalfPoints::default()];
+                        let mut hulls = SlotHulls::new(kind == BoundKind::BestCSplit);
                         (0..w)
                             .map(|i| {
                                 let x = grid.x_at(i as f64 + 0.5);
+                                hulls.clear();
                                 pixel_points(
                                     &grid,
                                     &rs,
@@ -1027,24 +1154,13 @@ pub fn build_bounds(
                                     delta,
                                     &angles,
                                     &mut scratch,
-                                    &mut halves,
+                                    &mut hulls,
                                 );
-                                let slot = |which: &[usize]| -> Option<SlotHull> {
-                                    // The half ranges' points in τ order, read in place.
-                                    if which.iter().all(|&h| halves[h].is_empty()) {
-                                        return None;
-                                    }
-                                    let hs = &halves;
-                                    let points = |upper: bool| {
-                                        which.iter().flat_map(move |&h| {
-                                            let hp = &hs[h];
-                                            let v = if upper { &hp.upper } else { &hp.lower };
-                                            v.iter().copied()
-                                        })
-                                    };
+                                let slot = |s: usize| -> Option<SlotHull> {
+                                    let (upper, lower) = hulls.take(s)?;
                                     let mut sh = SlotHull {
-                                        upper: hull(points(true), true),
-                                        lower: hull(points(false), false),
+                                        upper,
+                                        lower,
                                         c_star: -1.0,
                                     };
                                     if matches!(kind, BoundKind::BestC | BoundKind::BestCSplit) {
@@ -1053,8 +1169,8 @@ pub fn build_bounds(
                                     Some(sh)
                                 };
                                 match kind {
-                                    BoundKind::BestCSplit => [slot(&[0]), slot(&[1])],
-                                    _ => [slot(&[0, 1]), None],
+                                    BoundKind::BestCSplit => [slot(0), slot(1)],
+                                    _ => [slot(0), None],
                                 }
                             })
                             .collect()
@@ -1492,7 +1608,8 @@ mod reference {
             let (a, b) = piece(grid, g, h.texel, h.right);
             let half = half_of(0.5 * (ea + eb));
             push_piece_boxes(
-                &mut halves[half],
+                halves,
+                half,
                 a,
                 b,
                 x,
@@ -1535,11 +1652,12 @@ mod tests {
             for view in &images.views {
                 for j in 0..p.height {
                     let row = &view.geom[j * p.width..(j + 1) * p.width];
-                    let rs = RowSweep::new(&grid, row);
+                    let rs = RowSweep::new(&grid, row, p.delta_theta());
                     reference::row_endpoints(&grid, row, &mut ends);
                     for i in 0..p.width {
                         let x = grid.x_at(i as f64 + 0.5);
                         let angles = AngleGrid::new(p.delta_theta(), 4);
+                        a.iter_mut().for_each(HalfPoints::clear);
                         pixel_points(&grid, &rs, x, p.delta_theta(), &angles, &mut sc, &mut a);
                         reference::pixel_points_by_march(
                             &grid,
@@ -1628,9 +1746,10 @@ mod tests {
                 for view in &images.views {
                     for j in 0..p.height {
                         let row = &view.geom[j * p.width..(j + 1) * p.width];
-                        let rs = RowSweep::new(&grid, row);
+                        let rs = RowSweep::new(&grid, row, delta);
                         for i in 0..p.width {
                             let x = grid.x_at(i as f64 + 0.5);
+                            a.iter_mut().for_each(HalfPoints::clear);
                             pixel_points(&grid, &rs, x, delta, &angles, &mut sc, &mut a);
                             reference::pixel_points_v1(
                                 &grid,
@@ -1652,6 +1771,141 @@ mod tests {
             }
         }
         assert!(compared > 10_000, "only {compared} points compared");
+    }
+
+    /// The hulls built as the sweep pushes its points are bitwise [`hull`] over the points
+    /// listed (half 0's, then half 1's), for one slot over both halves and for one per half.
+    #[test]
+    fn hulls_built_during_the_sweep_are_bitwise_the_hulls_of_the_lists() {
+        use crate::parallax::images::{ParallaxImages, ParallaxParams};
+        let bits = |v: &[(f64, f64)]| {
+            v.iter()
+                .map(|p| (p.0.to_bits(), p.1.to_bits()))
+                .collect::<Vec<_>>()
+        };
+        let mut compared = 0usize;
+        for name in ["truck", "tree", "building", "torus"] {
+            let shape = altrep_data_gen::scene_shape(name).unwrap();
+            let p = ParallaxParams {
+                views: 8,
+                width: 32,
+                height: 16,
+                ..Default::default()
+            };
+            let images = ParallaxImages::capture(&shape, &p).unwrap();
+            let grid = images.pixel_grid();
+            let delta = p.delta_theta();
+            let mut sc = Scratch::default();
+            let mut lists = [HalfPoints::default(), HalfPoints::default()];
+            for subdivisions in [1, 64] {
+                let angles = AngleGrid::new(delta, subdivisions);
+                for split in [false, true] {
+                    let mut hulls = SlotHulls::new(split);
+                    for view in &images.views {
+                        for j in 0..p.height {
+                            let row = &view.geom[j * p.width..(j + 1) * p.width];
+                            let rs = RowSweep::new(&grid, row, delta);
+                            for i in 0..p.width {
+                                let x = grid.x_at(i as f64 + 0.5);
+                                lists.iter_mut().for_each(HalfPoints::clear);
+                                hulls.clear();
+                                pixel_points(&grid, &rs, x, delta, &angles, &mut sc, &mut lists);
+                                pixel_points(&grid, &rs, x, delta, &angles, &mut sc, &mut hulls);
+                                let slots: Vec<Vec<usize>> = if split {
+                                    vec![vec![0], vec![1]]
+                                } else {
+                                    vec![vec![0, 1]]
+                                };
+                                for (s, halves) in slots.iter().enumerate() {
+                                    let points = |upper: bool| -> Vec<(f64, f64)> {
+                                        halves
+                                            .iter()
+                                            .flat_map(|&h| {
+                                                if upper {
+                                                    lists[h].upper.clone()
+                                                } else {
+                                                    lists[h].lower.clone()
+                                                }
+                                            })
+                                            .collect()
+                                    };
+                                    let (up, lo) = (points(true), points(false));
+                                    match hulls.take(s) {
+                                        None => assert!(up.is_empty() && lo.is_empty()),
+                                        Some((u, l)) => {
+                                            assert_eq!(bits(&u), bits(&hull(up, true)), "{name}");
+                                            assert_eq!(bits(&l), bits(&hull(lo, false)), "{name}");
+                                            compared += u.len() + l.len();
+                                        }
+                                    }
+                                }
+                                if !split {
+                                    assert!(hulls.take(1).is_none());
+                                }
+                            }
+                        }
+                    }
+                }
+            }
+        }
+        assert!(compared > 10_000, "only {compared} hull vertices compared");
+    }
+
+    /// The events that [`pixel_points`] keeps for an end point `E` and a pixel `X`: those
+    /// within `WINDOW` of `[−delta, delta]`, computed as it computes them.
+    fn kept_events(rho: f64, psi: f64, x: f64, delta: f64) -> Vec<f64> {
+        if rho < x.abs() {
+            return Vec::new();
+        }
+        let phi = (x / rho).clamp(-1.0, 1.0).acos();
+        [wrap(psi - phi), wrap(psi + phi)]
+            .into_iter()
+            .filter(|&th| th > -delta - WINDOW && th < delta + WINDOW)
+            .collect()
+    }
+
+    proptest::proptest! {
+        #![proptest_config(proptest::prelude::ProptestConfig::with_cases(4000))]
+        /// The prefilter never skips an end point with a kept event: random and adversarial
+        /// end points (on the window's edges, at `ψ ± π`) and pixels (at `±|E|` and just
+        /// inside, where `acos` is ill-conditioned, and at the window's edge values).
+        #[test]
+        fn the_event_prefilter_skips_no_kept_event(
+            rho in 1e-6f64..2.0,
+            psi_kind in 0usize..4,
+            psi_raw in -3.2f64..3.2,
+            psi_nudge in -1e-7f64..1e-7,
+            views in 1usize..40,
+            x_kind in 0usize..5,
+            x_raw in -1.0f64..1.0,
+            x_nudge in -1e-12f64..1e-12,
+        ) {
+            let delta = PI / views as f64;
+            let psi = match psi_kind {
+                0 => psi_raw,
+                1 => delta + psi_nudge,
+                2 => -delta + psi_nudge,
+                _ => wrap(PI + psi_nudge),
+            };
+            let (ex, ez) = (rho * psi.cos(), rho * psi.sin());
+            let (rho, psi) = (ex.hypot(ez), ez.atan2(ex));
+            let edge = |th: f64| ex * th.cos() + ez * th.sin();
+            let x = match x_kind {
+                0 => x_raw * rho * 1.1,
+                1 => rho * (1.0 - x_nudge.abs()),
+                2 => -rho * (1.0 - x_nudge.abs()),
+                3 => edge(delta) + x_nudge * rho,
+                _ => edge(-delta) + x_nudge * rho,
+            };
+            let (lo, hi) = x_window((ex, ez), rho, psi, delta);
+            if x < lo || x > hi {
+                let kept = kept_events(rho, psi, x, delta);
+                proptest::prop_assert!(
+                    kept.is_empty(),
+                    "skipped E = ({ex}, {ez}) at X = {x}: events {kept:?}, window [{lo}, {hi}]"
+                );
+            }
+        }
     }
 
     #[test]

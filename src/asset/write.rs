@@ -18,12 +18,32 @@ pub const STAGING_DIR: &str = ".staging";
 /// whole. A
 /// writer dropped without commit removes its staging folder; a killed process leaves it in
 /// `.staging`, which the next run of the pipeline clears.
-#[derive(Debug)]
+///
+/// PNGs are encoded and written at [`Self::commit`], all of them in parallel (rayon): the adders
+/// check their input and reserve the file's place in the description, so the description lists
+/// files in the order they were added.
 pub struct AssetWriter {
     staging: PathBuf,
     target: PathBuf,
     files: Vec<FileEntry>,
+    /// PNGs still to encode and write: the index of their entry in `files` and the encoder.
+    pending: Vec<(usize, PendingPng)>,
     committed: bool,
+}
+
+/// Encodes one added PNG (see [`AssetWriter::png`]).
+type PendingPng = Box<dyn FnOnce() -> Result<Vec<u8>, String> + Send>;
+
+impl std::fmt::Debug for AssetWriter {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("AssetWriter")
+            .field("staging", &self.staging)
+            .field("target", &self.target)
+            .field("files", &self.files)
+            .field("pending", &self.pending.len())
+            .field("committed", &self.committed)
+            .finish()
+    }
 }
 
 fn io(path: &Path) -> impl FnOnce(std::io::Error) -> AssetError + '_ {
@@ -78,6 +98,7 @@ impl AssetWriter {
             staging,
             target: out.join(asset).join(repr),
             files: Vec::new(),
+            pending: Vec::new(),
             committed: false,
         })
     }
@@ -87,8 +108,9 @@ impl AssetWriter {
         &self.target
     }
 
-    #[allow(clippy::too_many_arguments)] // one private sink for the typed adders above
-    fn add(
+    /// Checks `role` and `file` (unique, plain names) and appends the file's entry, its size
+    /// and hash left for [`Self::store`]; returns the entry's index.
+    fn reserve(
         &mut self,
         role: &str,
         file: &str,
@@ -96,8 +118,7 @@ impl AssetWriter {
         (width, height): (usize, usize),
         channels: Vec<Channel>,
         record_bytes: usize,
-        bytes: Vec<u8>,
-    ) -> Result<(), AssetError> {
+    ) -> Result<usize, AssetError> {
         if self.files.iter().any(|f| f.role == role || f.path == file) {
             return Err(AssetError::BadData {
                 role: role.into(),
@@ -110,8 +131,6 @@ impl AssetWriter {
                 reason: format!("'{file}' is not a plain file name"),
             });
         }
-        let path = self.staging.join(file);
-        std::fs::write(&path, &bytes).map_err(io(&path))?;
         self.files.push(FileEntry {
             path: file.into(),
             role: role.into(),
@@ -120,15 +139,65 @@ impl AssetWriter {
             height,
             channels,
             record_bytes,
-            bytes: bytes.len() as u64,
-            blake3: hash_hex(&bytes),
+            bytes: 0,
+            blake3: String::new(),
         });
+        Ok(self.files.len() - 1)
+    }
+
+    /// Writes `bytes` as the file of `entry` in the staging folder; returns its size and hash.
+    fn store(staging: &Path, entry: &FileEntry, bytes: &[u8]) -> Result<(u64, String), AssetError> {
+        let path = staging.join(&entry.path);
+        std::fs::write(&path, bytes).map_err(io(&path))?;
+        Ok((bytes.len() as u64, hash_hex(bytes)))
+    }
+
+    #[allow(clippy::too_many_arguments)] // one private sink for the typed adders above
+    fn add(
+        &mut self,
+        role: &str,
+        file: &str,
+        format: FileFormat,
+        dims: (usize, usize),
+        channels: Vec<Channel>,
+        record_bytes: usize,
+        bytes: Vec<u8>,
+    ) -> Result<(), AssetError> {
+        let i = self.reserve(role, file, format, dims, channels, record_bytes)?;
+        let (len, hash) = Self::store(&self.staging, &self.files[i], &bytes)?;
+        (self.files[i].bytes, self.files[i].blake3) = (len, hash);
+        Ok(())
+    }
+
+    /// Encodes and writes every PNG added since the last call, in parallel; fills in their
+    /// entries. Errors: the first failing encoding or write, in the order added.
+    fn flush(&mut self) -> Result<(), AssetError> {
+        use rayon::prelude::*;
+        let pending = std::mem::take(&mut self.pending);
+        let (staging, files) = (&self.staging, &self.files);
+        let done: Vec<Result<(usize, u64, String), AssetError>> = pending
+            .into_par_iter()
+            .map(|(i, encode)| {
+                let entry = &files[i];
+                let bytes = encode().map_err(|reason| AssetError::BadData {
+                    role: entry.role.clone(),
+                    reason,
+                })?;
+                let (len, hash) = Self::store(staging, entry, &bytes)?;
+                Ok((i, len, hash))
+            })
+            .collect();
+        for d in done {
+            let (i, len, hash) = d?;
+            (self.files[i].bytes, self.files[i].blake3) = (len, hash);
+        }
         Ok(())
     }
 
     /// Adds a PNG of `image.channels` (1–4) channels, 8 bits (`u8` codes) or 16 bits (`u16`).
-    /// Cost: PNG encoding.
-    pub fn png<T: PngCode>(
+    /// Errors here: sizes, channels, names; the encoding and the write happen at
+    /// [`Self::commit`], in parallel with the other PNGs. Cost now: a copy of the codes.
+    pub fn png<T: PngCode + Send + Sync + 'static>(
         &mut self,
         role: &str,
         file: &str,
@@ -136,19 +205,11 @@ impl AssetWriter {
         channels: Vec<Channel>,
     ) -> Result<(), AssetError> {
         check_image(role, image, &channels)?;
-        let bytes = encode_png(image).map_err(|reason| AssetError::BadData {
-            role: role.into(),
-            reason,
-        })?;
-        self.add(
-            role,
-            file,
-            T::FORMAT,
-            (image.width, image.height),
-            channels,
-            0,
-            bytes,
-        )
+        let dims = (image.width, image.height);
+        let i = self.reserve(role, file, T::FORMAT, dims, channels, 0)?;
+        let image = image.clone();
+        self.pending.push((i, Box::new(move || encode_png(&image))));
+        Ok(())
     }
 
     /// Adds an 8-bit PNG (see [`Self::png`]).
@@ -261,6 +322,7 @@ impl AssetWriter {
         metadata: serde_json::Value,
         report: serde_json::Value,
     ) -> Result<AssetDescription, AssetError> {
+        self.flush()?;
         let desc = AssetDescription {
             format_version: [FORMAT_MAJOR, FORMAT_MINOR],
             representation: representation.into(),

@@ -627,6 +627,62 @@ fn second_run_is_cached_and_one_changed_parameter_rebuilds_one_asset() {
     assert!(chair.cache_note.as_deref().unwrap().contains("octree.bin"));
 }
 
+/// `--no-measure`: the same files as a measured run, no figures and no pictures; a second
+/// run without measuring reuses them, a run with measuring rebuilds and measures them.
+#[test]
+fn a_run_without_measuring_writes_the_same_files_and_a_measuring_run_rebuilds_them() {
+    let dir = tempfile::tempdir().unwrap();
+    let m = Manifest::parse(SCENE, Path::new("scene.toml")).unwrap();
+    let files_only = RunOptions {
+        measure: false,
+        ..options(&dir.path().join("files"))
+    };
+    let first = run_scene(&m, &files_only).unwrap();
+    assert!(first.ok(), "{}", first.table());
+    for o in &first.outcomes {
+        assert_eq!(o.outcome, Outcome::Built, "{o:?}");
+        assert!(o.measurement.is_none() && o.pictures.is_empty(), "{o:?}");
+        assert!(o.bytes > 0 && o.build_seconds > 0.0, "{o:?}");
+    }
+    let pictures = std::fs::read_dir(dir.path().join("files/pictures")).unwrap();
+    assert_eq!(pictures.count(), 0, "pictures written without measuring");
+    // The files are those of a measured run, byte for byte (their hashes in asset.json).
+    let measured = run_scene(&m, &options(&dir.path().join("measured"))).unwrap();
+    assert!(measured.ok(), "{}", measured.table());
+    for (name, repr) in [("pear", "parallax"), ("chair", "octree")] {
+        let files = |root: &str| {
+            let r = AssetReader::open(&dir.path().join(root).join(name).join(repr)).unwrap();
+            assert_eq!(
+                r.description().report.get("measurement").is_some(),
+                root == "measured"
+            );
+            r.description()
+                .files
+                .iter()
+                .map(|f| (f.path.clone(), f.blake3.clone()))
+                .collect::<Vec<_>>()
+        };
+        let (a, b) = (files("files"), files("measured"));
+        assert!(!a.is_empty());
+        assert_eq!(a, b, "{name}/{repr}");
+    }
+    let second = run_scene(&m, &files_only).unwrap();
+    for o in &second.outcomes {
+        assert_eq!(o.outcome, Outcome::Cached, "{o:?}");
+        assert!(o.measurement.is_none());
+    }
+    let third = run_scene(&m, &options(&dir.path().join("files"))).unwrap();
+    for o in &third.outcomes {
+        assert_eq!(o.outcome, Outcome::Built, "{o:?}");
+        assert!(o.cache_note.as_deref().unwrap().contains("no measurement"));
+        let figures = o.measurement.as_ref().unwrap();
+        assert!(
+            figures.psnr_db.is_finite() && figures.psnr_db > 15.0,
+            "{o:?}"
+        );
+    }
+}
+
 #[test]
 fn a_rerun_leaves_no_stale_file_and_a_locked_folder_is_refused() {
     let dir = tempfile::tempdir().unwrap();

@@ -94,6 +94,7 @@ pub fn run(args: DemoArgs) -> CliResult {
             everything: false,
             json: None,
             profile: false,
+            no_measure: false,
         },
     )?;
     let ctx = DemoContext {

@@ -34,6 +34,10 @@ pub struct PrecomputeArgs {
     /// the table (also in report.md and report.json); assets then run one at a time.
     #[arg(long)]
     pub profile: bool,
+    /// Only write the files: no read-back, error figures or report pictures (a library run
+    /// where only the precompute matters; a later run without this flag rebuilds and measures).
+    #[arg(long)]
+    pub no_measure: bool,
 }
 
 /// Fails unless a file can be created at `path` (checked before any work, then removed).
@@ -73,6 +77,7 @@ pub fn run_manifest(manifest: &Manifest, args: &PrecomputeArgs) -> CliResult {
         everything: args.everything,
         progress: true,
         profile: args.profile,
+        measure: !args.no_measure,
     };
     if args.dry_run {
         for (asset, repr, plan) in plan_scene(manifest, &options)? {

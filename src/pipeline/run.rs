@@ -74,11 +74,16 @@ pub struct RunOptions {
     /// Time every stage of every build ([`crate::profile`]); assets then run one at a time so
     /// that each stage's time is its own.
     pub profile: bool,
+    /// Read back and measure every representation built (error figures and report pictures).
+    /// Off (`--no-measure`), a run only writes the files, for libraries where the cost of the
+    /// precompute matters and the error figures are not needed; a cached folder without
+    /// figures is then reused, and a later run with measuring rebuilds it.
+    pub measure: bool,
 }
 
 impl RunOptions {
-    /// A quiet run into `out` that uses the cache and the needs: no forced rebuild, every
-    /// shard, no progress bars, no profile.
+    /// A quiet run into `out` that uses the cache and the needs and measures what it builds:
+    /// no forced rebuild, every shard, no progress bars, no profile.
     pub fn new(out: impl Into<PathBuf>) -> Self {
         Self {
             out: out.into(),
@@ -87,6 +92,7 @@ impl RunOptions {
             everything: false,
             progress: false,
             profile: false,
+            measure: true,
         }
     }
 }
@@ -609,7 +615,24 @@ fn build_one<'a, R: Representation>(
                             .unwrap_or_default(),
                     })));
                 }
-                cache_note = Some("cached folder has no measurement (interrupted run)".into());
+                if !options.measure {
+                    return Ok(Built::Done(Box::new(AssetOutcome {
+                        asset: source.name.into(),
+                        representation: R::NAME.into(),
+                        outcome: Outcome::Cached,
+                        plan,
+                        seconds: t0.elapsed().as_secs_f64(),
+                        build_seconds: rep["build_seconds"].as_f64().unwrap_or(0.0),
+                        bytes: r.description().data_bytes(),
+                        cache_note: None,
+                        measurement: None,
+                        pictures: Vec::new(),
+                    })));
+                }
+                cache_note = Some(
+                    "cached folder has no measurement (built without measuring, or interrupted)"
+                        .into(),
+                );
             }
             Ok(_) => cache_note = Some("inputs, parameters or needs changed".into()),
             Err(e) => cache_note = Some(format!("cached folder invalid: {e}")),
@@ -638,6 +661,20 @@ fn build_one<'a, R: Representation>(
     writing.stop();
     drop(scope);
     let built_for = t0.elapsed();
+    if !options.measure {
+        return Ok(Built::Done(Box::new(AssetOutcome {
+            asset: source.name.into(),
+            representation: R::NAME.into(),
+            outcome: Outcome::Built,
+            plan,
+            seconds: built_for.as_secs_f64(),
+            build_seconds,
+            bytes: desc.data_bytes(),
+            cache_note,
+            measurement: None,
+            pictures: Vec::new(),
+        })));
+    }
     Ok(Built::Committed(Box::new(move || {
         let t1 = Instant::now();
         let _scope = profile.map(|p| p.scope(source.name, R::NAME));

@@ -30,8 +30,9 @@ pub struct PrecomputeArgs {
     /// Also write the run summary as JSON to this file.
     #[arg(long)]
     pub json: Option<PathBuf>,
-    /// Time every stage (capture, bounds, octree, pyramids, writing, …) of every build and print
-    /// the table (also in report.md and report.json); assets then run one at a time.
+    /// Time every stage (capture, bounds, octree, pyramids, writing, …) of every build and each
+    /// asset's load and mesh-to-files time, and print the tables (also in report.md and
+    /// report.json); assets then run one at a time.
     #[arg(long)]
     pub profile: bool,
     /// Only write the files: no read-back, error figures or report pictures (a library run

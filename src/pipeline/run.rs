@@ -71,8 +71,9 @@ pub struct RunOptions {
     pub everything: bool,
     /// Show progress bars.
     pub progress: bool,
-    /// Time every stage of every build ([`crate::profile`]); assets then run one at a time so
-    /// that each stage's time is its own.
+    /// Time every stage of every build and each asset's load and mesh-to-files wall time
+    /// ([`crate::profile`]); assets then run one at a time, so an asset's times hold no other
+    /// asset's work (its representations still run concurrently: their rows overlap).
     pub profile: bool,
     /// Read back and measure every representation built (error figures and report pictures).
     /// Off (`--no-measure`), a run only writes the files, for libraries where the cost of the
@@ -375,8 +376,8 @@ pub fn plan_scene(
     Ok(out)
 }
 
-/// Runs the scene: every asset of this shard, representations of an asset in turn, assets in
-/// parallel. Writes `report.json`, `report.md` and the pictures into `options.out`. Errors that
+/// Runs the scene: every asset of this shard, assets in parallel; the representations of an
+/// asset are built and written concurrently, then each is read back and measured. Writes `report.json`, `report.md` and the pictures into `options.out`. Errors that
 /// stop the whole run: the output folder (unwritable, locked); a failing asset is reported in
 /// its outcome and the others go on.
 pub fn run_scene(manifest: &Manifest, options: &RunOptions) -> Result<RunSummary, PipelineError> {

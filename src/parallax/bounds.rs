@@ -1714,18 +1714,18 @@ mod tests {
         }
     }
 
-    /// The optimised sweep (trigonometry cached per event and per grid angle) gives bit-for-bit
-    /// the corner points of the sweep as first written, in the same order, at the default
-    /// subdivision count and for zmin/zmax's single subdivision.
-    #[test]
-    fn optimised_sweep_is_bitwise_the_first_sweep() {
+    /// A list of points as bits, for bitwise comparisons.
+    fn bits(v: &[(f64, f64)]) -> Vec<(u64, u64)> {
+        v.iter().map(|p| (p.0.to_bits(), p.1.to_bits())).collect()
+    }
+
+    /// Calls `f(shape, grid, row, X, Δθ, angle grid, subdivisions)` for every pixel of every
+    /// row of 8 views of 32 × 16 of the truck, tree, building and torus, at zmin/zmax's single
+    /// subdivision and at the default 64.
+    fn for_each_test_pixel(
+        mut f: impl FnMut(&str, &PixelGrid, &RowSweep, f64, f64, &AngleGrid, usize),
+    ) {
         use crate::parallax::images::{ParallaxImages, ParallaxParams};
-        let bits = |v: &[(f64, f64)]| {
-            v.iter()
-                .map(|p| (p.0.to_bits(), p.1.to_bits()))
-                .collect::<Vec<_>>()
-        };
-        let mut compared = 0usize;
         for name in ["truck", "tree", "building", "torus"] {
             let shape = altrep_data_gen::scene_shape(name).unwrap();
             let p = ParallaxParams {
@@ -1737,10 +1737,6 @@ mod tests {
             let images = ParallaxImages::capture(&shape, &p).unwrap();
             let grid = images.pixel_grid();
             let delta = p.delta_theta();
-            let mut sc = Scratch::default();
-            let mut sc1 = Scratch::default();
-            let mut a = [HalfPoints::default(), HalfPoints::default()];
-            let mut b = [HalfPoints::default(), HalfPoints::default()];
             for subdivisions in [1, 64] {
                 let angles = AngleGrid::new(delta, subdivisions);
                 for view in &images.views {
@@ -1749,27 +1745,33 @@ mod tests {
                         let rs = RowSweep::new(&grid, row, delta);
                         for i in 0..p.width {
                             let x = grid.x_at(i as f64 + 0.5);
-                            a.iter_mut().for_each(HalfPoints::clear);
-                            pixel_points(&grid, &rs, x, delta, &angles, &mut sc, &mut a);
-                            reference::pixel_points_v1(
-                                &grid,
-                                &rs,
-                                x,
-                                delta,
-                                subdivisions,
-                                &mut sc1,
-                                &mut b,
-                            );
-                            for h in 0..2 {
-                                assert_eq!(bits(&a[h].upper), bits(&b[h].upper), "{name}");
-                                assert_eq!(bits(&a[h].lower), bits(&b[h].lower), "{name}");
-                                compared += a[h].upper.len();
-                            }
+                            f(name, &grid, &rs, x, delta, &angles, subdivisions);
                         }
                     }
                 }
             }
         }
+    }
+
+    /// The optimised sweep (trigonometry cached per event and per grid angle) gives bit-for-bit
+    /// the corner points of the sweep as first written, in the same order, at the default
+    /// subdivision count and for zmin/zmax's single subdivision.
+    #[test]
+    fn optimised_sweep_is_bitwise_the_first_sweep() {
+        let mut compared = 0usize;
+        let (mut sc, mut sc1) = (Scratch::default(), Scratch::default());
+        let mut a = [HalfPoints::default(), HalfPoints::default()];
+        let mut b = [HalfPoints::default(), HalfPoints::default()];
+        for_each_test_pixel(|name, grid, rs, x, delta, angles, subdivisions| {
+            a.iter_mut().for_each(HalfPoints::clear);
+            pixel_points(grid, rs, x, delta, angles, &mut sc, &mut a);
+            reference::pixel_points_v1(grid, rs, x, delta, subdivisions, &mut sc1, &mut b);
+            for h in 0..2 {
+                assert_eq!(bits(&a[h].upper), bits(&b[h].upper), "{name}");
+                assert_eq!(bits(&a[h].lower), bits(&b[h].lower), "{name}");
+                compared += a[h].upper.len();
+            }
+        });
         assert!(compared > 10_000, "only {compared} points compared");
     }
 
@@ -1777,77 +1779,46 @@ mod tests {
     /// listed (half 0's, then half 1's), for one slot over both halves and for one per half.
     #[test]
     fn hulls_built_during_the_sweep_are_bitwise_the_hulls_of_the_lists() {
-        use crate::parallax::images::{ParallaxImages, ParallaxParams};
-        let bits = |v: &[(f64, f64)]| {
-            v.iter()
-                .map(|p| (p.0.to_bits(), p.1.to_bits()))
-                .collect::<Vec<_>>()
-        };
         let mut compared = 0usize;
-        for name in ["truck", "tree", "building", "torus"] {
-            let shape = altrep_data_gen::scene_shape(name).unwrap();
-            let p = ParallaxParams {
-                views: 8,
-                width: 32,
-                height: 16,
-                ..Default::default()
-            };
-            let images = ParallaxImages::capture(&shape, &p).unwrap();
-            let grid = images.pixel_grid();
-            let delta = p.delta_theta();
-            let mut sc = Scratch::default();
-            let mut lists = [HalfPoints::default(), HalfPoints::default()];
-            for subdivisions in [1, 64] {
-                let angles = AngleGrid::new(delta, subdivisions);
-                for split in [false, true] {
-                    let mut hulls = SlotHulls::new(split);
-                    for view in &images.views {
-                        for j in 0..p.height {
-                            let row = &view.geom[j * p.width..(j + 1) * p.width];
-                            let rs = RowSweep::new(&grid, row, delta);
-                            for i in 0..p.width {
-                                let x = grid.x_at(i as f64 + 0.5);
-                                lists.iter_mut().for_each(HalfPoints::clear);
-                                hulls.clear();
-                                pixel_points(&grid, &rs, x, delta, &angles, &mut sc, &mut lists);
-                                pixel_points(&grid, &rs, x, delta, &angles, &mut sc, &mut hulls);
-                                let slots: Vec<Vec<usize>> = if split {
-                                    vec![vec![0], vec![1]]
-                                } else {
-                                    vec![vec![0, 1]]
-                                };
-                                for (s, halves) in slots.iter().enumerate() {
-                                    let points = |upper: bool| -> Vec<(f64, f64)> {
-                                        halves
-                                            .iter()
-                                            .flat_map(|&h| {
-                                                if upper {
-                                                    lists[h].upper.clone()
-                                                } else {
-                                                    lists[h].lower.clone()
-                                                }
-                                            })
-                                            .collect()
-                                    };
-                                    let (up, lo) = (points(true), points(false));
-                                    match hulls.take(s) {
-                                        None => assert!(up.is_empty() && lo.is_empty()),
-                                        Some((u, l)) => {
-                                            assert_eq!(bits(&u), bits(&hull(up, true)), "{name}");
-                                            assert_eq!(bits(&l), bits(&hull(lo, false)), "{name}");
-                                            compared += u.len() + l.len();
-                                        }
-                                    }
-                                }
-                                if !split {
-                                    assert!(hulls.take(1).is_none());
-                                }
-                            }
+        let mut sc = Scratch::default();
+        let mut lists = [HalfPoints::default(), HalfPoints::default()];
+        let mut sweeps = [SlotHulls::new(false), SlotHulls::new(true)];
+        for_each_test_pixel(|name, grid, rs, x, delta, angles, _| {
+            lists.iter_mut().for_each(HalfPoints::clear);
+            pixel_points(grid, rs, x, delta, angles, &mut sc, &mut lists);
+            for hulls in &mut sweeps {
+                hulls.clear();
+                pixel_points(grid, rs, x, delta, angles, &mut sc, hulls);
+                let slots: &[&[usize]] = if hulls.split {
+                    &[&[0], &[1]]
+                } else {
+                    &[&[0, 1]]
+                };
+                for (s, halves) in slots.iter().enumerate() {
+                    let points = |upper: bool| -> Vec<(f64, f64)> {
+                        halves
+                            .iter()
+                            .flat_map(|&h| {
+                                let hp = &lists[h];
+                                if upper { &hp.upper } else { &hp.lower }.clone()
+                            })
+                            .collect()
+                    };
+                    let (up, lo) = (points(true), points(false));
+                    match hulls.take(s) {
+                        None => assert!(up.is_empty() && lo.is_empty()),
+                        Some((u, l)) => {
+                            assert_eq!(bits(&u), bits(&hull(up, true)), "{name}");
+                            assert_eq!(bits(&l), bits(&hull(lo, false)), "{name}");
+                            compared += u.len() + l.len();
                         }
                     }
                 }
+                if !hulls.split {
+                    assert!(hulls.take(1).is_none());
+                }
             }
-        }
+        });
         assert!(compared > 10_000, "only {compared} hull vertices compared");
     }
 

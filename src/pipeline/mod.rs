@@ -51,7 +51,7 @@ pub enum PipelineError {
         /// The underlying error.
         source: std::io::Error,
     },
-    /// Another run holds the output folder's lock.
+    /// Another run holds the output folder's lock (still held after half a second).
     #[error("{}: another altrep run is writing into this folder (lock held)", path.display())]
     Locked {
         /// The lock file.

@@ -26,6 +26,9 @@ use crate::asset::{
 /// Name of the lock file in an output folder.
 pub const LOCK_FILE: &str = ".altrep.lock";
 
+/// How long a run waits for an output folder's lock before it reports the folder locked.
+const LOCK_PATIENCE: std::time::Duration = std::time::Duration::from_millis(500);
+
 /// `--shard i/n`: this run handles the assets whose name hashes to `i` modulo `n`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Shard {
@@ -219,12 +222,21 @@ fn prepare_output(out: &Path) -> Result<OutputLock, PipelineError> {
         .write(true)
         .open(&lock_path)
         .map_err(io(&lock_path))?;
-    match file.try_lock() {
-        Ok(()) => {}
-        Err(std::fs::TryLockError::WouldBlock) => {
-            return Err(PipelineError::Locked { path: lock_path });
+    // A process spawned by another thread of this program holds copies of its descriptors,
+    // and with them a lock this program just released, until it execs (microseconds, more on a
+    // loaded machine): a lock still held after `LOCK_PATIENCE` is another run's.
+    let waited = Instant::now();
+    loop {
+        match file.try_lock() {
+            Ok(()) => break,
+            Err(std::fs::TryLockError::WouldBlock) if waited.elapsed() < LOCK_PATIENCE => {
+                std::thread::sleep(std::time::Duration::from_millis(10));
+            }
+            Err(std::fs::TryLockError::WouldBlock) => {
+                return Err(PipelineError::Locked { path: lock_path });
+            }
+            Err(std::fs::TryLockError::Error(e)) => return Err(io(&lock_path)(e)),
         }
-        Err(std::fs::TryLockError::Error(e)) => return Err(io(&lock_path)(e)),
     }
     let staging = out.join(STAGING_DIR);
     if staging.exists() {
@@ -434,36 +446,22 @@ pub fn run_scene(manifest: &Manifest, options: &RunOptions) -> Result<RunSummary
         // overlaps the others' computing); then each is read back and measured.
         let (source, needs, hash) = (&source, &needs, input_hash.as_str());
         let mut builds: Vec<(&'static str, BuildJob<'_>)> = Vec::new();
-        if let Some(s) = &spec.parallax {
-            builds.push((
-                Parallax::NAME,
-                Box::new(move || build_one::<Parallax>(s, needs, source, hash, options, p)),
-            ));
+        // One job per representation the asset asks for, in manifest order.
+        macro_rules! job {
+            ($field:ident, $repr:ty) => {
+                if let Some(s) = &spec.$field {
+                    builds.push((
+                        <$repr>::NAME,
+                        Box::new(move || build_one::<$repr>(s, needs, source, hash, options, p)),
+                    ));
+                }
+            };
         }
-        if let Some(s) = &spec.cylinder {
-            builds.push((
-                Cylinder::NAME,
-                Box::new(move || build_one::<Cylinder>(s, needs, source, hash, options, p)),
-            ));
-        }
-        if let Some(s) = &spec.octree {
-            builds.push((
-                OctreeRepr::NAME,
-                Box::new(move || build_one::<OctreeRepr>(s, needs, source, hash, options, p)),
-            ));
-        }
-        if let Some(s) = &spec.pyramid {
-            builds.push((
-                PyramidRepr::NAME,
-                Box::new(move || build_one::<PyramidRepr>(s, needs, source, hash, options, p)),
-            ));
-        }
-        if let Some(s) = &spec.sphere {
-            builds.push((
-                SphereRepr::NAME,
-                Box::new(move || build_one::<SphereRepr>(s, needs, source, hash, options, p)),
-            ));
-        }
+        job!(parallax, Parallax);
+        job!(cylinder, Cylinder);
+        job!(octree, OctreeRepr);
+        job!(pyramid, PyramidRepr);
+        job!(sphere, SphereRepr);
         let built: Vec<(&str, Result<Built<'_>, PipelineError>)> = builds
             .into_par_iter()
             .map(|(repr, job)| (repr, job()))
@@ -601,7 +599,16 @@ fn build_one<'a, R: Representation>(
         match AssetReader::open(&dir) {
             Ok(r) if r.description().cache_key == key => {
                 let rep = &r.description().report;
-                if let Ok(m) = serde_json::from_value::<Measurement>(rep["measurement"].clone()) {
+                let measurement =
+                    serde_json::from_value::<Measurement>(rep["measurement"].clone()).ok();
+                // Reused when it has its figures, or when none are wanted.
+                if measurement.is_some() || !options.measure {
+                    let pictures = match measurement {
+                        Some(_) => {
+                            serde_json::from_value(rep["pictures"].clone()).unwrap_or_default()
+                        }
+                        None => Vec::new(),
+                    };
                     return Ok(Built::Done(Box::new(AssetOutcome {
                         asset: source.name.into(),
                         representation: R::NAME.into(),
@@ -611,23 +618,8 @@ fn build_one<'a, R: Representation>(
                         build_seconds: rep["build_seconds"].as_f64().unwrap_or(0.0),
                         bytes: r.description().data_bytes(),
                         cache_note: None,
-                        measurement: Some(m),
-                        pictures: serde_json::from_value(rep["pictures"].clone())
-                            .unwrap_or_default(),
-                    })));
-                }
-                if !options.measure {
-                    return Ok(Built::Done(Box::new(AssetOutcome {
-                        asset: source.name.into(),
-                        representation: R::NAME.into(),
-                        outcome: Outcome::Cached,
-                        plan,
-                        seconds: t0.elapsed().as_secs_f64(),
-                        build_seconds: rep["build_seconds"].as_f64().unwrap_or(0.0),
-                        bytes: r.description().data_bytes(),
-                        cache_note: None,
-                        measurement: None,
-                        pictures: Vec::new(),
+                        measurement,
+                        pictures,
                     })));
                 }
                 cache_note = Some(

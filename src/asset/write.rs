@@ -32,7 +32,7 @@ pub struct AssetWriter {
 }
 
 /// Encodes one added PNG (see [`AssetWriter::png`]).
-type PendingPng = Box<dyn FnOnce() -> Result<Vec<u8>, String> + Send>;
+type PendingPng = Box<dyn FnOnce() -> Result<Vec<u8>, String> + Send + Sync>;
 
 impl std::fmt::Debug for AssetWriter {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {

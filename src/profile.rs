@@ -79,7 +79,7 @@ pub struct AssetTime {
 struct Sink {
     stages: Vec<StageTime>,
     totals: Vec<(String, String, f64)>,
-    order: Vec<(String, String)>,
+    declared: Vec<(String, String)>,
     assets: Vec<AssetTime>,
 }
 
@@ -133,8 +133,8 @@ impl Profile {
     pub fn declare(&self, asset: &str, representation: &str) {
         if let Ok(mut s) = self.sink.lock() {
             let key = (asset.to_string(), representation.to_string());
-            if !s.order.contains(&key) {
-                s.order.push(key);
+            if !s.declared.contains(&key) {
+                s.declared.push(key);
             }
         }
     }
@@ -169,7 +169,7 @@ impl Profile {
         StageTable::new(
             &s.stages,
             &s.totals,
-            &s.order,
+            &s.declared,
             s.assets.clone(),
             wall_seconds,
         )

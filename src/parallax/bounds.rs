@@ -475,7 +475,7 @@ impl SlotHulls {
     }
     /// Copies of the upper and lower hulls of `slot` (`None` if no point reached it); the
     /// builders keep their buffers for the next pixel.
-    fn take(&self, slot: usize) -> Option<(Chain, Chain)> {
+    fn hulls_of(&self, slot: usize) -> Option<(Chain, Chain)> {
         let (u, l) = &self.hulls[slot];
         if u.points.is_empty() {
             return None;
@@ -939,6 +939,7 @@ impl HullBuilder {
     fn push(&mut self, p: (f64, f64)) {
         let upper = self.upper;
         let h = &mut self.points;
+        debug_assert!(h.last().is_none_or(|l| l.0 <= p.0), "points out of τ order");
         if let Some(&last) = h.last()
             && last.0 == p.0
         {
@@ -1157,7 +1158,7 @@ pub fn build_bounds(
                                     &mut hulls,
                                 );
                                 let slot = |s: usize| -> Option<SlotHull> {
-                                    let (upper, lower) = hulls.take(s)?;
+                                    let (upper, lower) = hulls.hulls_of(s)?;
                                     let mut sh = SlotHull {
                                         upper,
                                         lower,
@@ -1805,7 +1806,7 @@ mod tests {
                             .collect()
                     };
                     let (up, lo) = (points(true), points(false));
-                    match hulls.take(s) {
+                    match hulls.hulls_of(s) {
                         None => assert!(up.is_empty() && lo.is_empty()),
                         Some((u, l)) => {
                             assert_eq!(bits(&u), bits(&hull(up, true)), "{name}");
@@ -1815,7 +1816,7 @@ mod tests {
                     }
                 }
                 if !hulls.split {
-                    assert!(hulls.take(1).is_none());
+                    assert!(hulls.hulls_of(1).is_none());
                 }
             }
         });

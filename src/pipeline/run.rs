@@ -389,9 +389,10 @@ pub fn plan_scene(
 }
 
 /// Runs the scene: every asset of this shard, assets in parallel; the representations of an
-/// asset are built and written concurrently, then each is read back and measured. Writes `report.json`, `report.md` and the pictures into `options.out`. Errors that
-/// stop the whole run: the output folder (unwritable, locked); a failing asset is reported in
-/// its outcome and the others go on.
+/// asset are built and written concurrently, then each is read back and measured. Writes
+/// `report.json`, `report.md` and the pictures into `options.out`. Errors that stop the whole
+/// run: the output folder (unwritable, locked); a failing asset is reported in its outcome and
+/// the others go on.
 pub fn run_scene(manifest: &Manifest, options: &RunOptions) -> Result<RunSummary, PipelineError> {
     let t0 = Instant::now();
     let _lock = prepare_output(&options.out)?;
@@ -437,11 +438,6 @@ pub fn run_scene(manifest: &Manifest, options: &RunOptions) -> Result<RunSummary
         let source = loaded.source(&spec.name, light);
         bar.set_message(spec.name.clone());
         let p = profile.as_ref();
-        if let Some(p) = p {
-            for repr in wanted(spec) {
-                p.declare(&spec.name, repr);
-            }
-        }
         // First every representation is built and committed, concurrently (writing files
         // overlaps the others' computing); then each is read back and measured.
         let (source, needs, hash) = (&source, &needs, input_hash.as_str());
@@ -462,6 +458,11 @@ pub fn run_scene(manifest: &Manifest, options: &RunOptions) -> Result<RunSummary
         job!(octree, OctreeRepr);
         job!(pyramid, PyramidRepr);
         job!(sphere, SphereRepr);
+        if let Some(p) = p {
+            for (repr, _) in &builds {
+                p.declare(&spec.name, repr);
+            }
+        }
         let built: Vec<(&str, Result<Built<'_>, PipelineError>)> = builds
             .into_par_iter()
             .map(|(repr, job)| (repr, job()))
@@ -603,12 +604,6 @@ fn build_one<'a, R: Representation>(
                     serde_json::from_value::<Measurement>(rep["measurement"].clone()).ok();
                 // Reused when it has its figures, or when none are wanted.
                 if measurement.is_some() || !options.measure {
-                    let pictures = match measurement {
-                        Some(_) => {
-                            serde_json::from_value(rep["pictures"].clone()).unwrap_or_default()
-                        }
-                        None => Vec::new(),
-                    };
                     return Ok(Built::Done(Box::new(AssetOutcome {
                         asset: source.name.into(),
                         representation: R::NAME.into(),
@@ -619,7 +614,9 @@ fn build_one<'a, R: Representation>(
                         bytes: r.description().data_bytes(),
                         cache_note: None,
                         measurement,
-                        pictures,
+                        // Empty for a folder built without measuring.
+                        pictures: serde_json::from_value(rep["pictures"].clone())
+                            .unwrap_or_default(),
                     })));
                 }
                 cache_note = Some(
@@ -643,30 +640,30 @@ fn build_one<'a, R: Representation>(
         "build": build_report,
         "plan": plan,
     });
-    let desc = w.commit(
+    let mut desc = w.commit(
         R::NAME,
         source.name,
         &key,
         Conventions::new(1.0, 2.0),
         metadata,
-        report.clone(),
+        report,
     )?;
     writing.stop();
     drop(scope);
-    let built_for = t0.elapsed();
+    let mut outcome = AssetOutcome {
+        asset: source.name.into(),
+        representation: R::NAME.into(),
+        outcome: Outcome::Built,
+        plan,
+        seconds: t0.elapsed().as_secs_f64(),
+        build_seconds,
+        bytes: desc.data_bytes(),
+        cache_note,
+        measurement: None,
+        pictures: Vec::new(),
+    };
     if !options.measure {
-        return Ok(Built::Done(Box::new(AssetOutcome {
-            asset: source.name.into(),
-            representation: R::NAME.into(),
-            outcome: Outcome::Built,
-            plan,
-            seconds: built_for.as_secs_f64(),
-            build_seconds,
-            bytes: desc.data_bytes(),
-            cache_note,
-            measurement: None,
-            pictures: Vec::new(),
-        })));
+        return Ok(Built::Done(Box::new(outcome)));
     }
     Ok(Built::Committed(Box::new(move || {
         let t1 = Instant::now();
@@ -683,26 +680,15 @@ fn build_one<'a, R: Representation>(
             magnify(&p.image.over([1.0, 1.0, 1.0]), 192).write_png(&options.out.join(&rel))?;
             written.push((rel, p.caption));
         }
-        let mut report = report;
-        report["measurement"] = serde_json::to_value(&measurement).unwrap_or_default();
-        report["pictures"] = serde_json::to_value(&written).unwrap_or_default();
-        let mut desc = desc;
-        desc.report = report;
+        desc.report["measurement"] = serde_json::to_value(&measurement).unwrap_or_default();
+        desc.report["pictures"] = serde_json::to_value(&written).unwrap_or_default();
         let text =
             serde_json::to_vec_pretty(&desc).map_err(|e| PipelineError::Spec(e.to_string()))?;
         write_atomic(&dir.join(DESCRIPTION_FILE), &text)?;
-        Ok(AssetOutcome {
-            asset: source.name.into(),
-            representation: R::NAME.into(),
-            outcome: Outcome::Built,
-            plan,
-            seconds: (built_for + t1.elapsed()).as_secs_f64(),
-            build_seconds,
-            bytes: desc.data_bytes(),
-            cache_note,
-            measurement: Some(measurement),
-            pictures: written,
-        })
+        outcome.seconds += t1.elapsed().as_secs_f64();
+        outcome.measurement = Some(measurement);
+        outcome.pictures = written;
+        Ok(outcome)
     })))
 }
 

@@ -66,8 +66,12 @@ pub const STAGES: [&str; 13] = [
 pub struct AssetTime {
     /// Asset name.
     pub asset: String,
-    /// Seconds to read and prepare its mesh, shape or texture.
+    /// Seconds to read and prepare its mesh, shape or texture (a mesh's BVH excluded).
     pub load_seconds: f64,
+    /// Seconds its geometry took to prepare ray queries (a mesh's BVH build), after the load,
+    /// while the representations that cast no rays were already building; `None` when none of
+    /// its representations casts rays (nothing prepared) or it has no geometry.
+    pub rays_seconds: Option<f64>,
     /// Seconds from the start of loading to its last representation's files committed: the
     /// precompute itself, measure and report excluded.
     pub files_seconds: f64,
@@ -381,19 +385,23 @@ impl StageTable {
             self.wall_seconds * 1e3
         );
         if !self.assets.is_empty() {
-            s += "\n| asset | load | mesh to files | total |\n|---|---|---|---|\n";
+            s += "\n| asset | load | ray set-up | mesh to files | total |\n|---|---|---|---|---|\n";
             for a in &self.assets {
                 s += &format!(
-                    "| {} | {:.1} | {:.1} | {:.1} |\n",
+                    "| {} | {:.1} | {} | {:.1} | {:.1} |\n",
                     a.asset,
                     a.load_seconds * 1e3,
+                    a.rays_seconds
+                        .map_or_else(|| "–".into(), |r| format!("{:.1}", r * 1e3)),
                     a.files_seconds * 1e3,
                     a.total_seconds * 1e3
                 );
             }
-            s += "\nMilliseconds, wall clock. Mesh to files: from the start of loading to the \
-                  asset's last file committed (measure and report excluded); total: to the end of \
-                  its last report.\n";
+            s += "\nMilliseconds, wall clock. Load: reading and parsing; ray set-up: a mesh's BVH \
+                  build, after the load, while the representations that cast no rays (octree, \
+                  pyramid) already build; mesh to files: from the start of loading to the asset's \
+                  last file committed (measure and report excluded); total: to the end of its last \
+                  report.\n";
         }
         s
     }
@@ -452,6 +460,7 @@ mod tests {
         p.asset(super::AssetTime {
             asset: "a".into(),
             load_seconds: 0.001,
+            rays_seconds: None,
             files_seconds: 0.002,
             total_seconds: 0.003,
         });

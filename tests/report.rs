@@ -276,6 +276,15 @@ fn profile_stages_are_finite_non_negative_and_add_up_to_at_most_the_wall_time() 
                 && a.files_seconds <= a.total_seconds,
             "{a:?}"
         );
+        // The pear's parallax and cylinder cast rays, so its geometry prepared them (after the
+        // load, before its files were done); the texture has no geometry.
+        match (a.asset.as_str(), a.rays_seconds) {
+            ("pear", Some(r)) => {
+                assert!(0.0 <= r && a.load_seconds + r <= a.files_seconds, "{a:?}")
+            }
+            ("ground", None) => {}
+            _ => panic!("ray set-up of {a:?}"),
+        }
         for r in t.rows.iter().filter(|r| r.asset == a.asset) {
             assert!(
                 r.total_seconds <= a.total_seconds,
@@ -318,7 +327,7 @@ fn profile_stages_are_finite_non_negative_and_add_up_to_at_most_the_wall_time() 
     }
     let md = std::fs::read_to_string(dir.path().join("report.md")).unwrap();
     assert!(md.contains("Per-stage profile") && md.contains("| pear | parallax |"));
-    assert!(md.contains("| asset | load | mesh to files | total |"));
+    assert!(md.contains("| asset | load | ray set-up | mesh to files | total |"));
     let json: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(dir.path().join("report.json")).unwrap())
             .unwrap();

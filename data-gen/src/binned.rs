@@ -55,6 +55,8 @@ use crate::shape::ParallelTracer;
 /// The binning tracer of a [`Mesh`] for one grid of parallel rays.
 pub(crate) struct MeshTracer<'a> {
     mesh: &'a Mesh,
+    /// The mesh's triangles in the BVH's leaf order (the order of ray queries).
+    triangles: &'a [Triangle],
     rays: &'a ParallelRays<'a>,
     cols: Axis<'a>,
     /// The footprint margin `m` (world units).
@@ -89,8 +91,8 @@ impl<'a> MeshTracer<'a> {
             return None;
         }
         let across = rays.across;
-        let row_spans: Vec<[u32; 2]> = mesh
-            .triangles
+        let triangles = mesh.traced().triangles.as_slice();
+        let row_spans: Vec<[u32; 2]> = triangles
             .par_iter()
             .map(|t| {
                 let p = project(t, across);
@@ -123,6 +125,7 @@ impl<'a> MeshTracer<'a> {
         }
         Some(Self {
             mesh,
+            triangles,
             rays,
             cols,
             margin,
@@ -182,7 +185,7 @@ impl<'a> MeshTracer<'a> {
             if s0 >= s1 {
                 continue;
             }
-            let tri = &self.mesh.triangles[t as usize];
+            let tri = &self.triangles[t as usize];
             let f = Footprint::new(project(tri, rays.across), self.margin, &self.cols);
             if f.columns.is_empty() {
                 continue;
@@ -470,7 +473,7 @@ mod tests {
             let ray = (rays.ray)(k % w, k / w);
             let mut bray = Mesh::to_bvh_ray(&ray, rays.t_min, rays.t_max);
             let mut all = None;
-            for (t, tri) in mesh.triangles.iter().enumerate() {
+            for (t, tri) in mesh.traced().triangles.iter().enumerate() {
                 let d = tri.intersect(&bray);
                 if d < bray.tmax {
                     bray.tmax = d;
@@ -488,7 +491,7 @@ mod tests {
                         let bray = Mesh::to_bvh_ray(&ray, rays.t_min, rays.t_max);
                         for t in [ta, tb] {
                             assert_eq!(
-                                mesh.triangles[t].intersect(&bray).to_bits(),
+                                mesh.traced().triangles[t].intersect(&bray).to_bits(),
                                 da.to_bits(),
                                 "ray {k}: triangles {ta} / {tb} do not tie"
                             );

@@ -1,6 +1,12 @@
 //! Triangle meshes from Wavefront OBJ (`tobj`), normalised into the bounding cylinder and
 //! ray-cast through a compressed wide BVH (`obvhs`'s CWBVH, built with PLOC).
 //!
+//! The BVH is built once, on the first ray query or on [`Mesh::prepare_rays`], not at load: the
+//! inside test of voxelisation ([`Shape::contains_row`]) needs no BVH, so a pipeline can voxelise
+//! while another thread builds it, and a mesh that is only voxelised never builds one. Ray
+//! queries see the triangles in the BVH's leaf order (ties between equal distances follow it);
+//! the inside test counts crossings, which no order changes.
+//!
 //! Normalisation: translate so that the centre of the bounding box's x–z extent lies on the `y`
 //! axis and the lowest vertex at `y = 0`; scale uniformly by the largest factor that keeps every
 //! vertex within radius `R` of the axis and below `H`; then centre vertically in `[0, H]`.
@@ -62,36 +68,93 @@ enum TriColor {
     Procedural,
 }
 
-/// A normalised triangle mesh with its BVH. Implements [`Shape`].
+/// A normalised triangle mesh. Implements [`Shape`]; its BVH is built on first need (module
+/// docs).
 pub struct Mesh {
     name: String,
+    /// The kept (non-degenerate) triangles in input order: the inside test's.
+    input: Vec<Triangle>,
+    /// Each input triangle's colour; empty when every triangle takes the fallback.
+    input_colors: Vec<TriColor>,
+    fallback: Albedo,
+    pub(crate) bounds: (DVec3, DVec3),
+    /// The BVH and the triangles in its leaf order, built on the first ray query.
+    traced: OnceLock<Traced>,
+    /// Triangles binned across the parity ray, built on the first [`Shape::contains_row`].
+    yz_grid: OnceLock<YzGrid>,
+}
+
+/// What ray queries read: the BVH and the triangles, normals and colours in its leaf order.
+pub(crate) struct Traced {
     pub(crate) triangles: Vec<Triangle>,
     /// Each triangle's unit geometric normal (`obvhs`'s `compute_normal`, widened to `f64`).
     normals: Vec<DVec3>,
     /// Each triangle's colour; empty when every triangle takes the fallback (a mesh without
     /// colours then reads no colour record per hit).
     colors: Vec<TriColor>,
-    fallback: Albedo,
     bvh: CwBvh,
-    pub(crate) bounds: (DVec3, DVec3),
-    /// Triangles binned across the parity ray, built on the first [`Shape::contains_row`].
-    yz_grid: OnceLock<YzGrid>,
-    /// Time spent building the BVH.
-    pub bvh_build_time: Duration,
+    /// Time spent building the BVH (the leaf reordering and normals excluded).
+    build_time: Duration,
+}
+
+impl Traced {
+    /// Builds the BVH over `triangles` and stores them in its leaf order (spatially coherent,
+    /// so that neighbouring rays read neighbouring triangles; the BVH then indexes them
+    /// directly and each ray still tests the same triangles in the same order). The reordering
+    /// is skipped if the leaves are not a permutation of the triangles. Serial (`obvhs`
+    /// without its `parallel` feature): it never waits on the thread pool.
+    fn build(triangles: &[Triangle], colors: &[TriColor]) -> Self {
+        let mut build_time = Duration::ZERO;
+        let mut bvh =
+            build_cwbvh_from_tris(triangles, BvhBuildParams::medium_build(), &mut build_time);
+        let order = &bvh.primitive_indices;
+        let mut seen = vec![false; triangles.len()];
+        let permutation = order.len() == triangles.len()
+            && order.iter().all(|&i| {
+                (i as usize) < seen.len() && !std::mem::replace(&mut seen[i as usize], true)
+            });
+        let (triangles, colors) = if permutation {
+            let t: Vec<Triangle> = order.iter().map(|&i| triangles[i as usize]).collect();
+            let c = if colors.is_empty() {
+                Vec::new()
+            } else {
+                order.iter().map(|&i| colors[i as usize].clone()).collect()
+            };
+            bvh.primitive_indices = (0..order.len() as u32).collect();
+            (t, c)
+        } else {
+            (triangles.to_vec(), colors.to_vec())
+        };
+        let normals = triangles
+            .iter()
+            .map(|t| {
+                let g = t.compute_normal();
+                DVec3::new(g.x.into(), g.y.into(), g.z.into())
+            })
+            .collect();
+        Self {
+            triangles,
+            normals,
+            colors,
+            bvh,
+            build_time,
+        }
+    }
 }
 
 impl std::fmt::Debug for Mesh {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("Mesh")
             .field("name", &self.name)
-            .field("triangles", &self.triangles.len())
+            .field("triangles", &self.input.len())
             .field("bounds", &self.bounds)
             .finish()
     }
 }
 
 impl Mesh {
-    /// Loads an OBJ file (triangulating polygons) and normalises it.
+    /// Loads an OBJ file (triangulating polygons) and normalises it. Materials (`mtllib`) are
+    /// read from files beside it. The BVH is not built yet (module docs).
     ///
     /// Errors: [`DataGenError::Io`] if the file cannot be read, [`DataGenError::ObjParse`] if it
     /// is not OBJ, [`DataGenError::NonFinite`] for NaN/infinite coordinates,
@@ -106,7 +169,20 @@ impl Mesh {
             path: path.to_path_buf(),
             source,
         })?;
-        if std::str::from_utf8(&bytes).is_err() {
+        Self::from_obj_bytes(&bytes, path, options)
+    }
+
+    /// Parses OBJ text already read from `path` (the file is not read again; `path` names the
+    /// mesh, its errors, and the folder its materials are read from) and normalises it, as
+    /// [`Mesh::load_obj`] does. For callers that also hash the bytes.
+    ///
+    /// Errors: as [`Mesh::load_obj`], except that nothing is read but the materials.
+    pub fn from_obj_bytes(
+        bytes: &[u8],
+        path: &Path,
+        options: &MeshLoadOptions,
+    ) -> Result<Self, DataGenError> {
+        if std::str::from_utf8(bytes).is_err() {
             return Err(DataGenError::ObjParse {
                 path: path.to_path_buf(),
                 message: "the file is not text (invalid UTF-8)".into(),
@@ -117,11 +193,17 @@ impl Mesh {
             single_index: false,
             ..Default::default()
         };
-        let (models, materials) =
-            tobj::load_obj(path, &load).map_err(|e| DataGenError::ObjParse {
-                path: path.to_path_buf(),
-                message: e.to_string(),
-            })?;
+        // As `tobj::load_obj` does, from the bytes: materials relative to the file's folder.
+        let (models, materials) = tobj::load_obj_buf(&mut &bytes[..], &load, |mtl| {
+            tobj::load_mtl(
+                path.parent()
+                    .map_or_else(|| mtl.to_owned(), |d| d.join(mtl)),
+            )
+        })
+        .map_err(|e| DataGenError::ObjParse {
+            path: path.to_path_buf(),
+            message: e.to_string(),
+        })?;
         let materials = materials.unwrap_or_default();
         let mut positions = Vec::new();
         let mut colors = Vec::new();
@@ -259,59 +341,37 @@ impl Mesh {
                 )
             },
         );
-        let mut bvh_build_time = Duration::ZERO;
-        let mut bvh = build_cwbvh_from_tris(
-            &triangles,
-            BvhBuildParams::medium_build(),
-            &mut bvh_build_time,
-        );
-        // Store the triangles in the BVH's leaf order (spatially coherent), so that neighbouring
-        // rays read neighbouring triangles; the BVH then indexes them directly. Each ray still
-        // tests the same triangles in the same order. Skipped if the leaves are not a
-        // permutation of the triangles.
-        let order = &bvh.primitive_indices;
-        let mut seen = vec![false; triangles.len()];
-        let permutation = order.len() == triangles.len()
-            && order.iter().all(|&i| {
-                (i as usize) < seen.len() && !std::mem::replace(&mut seen[i as usize], true)
-            });
-        if permutation {
-            triangles = order.iter().map(|&i| triangles[i as usize]).collect();
-            kept_colors = order
-                .iter()
-                .map(|&i| kept_colors[i as usize].clone())
-                .collect();
-            bvh.primitive_indices = (0..order.len() as u32).collect();
-        }
         if kept_colors
             .iter()
             .all(|c| matches!(c, TriColor::Procedural))
         {
             kept_colors = Vec::new();
         }
-        let normals = triangles
-            .iter()
-            .map(|t| {
-                let g = t.compute_normal();
-                DVec3::new(g.x.into(), g.y.into(), g.z.into())
-            })
-            .collect();
         Ok(Self {
             name,
-            triangles,
-            normals,
-            colors: kept_colors,
+            input: triangles,
+            input_colors: kept_colors,
             fallback: options.fallback_albedo.clone(),
-            bvh,
             bounds,
+            traced: OnceLock::new(),
             yz_grid: OnceLock::new(),
-            bvh_build_time,
         })
     }
 
     /// Number of triangles kept (degenerate ones are dropped).
     pub fn triangle_count(&self) -> usize {
-        self.triangles.len()
+        self.input.len()
+    }
+
+    /// Time spent building the BVH, `None` before it is built.
+    pub fn bvh_build_time(&self) -> Option<Duration> {
+        self.traced.get().map(|t| t.build_time)
+    }
+
+    /// The BVH and the triangles in its leaf order, built on first use.
+    pub(crate) fn traced(&self) -> &Traced {
+        self.traced
+            .get_or_init(|| Traced::build(&self.input, &self.input_colors))
     }
 
     pub(crate) fn to_bvh_ray(ray: &Ray, t_min: f64, t_max: f64) -> BvhRay {
@@ -332,9 +392,10 @@ impl Mesh {
     pub(crate) fn first_hit(&self, ray: &Ray, t_min: f64, t_max: f64) -> Option<(usize, f32)> {
         let bray = Self::to_bvh_ray(ray, t_min, t_max);
         let mut hit = RayHit::none();
-        let tris = &self.triangles;
-        let idx = &self.bvh.primitive_indices;
-        self.bvh
+        let tr = self.traced();
+        let tris = &tr.triangles;
+        let idx = &tr.bvh.primitive_indices;
+        tr.bvh
             .ray_traverse(bray, &mut hit, |r, id| tris[idx[id] as usize].intersect(r))
             .then(|| (idx[hit.primitive_id as usize] as usize, hit.t))
     }
@@ -342,13 +403,14 @@ impl Mesh {
     /// The hit record of `ray` meeting triangle `tri_id` at distance `t`: the geometric normal
     /// turned toward the ray and the triangle's colour at the hit point.
     pub(crate) fn hit_at(&self, ray: &Ray, tri_id: usize, t: f32) -> Hit {
-        let tri = &self.triangles[tri_id];
+        let tr = self.traced();
+        let tri = &tr.triangles[tri_id];
         let t = f64::from(t);
-        let n = self.normals[tri_id];
+        let n = tr.normals[tri_id];
         // Winding is not trusted: the normal faces the incoming ray.
         let n = if n.dot(ray.dir) > 0.0 { -n } else { n };
         let p = ray.at(t);
-        let albedo = match self.colors.get(tri_id) {
+        let albedo = match tr.colors.get(tri_id) {
             Some(TriColor::Vertex(c)) => {
                 let w = barycentric(tri, p);
                 c[0] * w[0] + c[1] * w[1] + c[2] * w[2]
@@ -369,6 +431,13 @@ impl Shape for Mesh {
         &self.name
     }
 
+    /// Builds the BVH now if no ray query has built it yet (about 0.8 µs per triangle on one
+    /// core, serial: the Stanford bunny's 69 k triangles take 50–70 ms), so that the first ray
+    /// query does not pay for it. Threads that query rays meanwhile wait for this build.
+    fn prepare_rays(&self) {
+        self.traced();
+    }
+
     fn intersect(&self, ray: &Ray, t_min: f64, t_max: f64) -> Option<Hit> {
         self.first_hit(ray, t_min, t_max)
             .map(|(tri, t)| self.hit_at(ray, tri, t))
@@ -383,7 +452,7 @@ impl Shape for Mesh {
     /// rocker arm (20 k) 32 against 37 ms; at 512² binning is 1.6–2.2× faster on all three.
     fn parallel_tracer<'a>(&'a self, rays: &'a ParallelRays<'a>) -> Box<dyn ParallelTracer + 'a> {
         // Decided before building the tracer, which projects every triangle.
-        let worth_it = 4 * rays.len() >= 3 * self.triangles.len();
+        let worth_it = 4 * rays.len() >= 3 * self.input.len();
         match worth_it.then(|| MeshTracer::new(self, rays)).flatten() {
             Some(t) => Box::new(t),
             None => Box::new(OneByOne { shape: self, rays }),
@@ -395,9 +464,10 @@ impl Shape for Mesh {
     fn contains(&self, p: DVec3) -> bool {
         let ray = BvhRay::new(p.as_vec3().into(), parity_dir(), 0.0, f32::MAX);
         let mut crossings = 0u32;
-        let tris = &self.triangles;
-        let idx = &self.bvh.primitive_indices;
-        self.bvh.ray_traverse_anyhit(ray, |r, id| {
+        let tr = self.traced();
+        let tris = &tr.triangles;
+        let idx = &tr.bvh.primitive_indices;
+        tr.bvh.ray_traverse_anyhit(ray, |r, id| {
             if tris[idx[id] as usize].intersect(r).is_finite() {
                 crossings += 1;
             }
@@ -415,7 +485,7 @@ impl Shape for Mesh {
     /// of a cell (points far to the left of the mesh) or with non-finite coordinates take the
     /// per-point path.
     fn contains_row(&self, y: f64, z: f64, xs: &[f64], inside: &mut [bool]) {
-        let grid = self.yz_grid.get_or_init(|| YzGrid::new(&self.triangles));
+        let grid = self.yz_grid.get_or_init(|| YzGrid::new(&self.input));
         let (oy, oz) = (y as f32, z as f32);
         let x_lo = xs.iter().fold(f64::INFINITY, |m, &x| m.min(x));
         let finite = oy.is_finite() && oz.is_finite() && xs.iter().all(|x| (*x as f32).is_finite());
@@ -451,7 +521,7 @@ impl Shape for Mesh {
             let crossings = candidates
                 .iter()
                 .filter(|&&(x_max, t)| {
-                    x_max >= origin.x && self.triangles[t as usize].intersect(&ray).is_finite()
+                    x_max >= origin.x && self.input[t as usize].intersect(&ray).is_finite()
                 })
                 .count();
             *o = crossings % 2 == 1;

@@ -55,6 +55,10 @@ pub trait Shape: Send + Sync {
     fn parallel_tracer<'a>(&'a self, rays: &'a ParallelRays<'a>) -> Box<dyn ParallelTracer + 'a> {
         Box::new(OneByOne { shape: self, rays })
     }
+    /// Builds now what ray queries need and a shape builds on first use ([`crate::Mesh`]: its
+    /// BVH), so that a caller can choose the thread and the moment; queries give the same
+    /// answers either way. The default does nothing.
+    fn prepare_rays(&self) {}
 }
 
 /// A shape traced one ray at a time: every method delegates to the inner shape except
@@ -83,6 +87,9 @@ impl Shape for RayByRay<'_> {
     }
     fn contains_row(&self, y: f64, z: f64, xs: &[f64], inside: &mut [bool]) {
         self.0.contains_row(y, z, xs, inside);
+    }
+    fn prepare_rays(&self) {
+        self.0.prepare_rays();
     }
 }
 

@@ -81,6 +81,47 @@ fn small_box_mesh_is_normalised_and_ray_cast() {
     );
 }
 
+/// Materials are read from the file beside the OBJ (as `tobj::load_obj` reads them), whether
+/// the mesh is loaded from its path or from bytes already read; the BVH is built on the first
+/// ray query, and the inside test needs none.
+#[test]
+fn materials_beside_the_file_colour_the_hits_and_the_bvh_waits_for_a_ray() {
+    let dir = tempfile::tempdir().unwrap();
+    write(&dir, "box.mtl", "newmtl red\nKd 0.8 0.1 0.25\n");
+    let text = format!("mtllib box.mtl\nusemtl red\n{BOX_OBJ}");
+    let path = write(&dir, "box.obj", &text);
+    let from_path = Mesh::load_obj(&path, &MeshLoadOptions::default()).unwrap();
+    let from_bytes =
+        Mesh::from_obj_bytes(text.as_bytes(), &path, &MeshLoadOptions::default()).unwrap();
+    for mesh in [&from_path, &from_bytes] {
+        let mut inside = [false; 3];
+        mesh.contains_row(1.0, 0.0, &[-0.9, 0.0, 0.9], &mut inside);
+        assert_eq!(inside, [false, true, false]);
+        assert!(mesh.bvh_build_time().is_none());
+        let hit = mesh
+            .intersect(
+                &Ray::new(DVec3::new(3.0, 1.0, 0.1), DVec3::new(-1.0, 0.0, 0.0)),
+                0.0,
+                10.0,
+            )
+            .unwrap();
+        for (got, want) in hit.albedo.to_array().into_iter().zip([0.8, 0.1, 0.25]) {
+            approx::assert_abs_diff_eq!(got, want, epsilon = 1e-6);
+        }
+        assert!(mesh.bvh_build_time().is_some());
+    }
+    // Without its material file the mesh loads (fallback colours), from the path as from bytes.
+    let elsewhere = tempfile::tempdir().unwrap();
+    let moved = write(&elsewhere, "box.obj", &text);
+    let a = Mesh::load_obj(&moved, &MeshLoadOptions::default()).unwrap();
+    let b = Mesh::from_obj_bytes(text.as_bytes(), &moved, &MeshLoadOptions::default()).unwrap();
+    let ray = Ray::new(DVec3::new(3.0, 1.0, 0.1), DVec3::new(-1.0, 0.0, 0.0));
+    let albedo = |m: &Mesh| m.intersect(&ray, 0.0, 10.0).map(|h| h.albedo);
+    assert_eq!(albedo(&a), albedo(&b));
+    assert!(albedo(&a).is_some());
+    assert_ne!(albedo(&a), albedo(&from_path));
+}
+
 #[test]
 fn teapot_loads_when_shared_meshes_exist() {
     let Some(mesh) = shared_mesh("teapot", "teapot_loads_when_shared_meshes_exist") else {

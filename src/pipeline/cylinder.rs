@@ -123,6 +123,7 @@ fn texture_params(columns: usize, rows: usize) -> CylinderParams {
 
 impl Representation for Cylinder {
     const NAME: &'static str = "cylinder";
+    const CASTS_RAYS: bool = true;
     type Spec = CylinderSpec;
     type Data = CylinderData;
     type Decisions = CylinderDecisions;

@@ -89,6 +89,7 @@ pub struct OctreeRepr;
 
 impl Representation for OctreeRepr {
     const NAME: &'static str = "octree";
+    const CASTS_RAYS: bool = false;
     type Spec = OctreeSpec;
     type Data = Octree;
     type Decisions = OctreeDecisions;

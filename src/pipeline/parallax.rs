@@ -168,6 +168,7 @@ pub struct Parallax;
 
 impl Representation for Parallax {
     const NAME: &'static str = "parallax";
+    const CASTS_RAYS: bool = true;
     type Spec = ParallaxSpec;
     type Data = ParallaxData;
     type Decisions = ParallaxDecisions;

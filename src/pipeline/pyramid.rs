@@ -215,6 +215,7 @@ fn keep_levels(n: usize, needs: &Needs, axis: &str, plan: &mut Plan, record: boo
 
 impl Representation for PyramidRepr {
     const NAME: &'static str = "pyramid";
+    const CASTS_RAYS: bool = false;
     type Spec = PyramidParams;
     type Data = PyramidAsset;
     type Decisions = PyramidDecisions;

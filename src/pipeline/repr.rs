@@ -73,6 +73,11 @@ pub struct Picture {
 pub trait Representation {
     /// Name of the representation: folder name and `asset.json` key.
     const NAME: &'static str;
+    /// Whether [`Representation::plan`] or [`Representation::build`] casts rays on the source's
+    /// geometry. For scheduling only: the pipeline builds the representations that do not
+    /// while the geometry prepares its ray queries ([`Shape::prepare_rays`]); a ray cast by one
+    /// declared `false` waits for that preparation, and the result is the same.
+    const CASTS_RAYS: bool;
     /// Manifest parameters.
     type Spec: Clone + Serialize + Sync;
     /// The representation as loaded from (or written to) files.

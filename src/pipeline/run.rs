@@ -295,7 +295,7 @@ fn load_source(spec: &AssetSpec) -> Result<(Loaded, String), PipelineError> {
         )),
         SourceSpec::Mesh(path) => {
             let bytes = std::fs::read(path).map_err(io(path))?;
-            let mesh = Mesh::load_obj(path, &MeshLoadOptions::default())?;
+            let mesh = Mesh::from_obj_bytes(&bytes, path, &MeshLoadOptions::default())?;
             Ok((
                 Loaded::Geometry(Box::new(mesh)),
                 crate::asset::hash_hex(&bytes),
@@ -441,13 +441,14 @@ pub fn run_scene(manifest: &Manifest, options: &RunOptions) -> Result<RunSummary
         // First every representation is built and committed, concurrently (writing files
         // overlaps the others' computing); then each is read back and measured.
         let (source, needs, hash) = (&source, &needs, input_hash.as_str());
-        let mut builds: Vec<(&'static str, BuildJob<'_>)> = Vec::new();
+        let mut builds: Vec<(&'static str, bool, BuildJob<'_>)> = Vec::new();
         // One job per representation the asset asks for, in manifest order.
         macro_rules! job {
             ($field:ident, $repr:ty) => {
                 if let Some(s) = &spec.$field {
                     builds.push((
                         <$repr>::NAME,
+                        <$repr>::CASTS_RAYS,
                         Box::new(move || build_one::<$repr>(s, needs, source, hash, options, p)),
                     ));
                 }
@@ -459,14 +460,11 @@ pub fn run_scene(manifest: &Manifest, options: &RunOptions) -> Result<RunSummary
         job!(pyramid, PyramidRepr);
         job!(sphere, SphereRepr);
         if let Some(p) = p {
-            for (repr, _) in &builds {
+            for (repr, _, _) in &builds {
                 p.declare(&spec.name, repr);
             }
         }
-        let built: Vec<(&str, Result<Built<'_>, PipelineError>)> = builds
-            .into_par_iter()
-            .map(|(repr, job)| (repr, job()))
-            .collect();
+        let (built, rays_seconds) = run_builds(builds, source.geometry);
         let files_seconds = t_asset.elapsed().as_secs_f64();
         let outcomes: Vec<AssetOutcome> = built
             .into_par_iter()
@@ -484,6 +482,7 @@ pub fn run_scene(manifest: &Manifest, options: &RunOptions) -> Result<RunSummary
             p.asset(crate::profile::AssetTime {
                 asset: spec.name.clone(),
                 load_seconds,
+                rays_seconds,
                 files_seconds,
                 total_seconds: t_asset.elapsed().as_secs_f64(),
             });
@@ -553,6 +552,44 @@ fn cache_key<R: Representation>(
 
 /// A representation's build job (see [`build_one`]).
 type BuildJob<'a> = Box<dyn FnOnce() -> Result<Built<'a>, PipelineError> + Send + 'a>;
+
+/// A representation's name and what its build job returned.
+type BuiltJob<'a> = (&'static str, Result<Built<'a>, PipelineError>);
+
+/// Runs an asset's build jobs `(name, casts rays, job)` concurrently and returns their results
+/// in the given order, with the seconds `geometry` took to prepare its ray queries (`None`
+/// when no job casts rays, or without geometry: nothing is prepared then). The jobs that cast
+/// no rays start at once, on other threads, while this thread prepares the ray queries (a
+/// mesh's BVH: serial); the others start when it is done. Each job gives what it would give
+/// run alone.
+fn run_builds<'a>(
+    builds: Vec<(&'static str, bool, BuildJob<'a>)>,
+    geometry: Option<&(dyn altrep_data_gen::Shape + Sync)>,
+) -> (Vec<BuiltJob<'a>>, Option<f64>) {
+    let (rays, free): (Vec<_>, Vec<_>) = builds
+        .into_iter()
+        .enumerate()
+        .partition(|(_, (_, casts, _))| *casts);
+    let run = |jobs: Vec<(usize, (&'static str, bool, BuildJob<'a>))>| {
+        jobs.into_par_iter()
+            .map(|(i, (repr, _, job))| (i, (repr, job())))
+            .collect::<Vec<_>>()
+    };
+    let ((mut done, rays_seconds), free_done) = rayon::join(
+        || {
+            let prepared = geometry.filter(|_| !rays.is_empty()).map(|g| {
+                let t = Instant::now();
+                g.prepare_rays();
+                t.elapsed().as_secs_f64()
+            });
+            (run(rays), prepared)
+        },
+        || run(free),
+    );
+    done.extend(free_done);
+    done.sort_by_key(|(i, _)| *i);
+    (done.into_iter().map(|(_, b)| b).collect(), rays_seconds)
+}
 
 /// What [`build_one`] leaves: a finished outcome (refused, cached), or a representation built
 /// and committed whose measuring and report remain (the closure).

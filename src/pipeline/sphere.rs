@@ -147,6 +147,7 @@ fn sphere_err(e: SphereError) -> PipelineError {
 
 impl Representation for SphereRepr {
     const NAME: &'static str = "sphere";
+    const CASTS_RAYS: bool = true;
     type Spec = SphereSpec;
     type Data = SphereImages;
     type Decisions = SphereDecisions;

@@ -827,8 +827,11 @@ fn push_exact(halves: &mut impl Corners, th: f64, p: (f64, f64)) {
 /// the uniform grid of `step` inside it; over each sub-interval the crossing's depth is bounded by
 /// its values at both ends and, where the foot of the perpendicular from the axis falls inside
 /// the sub-interval's range of piece parameters, by the depth of that foot (the extremum of
-/// `|z_e|` along the piece). Each box is widened by `EPS·r` and pushed as two upper and two lower
-/// corners at `τ(s_a)` and `τ(s_b)`.
+/// `|z_e|` along the piece). Each box is widened by `EPS·r`; its corners are its upper and lower
+/// values at `τ(s_a)` and `τ(s_b)`. Where two boxes meet (a grid angle), only the outer of
+/// their two corners at that τ is pushed, upper and lower: a hull keeps only the extreme of
+/// points with equal τ, and pushing the extreme alone leaves [`HullBuilder`] bitwise as pushing
+/// both (see [`HullBuilder::push`]), with half the pushes.
 #[allow(clippy::too_many_arguments)]
 fn push_piece_boxes(
     hp: &mut impl Corners,
@@ -873,6 +876,8 @@ fn push_piece_boxes(
     let mut m = (ea / step).floor() as i64 + 1;
     let mut end_a = on_line(trig_a);
     let mut ta = tau_of(trig_a);
+    // The previous box's (lower, upper) values: its corners at `ta`, not pushed yet.
+    let mut pending: Option<(f64, f64)> = None;
     loop {
         let gm = m as f64 * step;
         let (last, end_b, tb) = if gm < eb {
@@ -894,13 +899,23 @@ fn push_piece_boxes(
             }
         }
         let (zlo, zhi) = (zlo - EPS * r, zhi + EPS * r);
-        hp.upper(half, (ta, zhi));
-        hp.upper(half, (tb, zhi));
-        hp.lower(half, (ta, zlo));
-        hp.lower(half, (tb, zlo));
+        // At `ta`, the outer of this box's corner and the previous box's (the previous one on
+        // a tie, as the hull keeps the first of equal points).
+        let (lo_a, hi_a) = match pending {
+            Some((plo, phi)) => (
+                if zlo < plo { zlo } else { plo },
+                if zhi > phi { zhi } else { phi },
+            ),
+            None => (zlo, zhi),
+        };
+        hp.upper(half, (ta, hi_a));
+        hp.lower(half, (ta, lo_a));
         if last {
+            hp.upper(half, (tb, zhi));
+            hp.lower(half, (tb, zlo));
             break;
         }
+        pending = Some((zlo, zhi));
         end_a = end_b;
         ta = tb;
         m += 1;
@@ -935,6 +950,11 @@ impl HullBuilder {
 
     /// Adds `p` (τ not below the last point's): monotone chain, of points with equal τ only
     /// the extreme one (the first among equals) is kept.
+    ///
+    /// Pushing several points of equal τ in a row leaves the same vertices, bitwise, as
+    /// pushing only their extreme (the first among equals): a point that the chord test pops
+    /// for a lesser point it also pops for the extreme, because the rounded cross product is
+    /// monotone in `p`'s z (`a.τ − o.τ ≥ 0`), and from there both run the same loop.
     #[inline]
     fn push(&mut self, p: (f64, f64)) {
         let upper = self.upper;
@@ -1754,8 +1774,9 @@ mod tests {
         }
     }
 
-    /// The optimised sweep (trigonometry cached per event and per grid angle) gives bit-for-bit
-    /// the corner points of the sweep as first written, in the same order, at the default
+    /// The optimised sweep (trigonometry cached per event and per grid angle, one corner pushed
+    /// where two boxes meet) gives bit-for-bit the hulls of the corner points of the sweep as
+    /// first written (every box's four corners), per half and over both halves, at the default
     /// subdivision count and for zmin/zmax's single subdivision.
     #[test]
     fn optimised_sweep_is_bitwise_the_first_sweep() {
@@ -1765,15 +1786,28 @@ mod tests {
         let mut b = [HalfPoints::default(), HalfPoints::default()];
         for_each_test_pixel(|name, grid, rs, x, delta, angles, subdivisions| {
             a.iter_mut().for_each(HalfPoints::clear);
+            b.iter_mut().for_each(HalfPoints::clear);
             pixel_points(grid, rs, x, delta, angles, &mut sc, &mut a);
             reference::pixel_points_v1(grid, rs, x, delta, subdivisions, &mut sc1, &mut b);
-            for h in 0..2 {
-                assert_eq!(bits(&a[h].upper), bits(&b[h].upper), "{name}");
-                assert_eq!(bits(&a[h].lower), bits(&b[h].lower), "{name}");
-                compared += a[h].upper.len();
+            for upper in [true, false] {
+                let side = |hp: &HalfPoints| {
+                    if upper {
+                        hp.upper.clone()
+                    } else {
+                        hp.lower.clone()
+                    }
+                };
+                for h in 0..2 {
+                    let (ha, hb) = (hull(side(&a[h]), upper), hull(side(&b[h]), upper));
+                    assert_eq!(bits(&ha), bits(&hb), "{name}, half {h}");
+                    compared += ha.len();
+                }
+                let both =
+                    |p: &[HalfPoints; 2]| hull(side(&p[0]).into_iter().chain(side(&p[1])), upper);
+                assert_eq!(bits(&both(&a)), bits(&both(&b)), "{name}, both halves");
             }
         });
-        assert!(compared > 10_000, "only {compared} points compared");
+        assert!(compared > 10_000, "only {compared} hull vertices compared");
     }
 
     /// The hulls built as the sweep pushes its points are bitwise [`hull`] over the points
@@ -1876,6 +1910,64 @@ mod tests {
                     kept.is_empty(),
                     "skipped E = ({ex}, {ez}) at X = {x}: events {kept:?}, window [{lo}, {hi}]"
                 );
+            }
+        }
+    }
+
+    proptest::proptest! {
+        #![proptest_config(proptest::prelude::ProptestConfig::with_cases(3000))]
+        /// [`push_piece_boxes`] pushes one corner per side where two boxes meet, the outer of
+        /// the two: the hulls are bitwise those of pushing both corners of every box. Boxes
+        /// over random ascending τ with repeated τ, z drawn from a few values (ties, ±0,
+        /// collinear runs) or at random, and a hull already holding points.
+        #[test]
+        fn pushing_the_outer_corner_where_boxes_meet_keeps_the_hulls_bitwise(
+            start in proptest::collection::vec((0usize..4, -2.0f64..2.0), 0..4),
+            boxes in proptest::collection::vec(
+                (0usize..3, 0usize..6, -2.0f64..2.0, 0usize..6, 0.0f64..1.0),
+                1..40,
+            ),
+        ) {
+            let pick = |k: usize, raw: f64| match k {
+                0 => 0.0,
+                1 => -0.0,
+                2 => 1.0,
+                3 => -1.0,
+                4 => 0.5,
+                _ => raw,
+            };
+            for upper in [true, false] {
+                let (mut both, mut outer) = (HullBuilder::new(upper), HullBuilder::new(upper));
+                let mut tau = -3.0;
+                for &(k, raw) in &start {
+                    tau += [0.0, 0.25, 0.5, 1.0][k];
+                    both.push((tau, raw));
+                    outer.push((tau, raw));
+                }
+                // Box b spans [τ_b, τ_{b+1}] with value z_b (the side's corner value).
+                let mut taus = vec![tau + 0.125];
+                let mut zs = Vec::new();
+                for &(dt, zk, zraw, _, _) in &boxes {
+                    let last = *taus.last().unwrap();
+                    taus.push(last + [0.0, 0.125, 0.375][dt]);
+                    zs.push(pick(zk, zraw));
+                }
+                for (b, &z) in zs.iter().enumerate() {
+                    both.push((taus[b], z));
+                    both.push((taus[b + 1], z));
+                }
+                let mut pending: Option<f64> = None;
+                for (b, &z) in zs.iter().enumerate() {
+                    let at_a = match pending {
+                        Some(p) if upper => if z > p { z } else { p },
+                        Some(p) => if z < p { z } else { p },
+                        None => z,
+                    };
+                    outer.push((taus[b], at_a));
+                    pending = Some(z);
+                }
+                outer.push((*taus.last().unwrap(), *zs.last().unwrap()));
+                proptest::prop_assert_eq!(bits(&both.points), bits(&outer.points));
             }
         }
     }

@@ -460,9 +460,16 @@ mod tests {
         p.asset(super::AssetTime {
             asset: "a".into(),
             load_seconds: 0.001,
-            rays_seconds: None,
+            rays_seconds: Some(0.0015),
             files_seconds: 0.002,
             total_seconds: 0.003,
+        });
+        p.asset(super::AssetTime {
+            asset: "b".into(),
+            load_seconds: 0.004,
+            rays_seconds: None,
+            files_seconds: 0.005,
+            total_seconds: 0.006,
         });
         let t = p.table(1.0);
         let rows: Vec<(&str, &str)> = t
@@ -478,6 +485,7 @@ mod tests {
         assert!(octree.stages["octree"] >= 0.002);
         assert!(octree.total_seconds >= octree.stages["octree"]);
         let md = t.markdown();
-        assert!(md.contains("| a | 1.0 | 2.0 | 3.0 |"), "{md}");
+        assert!(md.contains("| a | 1.0 | 1.5 | 2.0 | 3.0 |"), "{md}");
+        assert!(md.contains("| b | 4.0 | – | 5.0 | 6.0 |"), "{md}");
     }
 }

@@ -25,6 +25,11 @@ v 8 0 -6\nv 12 0 -6\nv 12 6 -6\nv 8 6 -6\nv 8 0 -4\nv 12 0 -4\nv 12 6 -4\nv 8 6 
 f 1 2 3 4\nf 5 8 7 6\nf 1 5 6 2\nf 2 6 7 3\nf 3 7 8 4\nf 4 8 5 1
 ";
 
+/// A ray along −x at height 1, meeting [`BOX_OBJ`]'s face x = 2/3 (after normalisation).
+fn front_ray() -> Ray {
+    Ray::new(DVec3::new(3.0, 1.0, 0.1), DVec3::new(-1.0, 0.0, 0.0))
+}
+
 #[test]
 fn small_box_mesh_is_normalised_and_ray_cast() {
     let dir = tempfile::tempdir().unwrap();
@@ -48,13 +53,7 @@ fn small_box_mesh_is_normalised_and_ray_cast() {
         "{hi:?}"
     );
     // A ray along −x at height 1 hits the face x = 2/3 with normal +x.
-    let hit = mesh
-        .intersect(
-            &Ray::new(DVec3::new(3.0, 1.0, 0.1), DVec3::new(-1.0, 0.0, 0.0)),
-            0.0,
-            10.0,
-        )
-        .unwrap();
+    let hit = mesh.intersect(&front_ray(), 0.0, 10.0).unwrap();
     assert!((hit.t - (3.0 - 2.0 / 3.0)).abs() < tol, "t = {}", hit.t);
     assert!((hit.normal - DVec3::X).length() < 1e-5);
     // Inside test by parity.
@@ -98,13 +97,7 @@ fn materials_beside_the_file_colour_the_hits_and_the_bvh_waits_for_a_ray() {
         mesh.contains_row(1.0, 0.0, &[-0.9, 0.0, 0.9], &mut inside);
         assert_eq!(inside, [false, true, false]);
         assert!(mesh.bvh_build_time().is_none());
-        let hit = mesh
-            .intersect(
-                &Ray::new(DVec3::new(3.0, 1.0, 0.1), DVec3::new(-1.0, 0.0, 0.0)),
-                0.0,
-                10.0,
-            )
-            .unwrap();
+        let hit = mesh.intersect(&front_ray(), 0.0, 10.0).unwrap();
         for (got, want) in hit.albedo.to_array().into_iter().zip([0.8, 0.1, 0.25]) {
             approx::assert_abs_diff_eq!(got, want, epsilon = 1e-6);
         }
@@ -115,8 +108,7 @@ fn materials_beside_the_file_colour_the_hits_and_the_bvh_waits_for_a_ray() {
     let moved = write(&elsewhere, "box.obj", &text);
     let a = Mesh::load_obj(&moved, &MeshLoadOptions::default()).unwrap();
     let b = Mesh::from_obj_bytes(text.as_bytes(), &moved, &MeshLoadOptions::default()).unwrap();
-    let ray = Ray::new(DVec3::new(3.0, 1.0, 0.1), DVec3::new(-1.0, 0.0, 0.0));
-    let albedo = |m: &Mesh| m.intersect(&ray, 0.0, 10.0).map(|h| h.albedo);
+    let albedo = |m: &Mesh| m.intersect(&front_ray(), 0.0, 10.0).map(|h| h.albedo);
     assert_eq!(albedo(&a), albedo(&b));
     assert!(albedo(&a).is_some());
     assert_ne!(albedo(&a), albedo(&from_path));

@@ -391,8 +391,7 @@ impl StageTable {
                     "| {} | {:.1} | {} | {:.1} | {:.1} |\n",
                     a.asset,
                     a.load_seconds * 1e3,
-                    a.rays_seconds
-                        .map_or_else(|| "–".into(), |r| format!("{:.1}", r * 1e3)),
+                    ms(a.rays_seconds.as_ref()),
                     a.files_seconds * 1e3,
                     a.total_seconds * 1e3
                 );

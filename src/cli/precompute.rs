@@ -31,8 +31,8 @@ pub struct PrecomputeArgs {
     #[arg(long)]
     pub json: Option<PathBuf>,
     /// Time every stage (capture, bounds, octree, pyramids, writing, …) of every build and each
-    /// asset's load and mesh-to-files time, and print the tables (also in report.md and
-    /// report.json); assets then run one at a time.
+    /// asset's load, ray set-up (BVH build) and mesh-to-files time, and print the tables (also
+    /// in report.md and report.json); assets then run one at a time.
     #[arg(long)]
     pub profile: bool,
     /// Only write the files: no read-back, error figures or report pictures (a library run

@@ -1786,7 +1786,6 @@ mod tests {
         let mut b = [HalfPoints::default(), HalfPoints::default()];
         for_each_test_pixel(|name, grid, rs, x, delta, angles, subdivisions| {
             a.iter_mut().for_each(HalfPoints::clear);
-            b.iter_mut().for_each(HalfPoints::clear);
             pixel_points(grid, rs, x, delta, angles, &mut sc, &mut a);
             reference::pixel_points_v1(grid, rs, x, delta, subdivisions, &mut sc1, &mut b);
             for upper in [true, false] {

@@ -74,8 +74,8 @@ pub struct RunOptions {
     pub everything: bool,
     /// Show progress bars.
     pub progress: bool,
-    /// Time every stage of every build and each asset's load and mesh-to-files wall time
-    /// ([`crate::profile`]); assets then run one at a time, so an asset's times hold no other
+    /// Time every stage of every build and each asset's load, ray set-up and mesh-to-files
+    /// wall times ([`crate::profile`]); assets then run one at a time, so an asset's times hold no other
     /// asset's work (its representations still run concurrently: their rows overlap).
     pub profile: bool,
     /// Read back and measure every representation built (error figures and report pictures).

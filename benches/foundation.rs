@@ -87,6 +87,34 @@ fn ray_casting(c: &mut Criterion) {
     g.finish();
 }
 
+/// The rays of the pipeline's cylindrical capture (256 × 64 texels, prefilter 3: 768 × 192
+/// radial rays) without the texture: binned by height and angle (`grid`) or ray by ray through
+/// the BVH (`walk`), on 1 thread.
+fn cylinder_rays(c: &mut Criterion) {
+    let mut g = c.benchmark_group("cylinder_rays_768x192");
+    g.throughput(Throughput::Elements(768 * 192));
+    g.sample_size(10);
+    let one = one_thread();
+    let params = CylinderParams {
+        columns: 768,
+        rows: 192,
+        cylinder: BoundingCylinder::default(),
+    };
+    for m in ["teapot", "beetle", "stanford-bunny"] {
+        let Some(mesh) = shared_mesh(m, "a cylinder_rays_768x192 mesh") else {
+            continue;
+        };
+        mesh.prepare_rays();
+        let walk = RayByRay(&mesh);
+        for (name, shape) in [("grid", &mesh as &dyn Shape), ("walk", &walk as &dyn Shape)] {
+            g.bench_function(format!("{m}/{name}/1_thread"), |b| {
+                b.iter(|| one.install(|| capture_cylinder(shape, &params).unwrap()))
+            });
+        }
+    }
+    g.finish();
+}
+
 fn mip(c: &mut Criterion) {
     let tex = Texture::new(
         256,
@@ -188,5 +216,12 @@ fn ray_casting_bound(c: &mut Criterion) {
     g.finish();
 }
 
-criterion_group!(benches, capture, ray_casting, ray_casting_bound, mip);
+criterion_group!(
+    benches,
+    capture,
+    ray_casting,
+    ray_casting_bound,
+    cylinder_rays,
+    mip
+);
 criterion_main!(benches);

@@ -65,11 +65,8 @@ pub(crate) struct MeshTracer<'a> {
     mesh_scale: f64,
     /// Each triangle's rows (half-open; empty when it misses the grid's rows).
     row_spans: Vec<[u32; 2]>,
-    /// Rows per band.
-    band: usize,
-    /// The triangles of band `b`: `in_band[start[b]..start[b + 1]]`, in triangle order.
-    start: Vec<u32>,
-    in_band: Vec<u32>,
+    /// The triangles of each band of rows.
+    bands: Bands,
 }
 
 impl<'a> MeshTracer<'a> {
@@ -103,26 +100,7 @@ impl<'a> MeshTracer<'a> {
                 [r.start as u32, r.end as u32]
             })
             .collect();
-        let band = (h / (8 * rayon::current_num_threads())).clamp(1, 16);
-        let bands = h.div_ceil(band);
-        let band_range = |r: &[u32; 2]| r[0] as usize / band..(r[1] as usize).div_ceil(band);
-        let mut start = vec![0u32; bands + 1];
-        for r in &row_spans {
-            for b in band_range(r) {
-                start[b + 1] += 1;
-            }
-        }
-        for b in 1..=bands {
-            start[b] += start[b - 1];
-        }
-        let mut fill = start.clone();
-        let mut in_band = vec![0u32; start[bands] as usize];
-        for (t, r) in row_spans.iter().enumerate() {
-            for b in band_range(r) {
-                in_band[fill[b] as usize] = t as u32;
-                fill[b] += 1;
-            }
-        }
+        let bands = Bands::new(&row_spans, h);
         Some(Self {
             mesh,
             triangles,
@@ -131,9 +109,7 @@ impl<'a> MeshTracer<'a> {
             margin,
             mesh_scale,
             row_spans,
-            band,
-            start,
-            in_band,
+            bands,
         })
     }
 
@@ -177,9 +153,8 @@ impl<'a> MeshTracer<'a> {
         // triangle order wins among equal distances, as in the walk along one ray).
         let mut best_d = vec![template.tmax; cells];
         let mut best_t = vec![u32::MAX; cells];
-        let in_band = &self.in_band[self.start[b] as usize..self.start[b + 1] as usize];
         let mut bray = template;
-        for &t in in_band {
+        for &t in self.bands.of(b) {
             let span = self.row_spans[t as usize];
             let (s0, s1) = ((span[0] as usize).max(r0), (span[1] as usize).min(r1));
             if s0 >= s1 {
@@ -238,8 +213,8 @@ impl<'a> MeshTracer<'a> {
         let rows = rows.start..rows.end.min(self.rays.rows.len());
         let mut r = rows.start;
         while r < rows.end {
-            let b = r / self.band;
-            let end = ((b + 1) * self.band).min(rows.end);
+            let b = r / self.bands.band;
+            let end = ((b + 1) * self.bands.band).min(rows.end);
             let (lo, hi) = ((r - rows.start) * w, (end - rows.start) * w);
             let Some(out) = out.get_mut(lo..hi) else {
                 return;
@@ -252,7 +227,7 @@ impl<'a> MeshTracer<'a> {
 
 impl ParallelTracer for MeshTracer<'_> {
     fn band_rows(&self) -> usize {
-        self.band
+        self.bands.band
     }
 
     fn trace_rows(&self, rows: Range<usize>, out: &mut [Option<Hit>]) {
@@ -262,8 +237,55 @@ impl ParallelTracer for MeshTracer<'_> {
     }
 }
 
+/// The triangles of each band of rows, in triangle order: band `b` holds rows
+/// `b·band..(b + 1)·band` and the triangles `in_band[start[b]..start[b + 1]]` whose row span
+/// meets them.
+pub(crate) struct Bands {
+    /// Rows per band: `h / (8·threads)`, between 1 and 16.
+    pub(crate) band: usize,
+    start: Vec<u32>,
+    in_band: Vec<u32>,
+}
+
+impl Bands {
+    /// Sorts the triangles, whose half-open row spans are `row_spans`, into the bands of `h`
+    /// rows. Cost: two passes over the spans.
+    pub(crate) fn new(row_spans: &[[u32; 2]], h: usize) -> Self {
+        let band = (h / (8 * rayon::current_num_threads())).clamp(1, 16);
+        let bands = h.div_ceil(band);
+        let band_range = |r: &[u32; 2]| r[0] as usize / band..(r[1] as usize).div_ceil(band);
+        let mut start = vec![0u32; bands + 1];
+        for r in row_spans {
+            for b in band_range(r) {
+                start[b + 1] += 1;
+            }
+        }
+        for b in 1..=bands {
+            start[b] += start[b - 1];
+        }
+        let mut fill = start.clone();
+        let mut in_band = vec![0u32; start[bands] as usize];
+        for (t, r) in row_spans.iter().enumerate() {
+            for b in band_range(r) {
+                in_band[fill[b] as usize] = t as u32;
+                fill[b] += 1;
+            }
+        }
+        Self {
+            band,
+            start,
+            in_band,
+        }
+    }
+
+    /// The triangles of band `b`, in triangle order.
+    pub(crate) fn of(&self, b: usize) -> &[u32] {
+        &self.in_band[self.start[b] as usize..self.start[b + 1] as usize]
+    }
+}
+
 /// The largest absolute coordinate of `v`.
-fn inf(v: DVec3) -> f64 {
+pub(crate) fn inf(v: DVec3) -> f64 {
     v.abs().max_element()
 }
 
@@ -275,7 +297,7 @@ fn project(t: &Triangle, across: [DVec3; 2]) -> [[f64; 2]; 3] {
 
 /// The grid positions of one axis of a [`ParallelRays`], strictly monotonic either way.
 #[derive(Clone, Copy)]
-struct Axis<'a> {
+pub(crate) struct Axis<'a> {
     coords: &'a [f64],
     ascending: bool,
     /// `(x₀, 1/step)` when the positions are within a quarter step of `x₀ + i·step`: the index
@@ -285,7 +307,7 @@ struct Axis<'a> {
 
 impl<'a> Axis<'a> {
     /// `None` unless the coordinates are strictly monotonic (NaN fails both orders).
-    fn new(coords: &'a [f64]) -> Option<Self> {
+    pub(crate) fn new(coords: &'a [f64]) -> Option<Self> {
         let ascending = coords.windows(2).all(|p| p[0] < p[1]);
         if !ascending && !coords.windows(2).all(|p| p[0] > p[1]) {
             return None;
@@ -310,7 +332,7 @@ impl<'a> Axis<'a> {
     /// Indices of the positions in `[lo, hi]` (exact: the guess of a uniform axis is only a
     /// starting point).
     #[inline]
-    fn range(&self, lo: f64, hi: f64) -> Range<usize> {
+    pub(crate) fn range(&self, lo: f64, hi: f64) -> Range<usize> {
         let x = self.coords;
         let n = x.len();
         let inside = |i: usize| lo <= x[i] && x[i] <= hi;

@@ -10,16 +10,14 @@
 //!
 //! Cost: one ray per sample, rows in parallel (rayon).
 
-use std::f64::consts::TAU;
 use std::path::Path;
 
 use glam::{DVec3, Vec3};
-use rayon::prelude::*;
 
 use crate::error::{DataGenError, finite, nonzero};
-use crate::geometry::{BoundingCylinder, Hit, PixelGrid, Ray, ViewGrid, direction};
+use crate::geometry::{BoundingCylinder, Hit, PixelGrid, RadialRays, Ray, ViewGrid};
 use crate::image_io::{RgbaImage, write_image};
-use crate::shape::{Shape, trace_in_groups};
+use crate::shape::{Shape, trace_grid_in_groups, trace_in_groups};
 use crate::truth::Light;
 
 /// What a captured pixel holds when its ray hits.
@@ -193,16 +191,6 @@ fn check_grid(
     cylinder.validate()
 }
 
-/// Casts one ray along `−dir_out` from outside the cylinder; returns the sample with
-/// `depth = (p·dir_out)/R`.
-fn cast(shape: &dyn Shape, start: DVec3, dir_out: DVec3, radius: f64) -> Option<Sample> {
-    let origin = start + 2.0 * radius * dir_out;
-    let ray = Ray::new(origin, -dir_out);
-    shape
-        .intersect(&ray, 0.0, 4.0 * radius)
-        .map(|hit| sample_of(&ray, &hit, dir_out, radius))
-}
-
 /// The sample of `hit` on `ray`, which travels along `−dir_out`: `depth = (p·dir_out)/R`.
 fn sample_of(ray: &Ray, hit: &Hit, dir_out: DVec3, radius: f64) -> Sample {
     let p = ray.at(hit.t);
@@ -251,7 +239,9 @@ pub fn capture_view(shape: &dyn Shape, params: &ViewParams) -> Result<SampleGrid
     })
 }
 
-/// Captures a cylindrical texture of `shape` (SPEC §6). Cost: `columns × rows` rays.
+/// Captures a cylindrical texture of `shape` (SPEC §6). Cost: `columns × rows` rays, traced
+/// together by [`Shape::radial_tracer`] in bands of rows (each ray starts `2R` outside the axis
+/// at its row's height and runs through the axis, as a single cast would).
 pub fn capture_cylinder(
     shape: &dyn Shape,
     params: &CylinderParams,
@@ -263,17 +253,33 @@ pub fn capture_cylinder(
         cylinder: params.cylinder,
     };
     let r = params.cylinder.radius;
-    let mut samples = vec![None; params.columns * params.rows];
-    samples
-        .par_chunks_mut(params.columns)
-        .enumerate()
-        .for_each(|(j, row)| {
-            let y = grid.y_at(j as f64 + 0.5);
-            for (i, s) in row.iter_mut().enumerate() {
-                let alpha = TAU * i as f64 / params.columns as f64;
-                *s = cast(shape, DVec3::Y * y, direction(alpha), r);
+    let w = params.columns;
+    let heights: Vec<f64> = (0..params.rows)
+        .map(|j| grid.y_at(j as f64 + 0.5))
+        .collect();
+    let rays = RadialRays {
+        rows: &heights,
+        columns: w,
+        radius: r,
+    };
+    let outward: Vec<DVec3> = (0..w).map(|c| rays.outward(c)).collect();
+    let tracer = shape.radial_tracer(&rays);
+    let mut samples = vec![None; w * params.rows];
+    trace_grid_in_groups(
+        &*tracer,
+        w,
+        params.rows,
+        1,
+        w,
+        &mut samples,
+        |first, hits, samples| {
+            for (j, (samples, hits)) in samples.chunks_mut(w).zip(hits.chunks(w)).enumerate() {
+                for ((s, hit), d) in samples.iter_mut().zip(hits).zip(&outward) {
+                    *s = hit.map(|hit| sample_of(&rays.ray_along(*d, first + j), &hit, *d, r));
+                }
             }
-        });
+        },
+    );
     Ok(SampleGrid {
         width: params.columns,
         height: params.rows,

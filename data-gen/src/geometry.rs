@@ -168,6 +168,66 @@ impl<'a> ParallelRays<'a> {
     }
 }
 
+/// The rays of a cylindrical capture (SPEC §6): horizontal rays through the `y` axis, traced
+/// together by [`crate::Shape::radial_tracer`].
+///
+/// Column `c < columns` looks along `−d(α_c)`, `α_c = 2πc/L` ([`direction`]); row `r` lies at
+/// height `rows[r]`. Ray `(c, r)` starts at `(0, rows[r], 0) + 2R·d(α_c)`, outside the bounding
+/// cylinder of radius `R`, crosses the axis at `t = 2R` and ends at `t = 4R`: the hit window is
+/// `(0, 4R)`. [`Self::ray`] is the one formula of this ray, for a shape that traces the grid
+/// and for one that casts ray by ray. `rows` need not be sorted; a shape that bins its geometry
+/// over the rows traces unsorted rows one by one.
+#[derive(Clone, Copy, Debug)]
+pub struct RadialRays<'a> {
+    /// Height of each row's rays (world units).
+    pub rows: &'a [f64],
+    /// Number of columns `L` (angles around the axis).
+    pub columns: usize,
+    /// Radius `R` of the bounding cylinder (world units).
+    pub radius: f64,
+}
+
+impl RadialRays<'_> {
+    /// Number of rays, `columns × rows`.
+    pub fn len(&self) -> usize {
+        self.columns * self.rows.len()
+    }
+
+    /// Whether the grid has no ray.
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// The outward direction `d(α_c)` of column `c`, `α_c = 2πc/L`: ray `(c, r)` travels along
+    /// its opposite.
+    #[inline]
+    pub fn outward(&self, c: usize) -> DVec3 {
+        direction(std::f64::consts::TAU * c as f64 / self.columns as f64)
+    }
+
+    /// The ray of row `r` whose outward direction is `outward` (= [`Self::outward`] of its
+    /// column): from `(0, rows[r], 0) + 2R·outward` along `−outward`.
+    #[inline]
+    pub fn ray_along(&self, outward: DVec3, r: usize) -> Ray {
+        Ray::new(
+            DVec3::Y * self.rows[r] + 2.0 * self.radius * outward,
+            -outward,
+        )
+    }
+
+    /// The ray of column `c`, row `r`.
+    #[inline]
+    pub fn ray(&self, c: usize, r: usize) -> Ray {
+        self.ray_along(self.outward(c), r)
+    }
+
+    /// The end of every ray's hit window, `4R` (the start is 0).
+    #[inline]
+    pub fn t_max(&self) -> f64 {
+        4.0 * self.radius
+    }
+}
+
 /// Fractional pixel coordinate of sub-sample `a` of pixel `i` in a `k × k` stratification:
 /// `i + (a + ½)/k` (`i + ½` at the centre for `k = 1`).
 #[inline]

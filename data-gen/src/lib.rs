@@ -31,7 +31,10 @@
 //! its triangles over grids with at least ¾ as many rays as triangles and runs the BVH walk's own
 //! triangle test on each ray's few candidates (exactly the nearest hit over all triangles; see
 //! the `binned` module), and walks its BVH per ray on smaller grids. Criterion
-//! (`cargo bench --bench foundation -- ray_casting`) times both on the shipped meshes.
+//! (`cargo bench --bench foundation -- ray_casting`) times both on the shipped meshes. The
+//! cylindrical captures cast grids of radial rays ([`RadialRays`]) through
+//! [`Shape::radial_tracer`], which a [`Mesh`] bins by height and angle in the same way (the
+//! `radial` module; `cargo bench --bench foundation -- cylinder_rays`).
 
 mod analytic;
 pub mod binned;
@@ -41,6 +44,7 @@ mod frame;
 mod geometry;
 mod image_io;
 mod mesh;
+pub mod radial;
 mod rng;
 mod shape;
 mod shapes;
@@ -54,7 +58,9 @@ pub use capture::{
 };
 pub use error::DataGenError;
 pub use frame::{FrameCapture, OrthoFrame, capture_frame, render_truth_frame};
-pub use geometry::{BoundingCylinder, Hit, ParallelRays, PixelGrid, Ray, direction, screen_right};
+pub use geometry::{
+    BoundingCylinder, Hit, ParallelRays, PixelGrid, RadialRays, Ray, direction, screen_right,
+};
 pub use image_io::{RgbaImage, linear_to_srgb, srgb_to_linear};
 pub use mesh::{Mesh, MeshLoadOptions};
 pub use rng::SplitMix64;

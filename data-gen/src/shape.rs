@@ -12,7 +12,7 @@ use glam::{DVec3, Vec3};
 use rayon::prelude::*;
 
 use crate::error::DataGenError;
-use crate::geometry::{Hit, ParallelRays, Ray};
+use crate::geometry::{Hit, ParallelRays, RadialRays, Ray};
 
 /// Anything data-gen can sample: ray intersection, inside test, bounds.
 ///
@@ -55,6 +55,16 @@ pub trait Shape: Send + Sync {
     fn parallel_tracer<'a>(&'a self, rays: &'a ParallelRays<'a>) -> Box<dyn ParallelTracer + 'a> {
         Box::new(OneByOne { shape: self, rays })
     }
+    /// A tracer of the radial rays `rays` of a cylindrical capture, as
+    /// [`Shape::parallel_tracer`] is for parallel rays: shared work here, then bands of rows
+    /// from any thread, each hit the one [`Shape::intersect`] finds for [`RadialRays::ray`] in
+    /// `(0, 4R)`, up to the same exceptions ([`crate::Mesh`] bins its triangles by height and
+    /// angle).
+    ///
+    /// The default traces each ray with [`Shape::intersect`]. Cost: up to `O(rays.len())`.
+    fn radial_tracer<'a>(&'a self, rays: &'a RadialRays<'a>) -> Box<dyn ParallelTracer + 'a> {
+        Box::new(RadialOneByOne { shape: self, rays })
+    }
     /// Builds now what ray queries need and a shape builds on first use ([`crate::Mesh`]: its
     /// BVH), so that a caller can choose the thread and the moment; queries give the same
     /// answers either way. The default does nothing.
@@ -62,8 +72,9 @@ pub trait Shape: Send + Sync {
 }
 
 /// A shape traced one ray at a time: every method delegates to the inner shape except
-/// [`Shape::parallel_tracer`], which keeps the default (one [`Shape::intersect`] per ray). For
-/// comparing a shape's grid tracer with its own per-ray casts (tests, benchmarks).
+/// [`Shape::parallel_tracer`] and [`Shape::radial_tracer`], which keep the defaults (one
+/// [`Shape::intersect`] per ray). For comparing a shape's grid tracers with its own per-ray
+/// casts (tests, benchmarks).
 pub struct RayByRay<'a>(pub &'a dyn Shape);
 
 impl Shape for RayByRay<'_> {
@@ -93,7 +104,8 @@ impl Shape for RayByRay<'_> {
     }
 }
 
-/// Traces bands of rows of a [`ParallelRays`] grid; made by [`Shape::parallel_tracer`].
+/// Traces bands of rows of a grid of rays: a [`ParallelRays`] grid (made by
+/// [`Shape::parallel_tracer`]) or a [`RadialRays`] grid (made by [`Shape::radial_tracer`]).
 pub trait ParallelTracer: Sync {
     /// The number of rows of a band: callers that split the grid into bands of this many rows
     /// (starting at row 0) let the tracer share its work within each band.
@@ -133,15 +145,28 @@ pub(crate) fn trace_in_groups<T: Send>(
     out: &mut [T],
     consume: impl Fn(usize, &[Option<Hit>], &mut [T]) + Sync,
 ) {
-    let w = rays.columns.len();
+    let tracer = shape.parallel_tracer(rays);
+    let (w, h) = (rays.columns.len(), rays.rows.len());
+    trace_grid_in_groups(&*tracer, w, h, rows_per_group, out_per_group, out, consume);
+}
+
+/// [`trace_in_groups`] with any tracer of a grid of `w × h` rays.
+pub(crate) fn trace_grid_in_groups<T: Send>(
+    tracer: &dyn ParallelTracer,
+    w: usize,
+    h: usize,
+    rows_per_group: usize,
+    out_per_group: usize,
+    out: &mut [T],
+    consume: impl Fn(usize, &[Option<Hit>], &mut [T]) + Sync,
+) {
     if w == 0 || rows_per_group == 0 || out_per_group == 0 {
         return;
     }
-    let tracer = shape.parallel_tracer(rays);
     let band = tracer.band_rows().max(1);
     // Groups per chunk: the least number whose rows are a whole number of bands.
     let groups = band / gcd(band, rows_per_group);
-    let groups_total = rays.rows.len() / rows_per_group;
+    let groups_total = h / rows_per_group;
     let len = (groups_total * out_per_group).min(out.len());
     let out = &mut out[..len];
     out.par_chunks_mut(groups * out_per_group)
@@ -180,6 +205,33 @@ impl<S: Shape + ?Sized> ParallelTracer for OneByOne<'_, S> {
             for (c, o) in out.iter_mut().enumerate() {
                 let ray = (self.rays.ray)(c, r);
                 *o = self.shape.intersect(&ray, self.rays.t_min, self.rays.t_max);
+            }
+        }
+    }
+}
+
+/// The default radial tracer: each ray on its own, with [`Shape::intersect`].
+pub(crate) struct RadialOneByOne<'a, S: ?Sized> {
+    pub(crate) shape: &'a S,
+    pub(crate) rays: &'a RadialRays<'a>,
+}
+
+impl<S: Shape + ?Sized> ParallelTracer for RadialOneByOne<'_, S> {
+    fn band_rows(&self) -> usize {
+        1
+    }
+
+    fn trace_rows(&self, rows: Range<usize>, out: &mut [Option<Hit>]) {
+        let w = self.rays.columns;
+        if w == 0 {
+            return;
+        }
+        let outward: Vec<DVec3> = (0..w).map(|c| self.rays.outward(c)).collect();
+        let rows = rows.start..rows.end.min(self.rays.rows.len());
+        for (r, out) in rows.zip(out.chunks_mut(w)) {
+            for (d, o) in outward.iter().zip(out.iter_mut()) {
+                let ray = self.rays.ray_along(*d, r);
+                *o = self.shape.intersect(&ray, 0.0, self.rays.t_max());
             }
         }
     }

@@ -209,19 +209,10 @@ impl<'a> MeshTracer<'a> {
         out: &mut [T],
         emit: impl Fn(&Ray, Option<(usize, f32)>) -> T,
     ) {
-        let w = self.rays.columns.len();
-        let rows = rows.start..rows.end.min(self.rays.rows.len());
-        let mut r = rows.start;
-        while r < rows.end {
-            let b = r / self.bands.band;
-            let end = ((b + 1) * self.bands.band).min(rows.end);
-            let (lo, hi) = ((r - rows.start) * w, (end - rows.start) * w);
-            let Some(out) = out.get_mut(lo..hi) else {
-                return;
-            };
-            self.trace_band(b, r..end, out, &emit);
-            r = end;
-        }
+        let (w, h) = (self.rays.columns.len(), self.rays.rows.len());
+        self.bands.split(w, h, rows, out, |b, rows, out| {
+            self.trace_band(b, rows, out, &emit);
+        });
     }
 }
 
@@ -281,6 +272,31 @@ impl Bands {
     /// The triangles of band `b`, in triangle order.
     pub(crate) fn of(&self, b: usize) -> &[u32] {
         &self.in_band[self.start[b] as usize..self.start[b + 1] as usize]
+    }
+
+    /// Cuts rows `rows` (any range, clipped to the grid's `h` rows of `w` rays) and their part
+    /// of `out` (`w` entries per row) at band boundaries, and hands each piece to
+    /// `trace_band(b, rows, out)`; stops where `out` is too short.
+    pub(crate) fn split<T>(
+        &self,
+        w: usize,
+        h: usize,
+        rows: Range<usize>,
+        out: &mut [T],
+        mut trace_band: impl FnMut(usize, Range<usize>, &mut [T]),
+    ) {
+        let rows = rows.start..rows.end.min(h);
+        let mut r = rows.start;
+        while r < rows.end {
+            let b = r / self.band;
+            let end = ((b + 1) * self.band).min(rows.end);
+            let (lo, hi) = ((r - rows.start) * w, (end - rows.start) * w);
+            let Some(out) = out.get_mut(lo..hi) else {
+                return;
+            };
+            trace_band(b, r..end, out);
+            r = end;
+        }
     }
 }
 
@@ -469,7 +485,7 @@ impl Footprint {
 
 #[cfg(test)]
 mod tests {
-    use std::f64::consts::{PI, TAU};
+    use std::f64::consts::PI;
 
     use proptest::prelude::*;
 
@@ -477,14 +493,11 @@ mod tests {
     use crate::frame::OrthoFrame;
     use crate::geometry::{BoundingCylinder, PixelGrid, ViewGrid, direction, screen_right};
     use crate::mesh::MeshLoadOptions;
-    use crate::rng::SplitMix64;
+    use crate::test_meshes::{check_ray, mesh, soup, sphere};
 
-    /// Checks the binned grid ray by ray against every triangle (the nearest hit of the same
-    /// `f32` triangle test, the first in triangle order among equal distances: exactly) and
-    /// against the BVH walk (never nearer than the binned hit; where the triangles differ at
-    /// the same distance both meet the ray there). Returns `(ties, culled)`: the rays where the
-    /// walk reports another triangle at the same distance, and the rays where the walk's box
-    /// culling drops a hit that the triangle test accepts (the walk misses or hits farther).
+    /// Checks the binned grid ray by ray ([`check_ray`]). Returns `(ties, culled)`: the rays
+    /// where the walk reports another triangle at the same distance, and the rays where the
+    /// walk's box culling drops a hit that the triangle test accepts.
     fn check_grid(mesh: &Mesh, rays: &ParallelRays) -> (usize, usize) {
         let mut binned = vec![None; rays.len()];
         let tracer = MeshTracer::new(mesh, rays).expect("the grid was not binned");
@@ -493,38 +506,8 @@ mod tests {
         let (mut ties, mut culled) = (0, 0);
         for (k, b) in binned.iter().enumerate() {
             let ray = (rays.ray)(k % w, k / w);
-            let mut bray = Mesh::to_bvh_ray(&ray, rays.t_min, rays.t_max);
-            let mut all = None;
-            for (t, tri) in mesh.traced().triangles.iter().enumerate() {
-                let d = tri.intersect(&bray);
-                if d < bray.tmax {
-                    bray.tmax = d;
-                    all = Some((t, d));
-                }
-            }
-            assert_eq!(
-                *b, all,
-                "ray {k}: binned {b:?}, nearest of all triangles {all:?}"
-            );
-            match (mesh.first_hit(&ray, rays.t_min, rays.t_max), *b) {
-                (None, None) => {}
-                (Some((ta, da)), Some((tb, db))) if da.to_bits() == db.to_bits() => {
-                    if ta != tb {
-                        let bray = Mesh::to_bvh_ray(&ray, rays.t_min, rays.t_max);
-                        for t in [ta, tb] {
-                            assert_eq!(
-                                mesh.traced().triangles[t].intersect(&bray).to_bits(),
-                                da.to_bits(),
-                                "ray {k}: triangles {ta} / {tb} do not tie"
-                            );
-                        }
-                        ties += 1;
-                    }
-                }
-                (Some((_, da)), Some((_, db))) if db < da => culled += 1,
-                (None, Some(_)) => culled += 1,
-                (a, b) => panic!("ray {k}: walked {a:?}, binned {b:?}"),
-            }
+            let (tie, cull) = check_ray(mesh, &ray, (rays.t_min, rays.t_max), *b, k);
+            (ties, culled) = (ties + usize::from(tie), culled + usize::from(cull));
         }
         (ties, culled)
     }
@@ -551,22 +534,6 @@ mod tests {
         check_grid(mesh, &view.parallel_rays(&ray))
     }
 
-    /// A UV sphere of `n` × `2n` quads (two triangles each).
-    fn sphere(n: usize) -> Vec<[[f64; 3]; 3]> {
-        let p = |a: usize, b: usize| {
-            let (th, ph) = (PI * a as f64 / n as f64, TAU * b as f64 / (2 * n) as f64);
-            [th.sin() * ph.cos(), th.cos(), th.sin() * ph.sin()]
-        };
-        let mut tris = Vec::new();
-        for a in 0..n {
-            for b in 0..2 * n {
-                tris.push([p(a, b), p(a + 1, b), p(a + 1, b + 1)]);
-                tris.push([p(a, b), p(a + 1, b + 1), p(a, b + 1)]);
-            }
-        }
-        tris
-    }
-
     /// An axis-aligned box: faces seen edge-on from the axis views, quads split along diagonals
     /// that axis-aligned rays can meet exactly.
     fn cube() -> Vec<[[f64; 3]; 3]> {
@@ -585,34 +552,11 @@ mod tests {
             .collect()
     }
 
-    /// Random triangles, a third of them slivers (two vertices within 1e-4 of each other).
-    fn soup(seed: u64, n: usize) -> Vec<[[f64; 3]; 3]> {
-        let mut rng = SplitMix64::new(seed);
-        (0..n)
-            .map(|k| {
-                let mut p = || {
-                    [
-                        rng.range(-1.0, 1.0),
-                        rng.range(-1.0, 1.0),
-                        rng.range(-1.0, 1.0),
-                    ]
-                };
-                let (a, b) = (p(), p());
-                let c = if k % 3 == 0 { a.map(|x| x + 1e-4) } else { p() };
-                [a, b, c]
-            })
-            .collect()
-    }
-
-    fn mesh(tris: Vec<[[f64; 3]; 3]>) -> Mesh {
-        Mesh::from_raw_triangles("test", tris, &MeshLoadOptions::default()).unwrap()
-    }
-
     #[test]
     fn binned_parallel_rays_find_the_hits_of_the_bvh_walk() {
         let diagonal = DVec3::new(1.0, 1.0, 1.0);
         for (name, m) in [
-            ("sphere", mesh(sphere(24))),
+            ("sphere", mesh(sphere(24, 0.0))),
             ("cube", mesh(cube())),
             ("soup", mesh(soup(7, 400))),
         ] {
@@ -672,7 +616,7 @@ mod tests {
 
     #[test]
     fn rays_off_their_declared_grid_still_get_the_bvh_walks_hits() {
-        let m = mesh(sphere(16));
+        let m = mesh(sphere(16, 0.0));
         let (w, h) = (24, 24);
         let grid = PixelGrid {
             width: w,

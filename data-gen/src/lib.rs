@@ -49,6 +49,8 @@ mod rng;
 mod shape;
 mod shapes;
 mod shared;
+#[cfg(test)]
+mod test_meshes;
 mod truth;
 mod volume;
 

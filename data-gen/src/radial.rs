@@ -235,19 +235,10 @@ impl<'a> RadialTracer<'a> {
         out: &mut [T],
         emit: impl Fn(&Ray, Option<(usize, f32)>) -> T,
     ) {
-        let w = self.rays.columns;
-        let rows = rows.start..rows.end.min(self.rays.rows.len());
-        let mut r = rows.start;
-        while r < rows.end {
-            let b = r / self.bands.band;
-            let end = ((b + 1) * self.bands.band).min(rows.end);
-            let (lo, hi) = ((r - rows.start) * w, (end - rows.start) * w);
-            let Some(out) = out.get_mut(lo..hi) else {
-                return;
-            };
-            self.trace_band(b, r..end, out, &emit);
-            r = end;
-        }
+        let (w, h) = (self.rays.columns, self.rays.rows.len());
+        self.bands.split(w, h, rows, out, |b, rows, out| {
+            self.trace_band(b, rows, out, &emit);
+        });
     }
 }
 
@@ -339,20 +330,16 @@ fn distance_to_origin(p: [[f64; 2]; 3]) -> f64 {
 
 #[cfg(test)]
 mod tests {
-    use std::f64::consts::PI;
-
     use proptest::prelude::*;
 
     use super::*;
     use crate::mesh::MeshLoadOptions;
-    use crate::rng::SplitMix64;
+    use crate::test_meshes::{check_ray, mesh, soup, sphere};
 
-    /// Checks the binned grid ray by ray against every triangle (the nearest hit of the same
-    /// `f32` triangle test, the first in triangle order among equal distances: exactly) and
-    /// against the BVH walk (never nearer than the binned hit; where the triangles differ at
-    /// the same distance both meet the ray there). Returns `(ties, culled, off_axes)`: `ties`
-    /// and `culled` as `binned::tests::check_grid` counts them, and the culled rays that do
-    /// not run along `x` or `z`.
+    /// Checks the binned grid ray by ray ([`check_ray`]). Returns `(ties, culled, off_axes)`:
+    /// the rays where the walk reports another triangle at the same distance, those where it
+    /// drops a hit that the triangle test accepts, and those of the latter that do not run
+    /// along `x` or `z`.
     ///
     /// The walk's box test takes `±2²³` for the inverse of a direction component of at most
     /// `f32::EPSILON` (`obvhs::ray::safe_inverse`): a ray along `x` or `z` (columns at multiples
@@ -364,48 +351,16 @@ mod tests {
         let tracer = RadialTracer::new(mesh, rays).expect("the grid was not binned");
         tracer.trace(0..rays.rows.len(), &mut binned, |_, h| h);
         let w = rays.columns;
-        let (mut ties, mut culled, mut culled_before, mut off_axes) = (0, 0, 0, 0);
+        let (mut ties, mut culled, mut off_axes) = (0, 0, 0);
         for (k, b) in binned.iter().enumerate() {
             let ray = rays.ray(k % w, k / w);
-            let mut bray = Mesh::to_bvh_ray(&ray, 0.0, rays.t_max());
-            let mut all = None;
-            for (t, tri) in mesh.traced().triangles.iter().enumerate() {
-                let d = tri.intersect(&bray);
-                if d < bray.tmax {
-                    bray.tmax = d;
-                    all = Some((t, d));
-                }
-            }
-            assert_eq!(
-                *b, all,
-                "ray {k}: binned {b:?}, nearest of all triangles {all:?}"
-            );
-            match (mesh.first_hit(&ray, 0.0, rays.t_max()), *b) {
-                (None, None) => {}
-                (Some((ta, da)), Some((tb, db))) if da.to_bits() == db.to_bits() => {
-                    if ta != tb {
-                        let bray = Mesh::to_bvh_ray(&ray, 0.0, rays.t_max());
-                        for t in [ta, tb] {
-                            assert_eq!(
-                                mesh.traced().triangles[t].intersect(&bray).to_bits(),
-                                da.to_bits(),
-                                "ray {k}: triangles {ta} / {tb} do not tie"
-                            );
-                        }
-                        ties += 1;
-                    }
-                }
-                (Some((_, da)), Some((_, db))) if db < da => culled += 1,
-                (None, Some(_)) => culled += 1,
-                (a, b) => panic!("ray {k}: walked {a:?}, binned {b:?}"),
-            }
+            let (tie, cull) = check_ray(mesh, &ray, (0.0, rays.t_max()), *b, k);
             let bray = Mesh::to_bvh_ray(&ray, 0.0, rays.t_max());
             let along_axis =
                 bray.direction.x.abs() <= f32::EPSILON || bray.direction.z.abs() <= f32::EPSILON;
-            if culled > culled_before && !along_axis {
-                off_axes += 1;
-            }
-            culled_before = culled;
+            ties += usize::from(tie);
+            culled += usize::from(cull);
+            off_axes += usize::from(cull && !along_axis);
         }
         (ties, culled, off_axes)
     }
@@ -415,26 +370,6 @@ mod tests {
         (0..h)
             .map(|j| y1 - (j as f64 + 0.5) * (y1 - y0) / h as f64)
             .collect()
-    }
-
-    fn mesh(tris: Vec<[[f64; 3]; 3]>) -> Mesh {
-        Mesh::from_raw_triangles("test", tris, &MeshLoadOptions::default()).unwrap()
-    }
-
-    /// A UV sphere of `n` × `2n` quads (two triangles each), moved by `shift` along x.
-    fn sphere(n: usize, shift: f64) -> Vec<[[f64; 3]; 3]> {
-        let p = |a: usize, b: usize| {
-            let (th, ph) = (PI * a as f64 / n as f64, TAU * b as f64 / (2 * n) as f64);
-            [th.sin() * ph.cos() + shift, th.cos(), th.sin() * ph.sin()]
-        };
-        let mut tris = Vec::new();
-        for a in 0..n {
-            for b in 0..2 * n {
-                tris.push([p(a, b), p(a + 1, b), p(a + 1, b + 1)]);
-                tris.push([p(a, b), p(a + 1, b + 1), p(a, b + 1)]);
-            }
-        }
-        tris
     }
 
     /// Adversarial pieces for radial rays: a flat cut-out holding the axis (every ray meets it
@@ -467,25 +402,6 @@ mod tests {
             t.push([v(q[0]), v(q[2]), v(q[3])]);
         }
         t
-    }
-
-    /// Random triangles, a third of them slivers (two vertices within 1e-4 of each other).
-    fn soup(seed: u64, n: usize) -> Vec<[[f64; 3]; 3]> {
-        let mut rng = SplitMix64::new(seed);
-        (0..n)
-            .map(|k| {
-                let mut p = || {
-                    [
-                        rng.range(-1.0, 1.0),
-                        rng.range(-1.0, 1.0),
-                        rng.range(-1.0, 1.0),
-                    ]
-                };
-                let (a, b) = (p(), p());
-                let c = if k % 3 == 0 { a.map(|x| x + 1e-4) } else { p() };
-                [a, b, c]
-            })
-            .collect()
     }
 
     #[test]

@@ -1,0 +1,94 @@
+//! Meshes and checks shared by the tests of the grid tracers ([`crate::binned`],
+//! [`crate::radial`]).
+
+use std::f64::consts::{PI, TAU};
+
+use crate::geometry::Ray;
+use crate::mesh::{Mesh, MeshLoadOptions};
+use crate::rng::SplitMix64;
+
+pub(crate) fn mesh(tris: Vec<[[f64; 3]; 3]>) -> Mesh {
+    Mesh::from_raw_triangles("test", tris, &MeshLoadOptions::default()).unwrap()
+}
+
+/// A UV sphere of `n` × `2n` quads (two triangles each), moved by `shift` along x.
+pub(crate) fn sphere(n: usize, shift: f64) -> Vec<[[f64; 3]; 3]> {
+    let p = |a: usize, b: usize| {
+        let (th, ph) = (PI * a as f64 / n as f64, TAU * b as f64 / (2 * n) as f64);
+        [th.sin() * ph.cos() + shift, th.cos(), th.sin() * ph.sin()]
+    };
+    let mut tris = Vec::new();
+    for a in 0..n {
+        for b in 0..2 * n {
+            tris.push([p(a, b), p(a + 1, b), p(a + 1, b + 1)]);
+            tris.push([p(a, b), p(a + 1, b + 1), p(a, b + 1)]);
+        }
+    }
+    tris
+}
+
+/// Random triangles, a third of them slivers (two vertices within 1e-4 of each other).
+pub(crate) fn soup(seed: u64, n: usize) -> Vec<[[f64; 3]; 3]> {
+    let mut rng = SplitMix64::new(seed);
+    (0..n)
+        .map(|k| {
+            let mut p = || {
+                [
+                    rng.range(-1.0, 1.0),
+                    rng.range(-1.0, 1.0),
+                    rng.range(-1.0, 1.0),
+                ]
+            };
+            let (a, b) = (p(), p());
+            let c = if k % 3 == 0 { a.map(|x| x + 1e-4) } else { p() };
+            [a, b, c]
+        })
+        .collect()
+}
+
+/// Checks the binned hit `binned` of ray `k` (`ray`, window `(t_min, t_max)`) against every
+/// triangle (the nearest hit of the same `f32` triangle test, the first in triangle order among
+/// equal distances: exactly) and against the BVH walk (never nearer than the binned hit; where
+/// the triangles differ at the same distance both meet the ray there). Returns `(tie, culled)`:
+/// whether the walk reports another triangle at the same distance, and whether its box culling
+/// drops a hit that the triangle test accepts (the walk misses or hits farther).
+pub(crate) fn check_ray(
+    mesh: &Mesh,
+    ray: &Ray,
+    (t_min, t_max): (f64, f64),
+    binned: Option<(usize, f32)>,
+    k: usize,
+) -> (bool, bool) {
+    let mut bray = Mesh::to_bvh_ray(ray, t_min, t_max);
+    let mut all = None;
+    for (t, tri) in mesh.traced().triangles.iter().enumerate() {
+        let d = tri.intersect(&bray);
+        if d < bray.tmax {
+            bray.tmax = d;
+            all = Some((t, d));
+        }
+    }
+    assert_eq!(
+        binned, all,
+        "ray {k}: binned {binned:?}, nearest of all triangles {all:?}"
+    );
+    match (mesh.first_hit(ray, t_min, t_max), binned) {
+        (None, None) => (false, false),
+        (Some((ta, da)), Some((tb, db))) if da.to_bits() == db.to_bits() => {
+            if ta != tb {
+                let bray = Mesh::to_bvh_ray(ray, t_min, t_max);
+                for t in [ta, tb] {
+                    assert_eq!(
+                        mesh.traced().triangles[t].intersect(&bray).to_bits(),
+                        da.to_bits(),
+                        "ray {k}: triangles {ta} / {tb} do not tie"
+                    );
+                }
+            }
+            (ta != tb, false)
+        }
+        (Some((_, da)), Some((_, db))) if db < da => (false, true),
+        (None, Some(_)) => (false, true),
+        (a, b) => panic!("ray {k}: walked {a:?}, binned {b:?}"),
+    }
+}

@@ -112,10 +112,22 @@ impl<'a> MeshTracer<'a> {
             bands,
         })
     }
+}
 
-    /// Traces rows `rows` (all within band `b`) into `out`, passing each ray and its nearest
-    /// `(triangle, distance)` to `emit`.
-    pub(crate) fn trace_band<T>(
+impl BandTracer for MeshTracer<'_> {
+    fn mesh(&self) -> &Mesh {
+        self.mesh
+    }
+
+    fn bands(&self) -> &Bands {
+        &self.bands
+    }
+
+    fn size(&self) -> (usize, usize) {
+        (self.rays.columns.len(), self.rays.rows.len())
+    }
+
+    fn trace_band<T>(
         &self,
         b: usize,
         rows: Range<usize>,
@@ -201,29 +213,49 @@ impl<'a> MeshTracer<'a> {
             };
         }
     }
+}
 
+/// A mesh tracer that works one band of rows at a time ([`MeshTracer`] for parallel rays,
+/// [`crate::radial::RadialTracer`] for radial ones): it traces any rows band by band, and is
+/// the [`ParallelTracer`] that shades its hits with [`Mesh::hit_at`].
+pub(crate) trait BandTracer: Sync {
+    /// The mesh traced.
+    fn mesh(&self) -> &Mesh;
+    /// The mesh's triangles sorted into bands of rows.
+    fn bands(&self) -> &Bands;
+    /// The grid's columns and rows.
+    fn size(&self) -> (usize, usize);
+    /// Traces rows `rows` (all within band `b`) into `out`, passing each ray and its nearest
+    /// `(triangle, distance)` to `emit`.
+    fn trace_band<T>(
+        &self,
+        b: usize,
+        rows: Range<usize>,
+        out: &mut [T],
+        emit: impl Fn(&Ray, Option<(usize, f32)>) -> T,
+    );
     /// Traces rows `rows` (any range) band by band.
-    pub(crate) fn trace<T>(
+    fn trace<T>(
         &self,
         rows: Range<usize>,
         out: &mut [T],
         emit: impl Fn(&Ray, Option<(usize, f32)>) -> T,
     ) {
-        let (w, h) = (self.rays.columns.len(), self.rays.rows.len());
-        self.bands.split(w, h, rows, out, |b, rows, out| {
+        let (w, h) = self.size();
+        self.bands().split(w, h, rows, out, |b, rows, out| {
             self.trace_band(b, rows, out, &emit);
         });
     }
 }
 
-impl ParallelTracer for MeshTracer<'_> {
+impl<B: BandTracer> ParallelTracer for B {
     fn band_rows(&self) -> usize {
-        self.bands.band
+        self.bands().band
     }
 
     fn trace_rows(&self, rows: Range<usize>, out: &mut [Option<Hit>]) {
         self.trace(rows, out, |ray, hit| {
-            hit.map(|(t, d)| self.mesh.hit_at(ray, t, d))
+            hit.map(|(t, d)| self.mesh().hit_at(ray, t, d))
         });
     }
 }

@@ -49,10 +49,9 @@ use obvhs::ray::Ray as BvhRay;
 use obvhs::triangle::Triangle;
 use rayon::prelude::*;
 
-use crate::binned::{Axis, Bands, inf};
-use crate::geometry::{Hit, RadialRays, Ray};
+use crate::binned::{Axis, BandTracer, Bands, inf};
+use crate::geometry::{RadialRays, Ray};
 use crate::mesh::Mesh;
-use crate::shape::ParallelTracer;
 
 /// The binning tracer of a [`Mesh`] for one grid of radial rays.
 pub(crate) struct RadialTracer<'a> {
@@ -167,10 +166,22 @@ impl<'a> RadialTracer<'a> {
         }
         out
     }
+}
 
-    /// Traces rows `rows` (all within band `b`) into `out`, passing each ray and its nearest
-    /// `(triangle, distance)` to `emit`.
-    pub(crate) fn trace_band<T>(
+impl BandTracer for RadialTracer<'_> {
+    fn mesh(&self) -> &Mesh {
+        self.mesh
+    }
+
+    fn bands(&self) -> &Bands {
+        &self.bands
+    }
+
+    fn size(&self) -> (usize, usize) {
+        (self.rays.columns, self.rays.rows.len())
+    }
+
+    fn trace_band<T>(
         &self,
         b: usize,
         rows: Range<usize>,
@@ -226,31 +237,6 @@ impl<'a> RadialTracer<'a> {
                 emit(&band_rays[k], Some((best_t[k] as usize, best_d[k])))
             };
         }
-    }
-
-    /// Traces rows `rows` (any range) band by band.
-    pub(crate) fn trace<T>(
-        &self,
-        rows: Range<usize>,
-        out: &mut [T],
-        emit: impl Fn(&Ray, Option<(usize, f32)>) -> T,
-    ) {
-        let (w, h) = (self.rays.columns, self.rays.rows.len());
-        self.bands.split(w, h, rows, out, |b, rows, out| {
-            self.trace_band(b, rows, out, &emit);
-        });
-    }
-}
-
-impl ParallelTracer for RadialTracer<'_> {
-    fn band_rows(&self) -> usize {
-        self.bands.band
-    }
-
-    fn trace_rows(&self, rows: Range<usize>, out: &mut [Option<Hit>]) {
-        self.trace(rows, out, |ray, hit| {
-            hit.map(|(t, d)| self.mesh.hit_at(ray, t, d))
-        });
     }
 }
 

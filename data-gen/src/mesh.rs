@@ -20,12 +20,15 @@
 
 use std::path::Path;
 use std::sync::OnceLock;
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 use glam::{DVec3, Vec3, Vec3A};
 use obvhs::{
     BvhBuildParams,
-    cwbvh::{CwBvh, builder::build_cwbvh_from_tris},
+    aabb::Aabb,
+    bvh2::reinsertion::ReinsertionOptimizer,
+    cwbvh::{CwBvh, bvh2_to_cwbvh::bvh2_to_cwbvh},
+    ploc::PlocBuilder,
     ray::{Ray as BvhRay, RayHit},
     triangle::Triangle,
 };
@@ -98,6 +101,47 @@ pub(crate) struct Traced {
     build_time: Duration,
 }
 
+/// The BVH's boxes are padded by this fraction of the mesh's largest extent.
+///
+/// The walk's slab test takes `±2²³` for the inverse of a direction component of at most
+/// `f32::EPSILON` (`obvhs::ray::safe_inverse`), so a ray lying in the face of a tight box (an
+/// edge of a mesh symmetric about an axis plane, a flat mesh seen edge-on) leaves that box at
+/// `t = 0` while the triangle test inside still accepts its hit: the walk would see through
+/// the surface. A pad `p` of the largest extent `s` keeps every point the triangle test accepts
+/// (within a few `f32` ulps of its triangle) strictly inside every box on its path, and the
+/// clamped inverse still spans `p·2²³ ≈ 128·s` on either side, beyond any ray window
+/// (`≤ 4·s`). Padding only adds candidates: the nearest hit is unchanged wherever the tight
+/// boxes found it.
+const BOX_PAD: f32 = 1.0 / 65536.0;
+
+/// Builds `obvhs`'s CWBVH as its `build_cwbvh_from_tris` does with
+/// [`BvhBuildParams::medium_build`] (PLOC, then reinsertion, then conversion with at most 3
+/// triangles per leaf), with every binary node's box padded by [`BOX_PAD`] before the
+/// conversion (the binary tree's topology is that of the tight boxes). Serial.
+fn build_padded_cwbvh(triangles: &[Triangle]) -> CwBvh {
+    let params = BvhBuildParams::medium_build();
+    let mut bvh2 = PlocBuilder::with_capacity(triangles.len()).build(
+        params.ploc_search_distance,
+        triangles,
+        (0..triangles.len() as u32).collect(),
+        params.sort_precision,
+        params.search_depth_threshold,
+    );
+    ReinsertionOptimizer::default().run(&mut bvh2, params.reinsertion_batch_ratio, None);
+    if let Some(root) = bvh2.nodes.first() {
+        let root = *root.aabb();
+        let pad = Vec3A::splat((root.max - root.min).max_element() * BOX_PAD);
+        for node in &mut bvh2.nodes {
+            let b = *node.aabb();
+            node.set_aabb(Aabb {
+                min: b.min - pad,
+                max: b.max + pad,
+            });
+        }
+    }
+    bvh2_to_cwbvh(&bvh2, params.max_prims_per_leaf.clamp(1, 3), true, false)
+}
+
 impl Traced {
     /// Builds the BVH over `triangles` and stores them in its leaf order (spatially coherent,
     /// so that neighbouring rays read neighbouring triangles; the BVH then indexes them
@@ -105,9 +149,9 @@ impl Traced {
     /// is skipped if the leaves are not a permutation of the triangles. Serial (`obvhs`
     /// without its `parallel` feature): it never waits on the thread pool.
     fn build(triangles: &[Triangle], colors: &[TriColor]) -> Self {
-        let mut build_time = Duration::ZERO;
-        let mut bvh =
-            build_cwbvh_from_tris(triangles, BvhBuildParams::medium_build(), &mut build_time);
+        let start = Instant::now();
+        let mut bvh = build_padded_cwbvh(triangles);
+        let build_time = start.elapsed();
         let order = &bvh.primitive_indices;
         let mut seen = vec![false; triangles.len()];
         let permutation = order.len() == triangles.len()

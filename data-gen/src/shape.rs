@@ -49,7 +49,7 @@ pub trait Shape: Send + Sync {
     /// [`ParallelTracer::trace_rows`] then traces bands of rows, from any thread. Each hit is
     /// the one [`Shape::intersect`] finds for that ray, up to the exceptions stated by the
     /// implementation ([`crate::Mesh`]: where two triangles meet a ray at the same `f32`
-    /// distance, and where its BVH walk culls a hit on a triangle's edge).
+    /// distance).
     ///
     /// The default traces each ray with [`Shape::intersect`]. Cost: up to `O(rays.len())`.
     fn parallel_tracer<'a>(&'a self, rays: &'a ParallelRays<'a>) -> Box<dyn ParallelTracer + 'a> {

@@ -48,17 +48,16 @@ pub(crate) fn soup(seed: u64, n: usize) -> Vec<[[f64; 3]; 3]> {
 
 /// Checks the binned hit `binned` of ray `k` (`ray`, window `(t_min, t_max)`) against every
 /// triangle (the nearest hit of the same `f32` triangle test, the first in triangle order among
-/// equal distances: exactly) and against the BVH walk (never nearer than the binned hit; where
-/// the triangles differ at the same distance both meet the ray there). Returns `(tie, culled)`:
-/// whether the walk reports another triangle at the same distance, and whether its box culling
-/// drops a hit that the triangle test accepts (the walk misses or hits farther).
+/// equal distances: exactly) and against the BVH walk (the same distance, bitwise; where the
+/// triangles differ, both meet the ray there). Returns whether the walk reports another
+/// triangle at the same distance (a tie).
 pub(crate) fn check_ray(
     mesh: &Mesh,
     ray: &Ray,
     (t_min, t_max): (f64, f64),
     binned: Option<(usize, f32)>,
     k: usize,
-) -> (bool, bool) {
+) -> bool {
     let mut bray = Mesh::to_bvh_ray(ray, t_min, t_max);
     let mut all = None;
     for (t, tri) in mesh.traced().triangles.iter().enumerate() {
@@ -73,7 +72,7 @@ pub(crate) fn check_ray(
         "ray {k}: binned {binned:?}, nearest of all triangles {all:?}"
     );
     match (mesh.first_hit(ray, t_min, t_max), binned) {
-        (None, None) => (false, false),
+        (None, None) => false,
         (Some((ta, da)), Some((tb, db))) if da.to_bits() == db.to_bits() => {
             if ta != tb {
                 let bray = Mesh::to_bvh_ray(ray, t_min, t_max);
@@ -85,10 +84,8 @@ pub(crate) fn check_ray(
                     );
                 }
             }
-            (ta != tb, false)
+            ta != tb
         }
-        (Some((_, da)), Some((_, db))) if db < da => (false, true),
-        (None, Some(_)) => (false, true),
         (a, b) => panic!("ray {k}: walked {a:?}, binned {b:?}"),
     }
 }

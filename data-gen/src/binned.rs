@@ -258,6 +258,10 @@ impl<B: BandTracer> ParallelTracer for B {
             hit.map(|(t, d)| self.mesh().hit_at(ray, t, d))
         });
     }
+
+    fn occluded_rows(&self, rows: Range<usize>, out: &mut [bool]) {
+        self.trace(rows, out, |_, hit| hit.is_some());
+    }
 }
 
 /// The triangles of each band of rows, in triangle order: band `b` holds rows

@@ -488,6 +488,17 @@ impl Shape for Mesh {
             .map(|(tri, t)| self.hit_at(ray, tri, t))
     }
 
+    /// The BVH walk stopped at the first triangle whose test accepts the ray, without shading.
+    /// Until its first hit the nearest-hit walk is exactly this walk (its window shrinks only
+    /// at a hit), so both agree.
+    fn occluded(&self, ray: &Ray, t_min: f64, t_max: f64) -> bool {
+        let bray = Self::to_bvh_ray(ray, t_min, t_max);
+        let tr = self.traced();
+        let (tris, idx) = (&tr.triangles, &tr.bvh.primitive_indices);
+        !tr.bvh
+            .ray_traverse_miss(bray, |r, id| tris[idx[id] as usize].intersect(r))
+    }
+
     /// Triangles binned over the grid ([`crate::binned`]) instead of a BVH walk per ray, when
     /// the grid has at least `3/4` as many rays as the mesh has triangles; smaller grids walk.
     ///

@@ -23,6 +23,13 @@ pub trait Shape: Send + Sync {
     fn name(&self) -> &str;
     /// First hit of `ray` with `t ∈ (t_min, t_max)`, or `None`.
     fn intersect(&self, ray: &Ray, t_min: f64, t_max: f64) -> Option<Hit>;
+    /// Whether `ray` meets the shape with `t ∈ (t_min, t_max)`: exactly
+    /// `self.intersect(ray, t_min, t_max).is_some()`, which is what the default computes. A
+    /// shape overrides it where it can stop at any hit and skip shading ([`crate::Mesh`]: the
+    /// BVH walk stops at the first triangle it meets).
+    fn occluded(&self, ray: &Ray, t_min: f64, t_max: f64) -> bool {
+        self.intersect(ray, t_min, t_max).is_some()
+    }
     /// Whether `p` is inside the solid.
     fn contains(&self, p: DVec3) -> bool;
     /// Axis-aligned bounds `(min, max)` of the solid.
@@ -84,6 +91,9 @@ impl Shape for RayByRay<'_> {
     fn intersect(&self, ray: &Ray, t_min: f64, t_max: f64) -> Option<Hit> {
         self.0.intersect(ray, t_min, t_max)
     }
+    fn occluded(&self, ray: &Ray, t_min: f64, t_max: f64) -> bool {
+        self.0.occluded(ray, t_min, t_max)
+    }
     fn contains(&self, p: DVec3) -> bool {
         self.0.contains(p)
     }
@@ -113,6 +123,16 @@ pub trait ParallelTracer: Sync {
     /// Traces rows `rows` of the grid into `out[(r − rows.start) · columns + c]`. `out` must hold
     /// `rows.len() × columns` entries; rows past the grid are not traced.
     fn trace_rows(&self, rows: Range<usize>, out: &mut [Option<Hit>]);
+    /// Whether each ray of rows `rows` meets the shape, laid out as [`Self::trace_rows`] lays
+    /// out its hits: exactly `trace_rows`' hits' `is_some()`, which is what the default
+    /// computes. Tracers override it to skip shading and stop at any hit.
+    fn occluded_rows(&self, rows: Range<usize>, out: &mut [bool]) {
+        let mut hits = vec![None; out.len()];
+        self.trace_rows(rows, &mut hits);
+        for (o, h) in out.iter_mut().zip(&hits) {
+            *o = h.is_some();
+        }
+    }
 }
 
 /// The first hits of every ray of `rays`, `out[r · columns + c]`, traced in bands of rows in
@@ -160,24 +180,63 @@ pub(crate) fn trace_grid_in_groups<T: Send>(
     out: &mut [T],
     consume: impl Fn(usize, &[Option<Hit>], &mut [T]) + Sync,
 ) {
-    if w == 0 || rows_per_group == 0 || out_per_group == 0 {
-        return;
+    let band = tracer.band_rows();
+    let trace = |rows, hits: &mut [Option<Hit>]| tracer.trace_rows(rows, hits);
+    let groups = Groups {
+        w,
+        h,
+        rows_per_group,
+        out_per_group,
+    };
+    groups.run(band, trace, out, consume);
+}
+
+/// A grid of `w × h` rays whose rows come in groups of `rows_per_group`, each owning
+/// `out_per_group` consecutive entries of an output ([`trace_grid_in_groups`]).
+pub(crate) struct Groups {
+    pub(crate) w: usize,
+    pub(crate) h: usize,
+    pub(crate) rows_per_group: usize,
+    pub(crate) out_per_group: usize,
+}
+
+impl Groups {
+    /// Runs `trace(rows, per_ray)` over chunks of whole groups and whole bands of `band` rows,
+    /// in parallel, and hands each chunk's per-ray results to `consume` as
+    /// [`trace_grid_in_groups`] does.
+    pub(crate) fn run<H: Clone + Default + Send, T: Send>(
+        &self,
+        band: usize,
+        trace: impl Fn(Range<usize>, &mut [H]) + Sync,
+        out: &mut [T],
+        consume: impl Fn(usize, &[H], &mut [T]) + Sync,
+    ) {
+        let Self {
+            w,
+            h,
+            rows_per_group,
+            out_per_group,
+        } = *self;
+        if w == 0 || rows_per_group == 0 || out_per_group == 0 {
+            return;
+        }
+        let band = band.max(1);
+        // Groups per chunk: the least number whose rows are a whole number of bands.
+        let groups = band / gcd(band, rows_per_group);
+        let groups_total = h / rows_per_group;
+        let len = (groups_total * out_per_group).min(out.len());
+        let out = &mut out[..len];
+        out.par_chunks_mut(groups * out_per_group)
+            .enumerate()
+            .for_each(|(chunk, out)| {
+                let first = chunk * groups;
+                let rows =
+                    first * rows_per_group..(first + out.len() / out_per_group) * rows_per_group;
+                let mut per_ray = vec![H::default(); rows.len() * w];
+                trace(rows, &mut per_ray);
+                consume(first, &per_ray, out);
+            });
     }
-    let band = tracer.band_rows().max(1);
-    // Groups per chunk: the least number whose rows are a whole number of bands.
-    let groups = band / gcd(band, rows_per_group);
-    let groups_total = h / rows_per_group;
-    let len = (groups_total * out_per_group).min(out.len());
-    let out = &mut out[..len];
-    out.par_chunks_mut(groups * out_per_group)
-        .enumerate()
-        .for_each(|(chunk, out)| {
-            let first = chunk * groups;
-            let rows = first * rows_per_group..(first + out.len() / out_per_group) * rows_per_group;
-            let mut hits = vec![None; rows.len() * w];
-            tracer.trace_rows(rows, &mut hits);
-            consume(first, &hits, out);
-        });
 }
 
 fn gcd(a: usize, b: usize) -> usize {
@@ -205,6 +264,20 @@ impl<S: Shape + ?Sized> ParallelTracer for OneByOne<'_, S> {
             for (c, o) in out.iter_mut().enumerate() {
                 let ray = (self.rays.ray)(c, r);
                 *o = self.shape.intersect(&ray, self.rays.t_min, self.rays.t_max);
+            }
+        }
+    }
+
+    fn occluded_rows(&self, rows: Range<usize>, out: &mut [bool]) {
+        let w = self.rays.columns.len();
+        if w == 0 {
+            return;
+        }
+        let rows = rows.start..rows.end.min(self.rays.rows.len());
+        for (r, out) in rows.zip(out.chunks_mut(w)) {
+            for (c, o) in out.iter_mut().enumerate() {
+                let ray = (self.rays.ray)(c, r);
+                *o = self.shape.occluded(&ray, self.rays.t_min, self.rays.t_max);
             }
         }
     }

@@ -5,7 +5,7 @@ use glam::Vec3;
 use crate::error::{DataGenError, finite, nonzero};
 use crate::geometry::{BoundingCylinder, Hit, PixelGrid, ViewGrid};
 use crate::image_io::RgbaImage;
-use crate::shape::{Shape, trace_in_groups};
+use crate::shape::{Groups, Shape, trace_in_groups};
 
 /// A directional light with an ambient term: `colour = albedo·(ambient + (1 − ambient)·max(0, n·l))`.
 ///
@@ -57,20 +57,8 @@ pub struct TruthParams {
 /// Renders the ground truth: premultiplied linear RGBA, alpha = coverage of the `k × k`
 /// sub-samples. Cost: `width × height × k²` rays, rows in parallel.
 pub fn render_truth(shape: &dyn Shape, params: &TruthParams) -> Result<RgbaImage, DataGenError> {
-    nonzero(params.width, "truth width")?;
-    nonzero(params.height, "truth height")?;
-    nonzero(params.supersample, "supersampling factor")?;
-    finite(params.angle, "view angle", 0)?;
-    params.cylinder.validate()?;
-    let grid = PixelGrid {
-        width: params.width,
-        height: params.height,
-        cylinder: params.cylinder,
-    };
-    let k = params.supersample;
-    let (w, h) = (params.width, params.height);
-    // The sub-sample rays of every pixel form one grid of `w·k × h·k` parallel rays.
-    let view = ViewGrid::new(&grid, params.angle, k);
+    let view = truth_view(params)?;
+    let (k, w, h) = (params.supersample, params.width, params.height);
     let ray = |c: usize, r: usize| view.ray(c, r);
     let rays = view.parallel_rays(&ray);
     let mut pixels = vec![[0.0f32; 4]; w * h];
@@ -82,6 +70,64 @@ pub fn render_truth(shape: &dyn Shape, params: &TruthParams) -> Result<RgbaImage
         height: params.height,
         pixels,
     })
+}
+
+/// The ground truth's alpha alone: `alpha[j·width + i]` is bitwise the alpha of pixel `(i, j)`
+/// of [`render_truth`] with the same parameters (the light is not used). The rays are the
+/// same; each only asks whether it meets the shape ([`Shape::occluded`],
+/// [`crate::ParallelTracer::occluded_rows`]), so it skips shading and a mesh's BVH walk stops
+/// at the first triangle met. Cost: `width × height × k²` occlusion rays, rows in parallel.
+pub fn render_silhouette(
+    shape: &dyn Shape,
+    params: &TruthParams,
+) -> Result<Vec<f32>, DataGenError> {
+    let view = truth_view(params)?;
+    let (k, w, h) = (params.supersample, params.width, params.height);
+    let ray = |c: usize, r: usize| view.ray(c, r);
+    let rays = view.parallel_rays(&ray);
+    let tracer = shape.parallel_tracer(&rays);
+    let mut alpha = vec![0.0f32; w * h];
+    let groups = Groups {
+        w: w * k,
+        h: h * k,
+        rows_per_group: k,
+        out_per_group: w,
+    };
+    let trace = |rows, met: &mut [bool]| tracer.occluded_rows(rows, met);
+    groups.run(tracer.band_rows(), trace, &mut alpha, |_, met, alpha| {
+        let wk = w * k;
+        for (jl, row) in alpha.chunks_mut(w).enumerate() {
+            for (i, a) in row.iter_mut().enumerate() {
+                // As `supersampled` counts and scales: the same `f32` operations.
+                let mut n = 0.0f32;
+                for sa in 0..k {
+                    for sb in 0..k {
+                        if met[(jl * k + sb) * wk + i * k + sa] {
+                            n += 1.0;
+                        }
+                    }
+                }
+                *a = n * (1.0 / (k * k) as f32);
+            }
+        }
+    });
+    Ok(alpha)
+}
+
+/// The sub-sample rays of every pixel of a truth render as one grid of `w·k × h·k` parallel
+/// rays, after checking the parameters.
+fn truth_view(params: &TruthParams) -> Result<ViewGrid, DataGenError> {
+    nonzero(params.width, "truth width")?;
+    nonzero(params.height, "truth height")?;
+    nonzero(params.supersample, "supersampling factor")?;
+    finite(params.angle, "view angle", 0)?;
+    params.cylinder.validate()?;
+    let grid = PixelGrid {
+        width: params.width,
+        height: params.height,
+        cylinder: params.cylinder,
+    };
+    Ok(ViewGrid::new(&grid, params.angle, params.supersample))
 }
 
 /// Shades the pixel rows of `pixels` (`w` per row) from the hits of their `k × k` sub-sample

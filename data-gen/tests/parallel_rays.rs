@@ -7,8 +7,9 @@
 
 use altrep_data_gen::{
     BoundingCylinder, Light, Mesh, MeshLoadOptions, OrthoFrame, ParallelRays, Ray, RayByRay,
-    RgbaImage, Sample, Shape, TruthParams, ViewParams, capture_frame, capture_view,
-    intersect_parallel, render_truth, render_truth_frame, shared_meshes,
+    RgbaImage, SCENE_SHAPES, Sample, Shape, TruthParams, ViewParams, capture_frame, capture_view,
+    intersect_parallel, render_silhouette, render_truth, render_truth_frame, scene_shape,
+    shared_meshes,
 };
 use glam::DVec3;
 
@@ -129,6 +130,62 @@ fn grid_captures_and_truths_are_those_of_the_ray_by_ray_walk() {
             mesh.name()
         );
     }
+}
+
+/// The silhouette alone (`render_silhouette`: occlusion rays, no shading, a mesh's walk stops at
+/// the first triangle) is bitwise the truth's alpha: on meshes traced binned and walked, the
+/// same meshes ray by ray, and the procedural scene shapes; at the coverage check's size and at
+/// sizes that bin the torus.
+#[test]
+fn silhouettes_are_the_truths_alpha_bitwise() {
+    let mut meshes = vec![torus(12), torus(40)];
+    meshes.extend(shared_meshes("the shipped meshes"));
+    let procedural: Vec<_> = SCENE_SHAPES
+        .iter()
+        .map(|n| scene_shape(n).unwrap())
+        .collect();
+    let walks: Vec<_> = meshes.iter().map(|m| RayByRay(m)).collect();
+    let shapes = meshes
+        .iter()
+        .map(|m| m as &dyn Shape)
+        .chain(walks.iter().map(|w| w as &dyn Shape))
+        .chain(procedural.iter().map(|c| c as &dyn Shape));
+    let (mut pixels, mut covered) = (0, 0);
+    for shape in shapes {
+        for (angle, size, k) in [
+            (0.37, 48, 2),
+            (std::f64::consts::FRAC_PI_2, 64, 3),
+            (2.5, 33, 1),
+        ] {
+            let params = TruthParams {
+                angle,
+                width: size,
+                height: size + 7,
+                supersample: k,
+                light: Light::default(),
+                cylinder: BoundingCylinder::default(),
+            };
+            let truth = render_truth(shape, &params).unwrap();
+            let alpha = render_silhouette(shape, &params).unwrap();
+            assert_eq!(alpha.len(), truth.pixels.len());
+            for (i, (a, p)) in alpha.iter().zip(&truth.pixels).enumerate() {
+                assert_eq!(
+                    a.to_bits(),
+                    p[3].to_bits(),
+                    "{} at {angle}: pixel {i}: silhouette {a}, truth alpha {}",
+                    shape.name(),
+                    p[3]
+                );
+            }
+            pixels += alpha.len();
+            covered += alpha.iter().filter(|&&a| a > 0.0).count();
+        }
+    }
+    // Not a vacuous comparison: a good share of the pixels are covered.
+    assert!(
+        covered * 10 >= pixels,
+        "{covered} of {pixels} pixels covered"
+    );
 }
 
 /// The public grid entry point on a hand-made grid (uneven columns, ascending rows, a tilted

@@ -6,10 +6,10 @@
 //! almost everywhere (radius 0), yet every reconstruction is a vertical line. Nothing in the
 //! texture itself shows the failure; the ground truth does.
 //!
-//! The check renders the object's true silhouette (ray-cast, [`render_truth`]) at `angles`
-//! camera angles `α_n = (n + 0.37)·2π/angles` (never a capture column) and the texture's exact
-//! reconstruction (direct warping, identical to inverse warping) at the same angles, and measures
-//! the **reproduced share** of the silhouette:
+//! The check renders the object's true silhouette (ray-cast: the ground truth's alpha,
+//! [`render_silhouette`]) at `angles` camera angles `α_n = (n + 0.37)·2π/angles` (never a
+//! capture column) and the texture's exact reconstruction (direct warping, identical to inverse
+//! warping) at the same angles, and measures the **reproduced share** of the silhouette:
 //!
 //! ```text
 //! share = Σ_pixels min(a_texture, a_truth) / Σ_pixels a_truth
@@ -22,11 +22,11 @@
 //! [`CylinderError::NothingVisible`], never a perfect score. The pipeline calls [`coverage`]
 //! and skips the representation with the same reason.
 //!
-//! Cost: `angles` ground-truth images (`size²·k²` rays each) and `angles` direct warps.
+//! Cost: `angles` silhouettes (`size²·k²` occlusion rays each) and `angles` direct warps.
 
 use std::f64::consts::TAU;
 
-use altrep_data_gen::{Light, RgbaImage, Shape, TruthParams, render_truth};
+use altrep_data_gen::{Light, RgbaImage, Shape, TruthParams, render_silhouette};
 use serde::{Deserialize, Serialize};
 
 use super::CylinderError;
@@ -115,9 +115,7 @@ impl Coverage {
     /// Measures the reproduced share from pairs of (texture reconstruction, truth) images.
     /// Errors: sizes differ; [`CylinderError::NothingVisible`] when every truth is empty.
     pub fn from_images(pairs: &[(f64, &RgbaImage, &RgbaImage)]) -> Result<Coverage, CylinderError> {
-        let mut per_angle = Vec::with_capacity(pairs.len());
-        let (mut truth, mut reproduced) = (0.0, 0.0);
-        for &(angle, image, reference) in pairs {
+        for &(_, image, reference) in pairs {
             if (image.width, image.height) != (reference.width, reference.height) {
                 return Err(crate::metrics::MetricsError::SizeMismatch {
                     a: (image.width, image.height),
@@ -125,9 +123,39 @@ impl Coverage {
                 }
                 .into());
             }
+        }
+        let alphas: Vec<(f64, Vec<f32>, Vec<f32>)> = pairs
+            .iter()
+            .map(|&(angle, image, reference)| {
+                let alpha = |i: &RgbaImage| i.pixels.iter().map(|p| p[3]).collect();
+                (angle, alpha(image), alpha(reference))
+            })
+            .collect();
+        let pairs: Vec<_> = alphas
+            .iter()
+            .map(|(g, a, b)| (*g, &a[..], &b[..]))
+            .collect();
+        Self::from_alphas(&pairs)
+    }
+
+    /// [`Coverage::from_images`] from the alpha channels alone: per angle, the
+    /// reconstruction's alpha and the truth's, one per pixel in the same order. Errors: the two
+    /// differ in length ([`crate::metrics::MetricsError::SizeMismatch`], lengths as widths of
+    /// one-row images); [`CylinderError::NothingVisible`] when every truth is empty.
+    pub fn from_alphas(pairs: &[(f64, &[f32], &[f32])]) -> Result<Coverage, CylinderError> {
+        let mut per_angle = Vec::with_capacity(pairs.len());
+        let (mut truth, mut reproduced) = (0.0, 0.0);
+        for &(angle, image, reference) in pairs {
+            if image.len() != reference.len() {
+                return Err(crate::metrics::MetricsError::SizeMismatch {
+                    a: (image.len(), 1),
+                    b: (reference.len(), 1),
+                }
+                .into());
+            }
             let (mut t, mut r) = (0.0f64, 0.0f64);
-            for (p, q) in image.pixels.iter().zip(&reference.pixels) {
-                let (a, b) = (f64::from(p[3]), f64::from(q[3]));
+            for (p, q) in image.iter().zip(reference) {
+                let (a, b) = (f64::from(*p), f64::from(*q));
                 if a.is_finite() && b.is_finite() {
                     t += b.max(0.0);
                     r += a.min(b).max(0.0);
@@ -179,7 +207,7 @@ pub fn coverage(
     let mut images = Vec::with_capacity(params.angles);
     for n in 0..params.angles {
         let angle = params.angle(n);
-        let truth = render_truth(
+        let truth = render_silhouette(
             shape,
             &TruthParams {
                 angle,
@@ -202,10 +230,14 @@ pub fn coverage(
                 light,
             },
         )?;
-        images.push((angle, render.image, truth));
+        let alpha: Vec<f32> = render.image.pixels.iter().map(|p| p[3]).collect();
+        images.push((angle, alpha, truth));
     }
-    let pairs: Vec<_> = images.iter().map(|(a, i, t)| (*a, i, t)).collect();
-    Coverage::from_images(&pairs)
+    let pairs: Vec<_> = images
+        .iter()
+        .map(|(a, i, t)| (*a, &i[..], &t[..]))
+        .collect();
+    Coverage::from_alphas(&pairs)
 }
 
 /// [`coverage`], then refuses a share below `params.min_share` with
@@ -218,4 +250,48 @@ pub fn check_coverage(
     let c = coverage(shape, texture, params)?;
     c.check(params.min_share)?;
     Ok(c)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn image(w: usize, alpha: &[f32]) -> RgbaImage {
+        RgbaImage {
+            width: w,
+            height: alpha.len() / w,
+            pixels: alpha
+                .iter()
+                .map(|&a| [0.3 * a, 0.2 * a, 0.1 * a, a])
+                .collect(),
+        }
+    }
+
+    #[test]
+    fn images_and_their_alpha_channels_measure_the_same_share() {
+        let (texture, truth) = ([1.0, 0.5, 0.0, 0.25], [1.0, 1.0, 0.75, 0.0]);
+        let (a, b) = (image(2, &texture), image(2, &truth));
+        let from_images = Coverage::from_images(&[(0.1, &a, &b)]).unwrap();
+        let from_alphas = Coverage::from_alphas(&[(0.1, &texture[..], &truth[..])]).unwrap();
+        assert_eq!(from_images, from_alphas);
+        // min(1, 1) + min(0.5, 1) + min(0, 0.75) + min(0.25, 0) over 1 + 1 + 0.75.
+        approx::assert_relative_eq!(from_alphas.share, 1.5 / 2.75, max_relative = 1e-15);
+        let c = image(4, &truth);
+        assert!(matches!(
+            Coverage::from_images(&[(0.1, &a, &c)]),
+            Err(CylinderError::Metrics(
+                crate::metrics::MetricsError::SizeMismatch { .. }
+            ))
+        ));
+        assert!(matches!(
+            Coverage::from_alphas(&[(0.1, &texture[..], &truth[..3])]),
+            Err(CylinderError::Metrics(
+                crate::metrics::MetricsError::SizeMismatch { .. }
+            ))
+        ));
+        assert!(matches!(
+            Coverage::from_alphas(&[(0.1, &texture[..], &[0.0; 4][..])]),
+            Err(CylinderError::NothingVisible { angles: 1 })
+        ));
+    }
 }

@@ -227,15 +227,42 @@ pub fn fold_weights(
 /// starts at `+0` and so is never `−0`, and adding a product with a zero (`±0`) leaves it bitwise
 /// unchanged. Cost: `O((n + m)·c)` per row of each pass, rows in parallel.
 pub fn resample(t: &Texture, w2: usize, h2: usize, filter: Filter, wrap: [WrapMode; 2]) -> Texture {
+    resample_skipping(t, &zero_rows(t), w2, h2, filter, wrap)
+}
+
+/// Which rows of `t` hold only zeros (`±0`): what [`resample_skipping`] skips. Cost: one pass,
+/// rows in parallel.
+pub fn zero_rows(t: &Texture) -> Vec<bool> {
+    let row_len = (t.width * t.channels).max(1);
+    t.data
+        .par_chunks(row_len)
+        .map(|r| !r.iter().fold(false, |any, &x| any | (x != 0.0)))
+        .collect()
+}
+
+/// [`resample`] with the all-zero rows of `t` given (`zero_row[j]` for row `j`, as
+/// [`zero_rows`] finds them), so that the levels resampled from one texture find them once.
+/// The result is bitwise that of [`resample`] whenever `zero_row` is [`zero_rows`]`(t)`.
+///
+/// # Panics
+/// If `zero_row` has fewer entries than `t` has rows.
+pub fn resample_skipping(
+    t: &Texture,
+    zero_row: &[bool],
+    w2: usize,
+    h2: usize,
+    filter: Filter,
+    wrap: [WrapMode; 2],
+) -> Texture {
+    assert!(
+        zero_row.len() >= t.height,
+        "{} zero-row flags for {} rows",
+        zero_row.len(),
+        t.height
+    );
     let c = t.channels;
     let wx = weights(filter, t.width, w2, wrap[0]);
     let wy = weights(filter, t.height, h2, wrap[1]);
-    let row_len = (t.width * c).max(1);
-    let zero_row: Vec<bool> = t
-        .data
-        .par_chunks(row_len)
-        .map(|r| r.iter().all(|&x| x == 0.0))
-        .collect();
     let mut tmp = vec![0.0f64; t.height * w2 * c];
     tmp.par_chunks_mut(w2 * c).enumerate().for_each(|(j, row)| {
         if zero_row[j] {
@@ -370,6 +397,11 @@ mod tests {
             let filter = [Filter::Box, Filter::Triangle, Filter::Kaiser, Filter::Lanczos][f];
             let wrap = [[WrapMode::Clamp; 2], [WrapMode::Repeat; 2], [WrapMode::Mirror, WrapMode::Clamp]][wrap];
             let (w2, h2) = (wx.min(w), hx.min(h));
+            let flagged = super::zero_rows(&t);
+            for (j, row) in t.data.chunks(w * c).enumerate() {
+                proptest::prop_assert_eq!(flagged[j], row.iter().all(|&x| x == 0.0));
+                proptest::prop_assert!(!zero_rows[j] || flagged[j]);
+            }
             let got = resample(&t, w2, h2, filter, wrap);
             let want = resample_reference(&t, w2, h2, filter, wrap);
             proptest::prop_assert_eq!(

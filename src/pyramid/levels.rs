@@ -13,7 +13,7 @@
 
 use rayon::prelude::*;
 
-use super::filter::{resample, wrap_index};
+use super::filter::{resample_skipping, wrap_index};
 use super::mip::{AlphaMode, ColourSpace, PyramidParams, Texture, WrapMode};
 use altrep_data_gen::{linear_to_srgb, srgb_to_linear};
 
@@ -158,15 +158,18 @@ fn coverage_scale(t: &Texture, ai: usize, r: f32, target: f64, wrap: [WrapMode; 
     best.1
 }
 
-/// One level of size `w2 × h2` from the prepared level 0 (see the module docs).
+/// One level of size `w2 × h2` from the prepared level 0 (see the module docs), whose all-zero
+/// rows are `zero_rows` ([`super::filter::zero_rows`]`(work0)`, found once for all its levels).
 pub fn build_level(
     work0: &Texture,
+    zero_rows: &[bool],
     w2: usize,
     h2: usize,
     p: &PyramidParams,
     coverage: Option<(f32, f64)>,
 ) -> Texture {
-    finish(resample(work0, w2, h2, p.filter, p.wrap), p, coverage)
+    let level = resample_skipping(work0, zero_rows, w2, h2, p.filter, p.wrap);
+    finish(level, p, coverage)
 }
 
 /// `(reference, coverage of level 0)` when the parameters ask to preserve coverage.

@@ -368,6 +368,7 @@ impl Pyramid {
         let base = Texture::new(base.width, base.height, base.channels, base.data)?;
         params.validate(base.channels)?;
         let work0 = super::levels::prepare(&base, &params);
+        let zero_rows = super::filter::zero_rows(&work0);
         let coverage = super::levels::coverage_target(&base, &params);
         let mut levels = vec![base];
         loop {
@@ -377,7 +378,7 @@ impl Pyramid {
             }
             let (w2, h2) = ((last.width / 2).max(1), (last.height / 2).max(1));
             levels.push(super::levels::build_level(
-                &work0, w2, h2, &params, coverage,
+                &work0, &zero_rows, w2, h2, &params, coverage,
             ));
         }
         Ok(Self { levels, params })

@@ -39,6 +39,7 @@ impl RipMap {
         let base = Texture::new(base.width, base.height, base.channels, base.data)?;
         params.validate(base.channels)?;
         let work0 = prepare(&base, &params);
+        let zero_rows = super::filter::zero_rows(&work0);
         let coverage = coverage_target(&base, &params);
         let (ws, hs) = (halvings(base.width), halvings(base.height));
         let pairs: Vec<(usize, usize)> = hs
@@ -52,7 +53,7 @@ impl RipMap {
                 if lu == 0 && lv == 0 {
                     base.clone()
                 } else {
-                    build_level(&work0, ws[lu], hs[lv], &params, coverage)
+                    build_level(&work0, &zero_rows, ws[lu], hs[lv], &params, coverage)
                 }
             })
             .collect();

@@ -249,37 +249,35 @@ pub(crate) struct OneByOne<'a, S: ?Sized> {
     pub(crate) rays: &'a ParallelRays<'a>,
 }
 
+impl<S: Shape + ?Sized> OneByOne<'_, S> {
+    /// `out[(r − rows.start) · columns + c] = f(ray (c, r))` for the rows of the grid in `rows`.
+    fn each_ray<T>(&self, rows: Range<usize>, out: &mut [T], f: impl Fn(&Ray) -> T) {
+        let w = self.rays.columns.len();
+        if w == 0 {
+            return;
+        }
+        let rows = rows.start..rows.end.min(self.rays.rows.len());
+        for (r, out) in rows.zip(out.chunks_mut(w)) {
+            for (c, o) in out.iter_mut().enumerate() {
+                *o = f(&(self.rays.ray)(c, r));
+            }
+        }
+    }
+}
+
 impl<S: Shape + ?Sized> ParallelTracer for OneByOne<'_, S> {
     fn band_rows(&self) -> usize {
         1
     }
 
     fn trace_rows(&self, rows: Range<usize>, out: &mut [Option<Hit>]) {
-        let w = self.rays.columns.len();
-        if w == 0 {
-            return;
-        }
-        let rows = rows.start..rows.end.min(self.rays.rows.len());
-        for (r, out) in rows.zip(out.chunks_mut(w)) {
-            for (c, o) in out.iter_mut().enumerate() {
-                let ray = (self.rays.ray)(c, r);
-                *o = self.shape.intersect(&ray, self.rays.t_min, self.rays.t_max);
-            }
-        }
+        let (t_min, t_max) = (self.rays.t_min, self.rays.t_max);
+        self.each_ray(rows, out, |ray| self.shape.intersect(ray, t_min, t_max));
     }
 
     fn occluded_rows(&self, rows: Range<usize>, out: &mut [bool]) {
-        let w = self.rays.columns.len();
-        if w == 0 {
-            return;
-        }
-        let rows = rows.start..rows.end.min(self.rays.rows.len());
-        for (r, out) in rows.zip(out.chunks_mut(w)) {
-            for (c, o) in out.iter_mut().enumerate() {
-                let ray = (self.rays.ray)(c, r);
-                *o = self.shape.occluded(&ray, self.rays.t_min, self.rays.t_max);
-            }
-        }
+        let (t_min, t_max) = (self.rays.t_min, self.rays.t_max);
+        self.each_ray(rows, out, |ray| self.shape.occluded(ray, t_min, t_max));
     }
 }
 

@@ -32,6 +32,7 @@ use obvhs::{
     ray::{Ray as BvhRay, RayHit},
     triangle::Triangle,
 };
+use rayon::prelude::*;
 
 use crate::binned::MeshTracer;
 use crate::error::DataGenError;
@@ -250,34 +251,41 @@ impl Mesh {
             message: e.to_string(),
         })?;
         let materials = materials.unwrap_or_default();
-        let mut positions = Vec::new();
-        let mut colors = Vec::new();
+        let total: usize = models.iter().map(|m| m.mesh.indices.len() / 3).sum();
+        let mut positions = Vec::with_capacity(total);
+        let mut colors = Vec::with_capacity(total);
         for model in &models {
             let m = &model.mesh;
-            let vertex = |k: usize| -> Result<[f64; 3], DataGenError> {
-                let i = m.indices[k] as usize;
-                let p =
-                    m.positions
-                        .get(3 * i..3 * i + 3)
-                        .ok_or_else(|| DataGenError::ObjParse {
-                            path: path.to_path_buf(),
-                            message: format!(
-                                "face refers to vertex {} which does not exist",
-                                i + 1
-                            ),
-                        })?;
-                Ok([f64::from(p[0]), f64::from(p[1]), f64::from(p[2])])
+            let faces = m.indices.len() / 3;
+            // The first face corner (in file order) that refers to a missing vertex.
+            let vertices = m.positions.len() / 3;
+            if let Some(&i) = m.indices[..3 * faces]
+                .iter()
+                .find(|&&i| i as usize >= vertices)
+            {
+                return Err(DataGenError::ObjParse {
+                    path: path.to_path_buf(),
+                    message: format!("face refers to vertex {} which does not exist", i + 1),
+                });
+            }
+            let vertex = |k: usize| {
+                let i = 3 * m.indices[k] as usize;
+                let p = &m.positions[i..i + 3];
+                [f64::from(p[0]), f64::from(p[1]), f64::from(p[2])]
             };
             let material_color = m
                 .material_id
                 .and_then(|id| materials.get(id))
                 .and_then(|mat| mat.diffuse)
                 .map(|d| Vec3::new(d[0], d[1], d[2]));
-            for tri in 0..m.indices.len() / 3 {
-                positions.push([vertex(3 * tri)?, vertex(3 * tri + 1)?, vertex(3 * tri + 2)?]);
-                let has_vc =
-                    m.vertex_color.len() == m.positions.len() && !m.vertex_color.is_empty();
-                colors.push(if has_vc {
+            let has_vc = m.vertex_color.len() == m.positions.len() && !m.vertex_color.is_empty();
+            positions.par_extend(
+                (0..faces)
+                    .into_par_iter()
+                    .map(|tri| [vertex(3 * tri), vertex(3 * tri + 1), vertex(3 * tri + 2)]),
+            );
+            colors.par_extend((0..faces).into_par_iter().map(|tri| {
+                if has_vc {
                     let c = |k: usize| {
                         let i = m.indices[3 * tri + k] as usize;
                         Vec3::new(
@@ -291,8 +299,8 @@ impl Mesh {
                     TriColor::Flat(c)
                 } else {
                     TriColor::Procedural
-                });
-            }
+                }
+            }));
         }
         let name = path
             .file_stem()
@@ -318,17 +326,15 @@ impl Mesh {
         options: &MeshLoadOptions,
     ) -> Result<Self, DataGenError> {
         options.cylinder.validate()?;
-        for (t, tri) in positions.iter().enumerate() {
-            for v in tri {
-                if v.iter().any(|c| !c.is_finite()) {
-                    return Err(DataGenError::NonFinite {
-                        what: format!("vertex of triangle {t} in {name}"),
-                        index: t,
-                    });
-                }
-            }
+        let finite = |tri: &[[f64; 3]; 3]| tri.iter().flatten().all(|c| c.is_finite());
+        if let Some(t) = positions.par_iter().position_first(|tri| !finite(tri)) {
+            return Err(DataGenError::NonFinite {
+                what: format!("vertex of triangle {t} in {name}"),
+                index: t,
+            });
         }
-        // Bounds of the raw vertices.
+        // Bounds of the raw vertices, in file order (the sign of a zero bound may depend on
+        // the order, so this stays serial).
         let (lo, hi) = positions.iter().flatten().fold(
             (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)),
             |(lo, hi), v| (lo.min(DVec3::from(*v)), hi.max(DVec3::from(*v))),
@@ -337,14 +343,15 @@ impl Mesh {
             return Err(DataGenError::EmptyMesh { name });
         }
         let centre = DVec3::new(0.5 * (lo.x + hi.x), lo.y, 0.5 * (lo.z + hi.z));
+        // Non-negative, never NaN: the maximum is the same in any order.
         let max_radius = positions
-            .iter()
+            .par_iter()
             .flatten()
             .map(|v| {
                 let d = DVec3::from(*v) - centre;
                 (d.x * d.x + d.z * d.z).sqrt()
             })
-            .fold(0.0, f64::max);
+            .reduce(|| 0.0, f64::max);
         let height = hi.y - lo.y;
         let cyl = options.cylinder;
         let scale = match (max_radius > 0.0, height > 0.0) {
@@ -360,19 +367,19 @@ impl Mesh {
             let p = (DVec3::from(*v) - centre) * scale + DVec3::new(0.0, lift, 0.0);
             Vec3A::new(p.x as f32, p.y as f32, p.z as f32)
         };
-        let mut triangles = Vec::with_capacity(positions.len());
-        let mut kept_colors = Vec::with_capacity(positions.len());
-        for (tri, color) in positions.iter().zip(colors) {
-            let t = Triangle {
-                v0: to_f32(&tri[0]),
-                v1: to_f32(&tri[1]),
-                v2: to_f32(&tri[2]),
-            };
-            if (t.v1 - t.v0).cross(t.v2 - t.v0).length_squared() > 0.0 {
-                triangles.push(t);
-                kept_colors.push(color);
-            }
-        }
+        // Degenerate triangles (zero area in `f32`) are dropped; the order is kept.
+        let (triangles, mut kept_colors): (Vec<Triangle>, Vec<TriColor>) = positions
+            .par_iter()
+            .zip(colors)
+            .filter_map(|(tri, color)| {
+                let t = Triangle {
+                    v0: to_f32(&tri[0]),
+                    v1: to_f32(&tri[1]),
+                    v2: to_f32(&tri[2]),
+                };
+                ((t.v1 - t.v0).cross(t.v2 - t.v0).length_squared() > 0.0).then_some((t, color))
+            })
+            .unzip();
         if triangles.is_empty() {
             return Err(DataGenError::EmptyMesh { name });
         }

@@ -1,10 +1,12 @@
-//! Foundation benchmarks: ray-casting throughput of captures (procedural and mesh) and the mip
-//! pyramid's build and trilinear sampling. `cargo bench --bench foundation`.
+//! Foundation benchmarks: ray-casting throughput of captures (procedural and mesh), the
+//! coverage check's silhouettes against full truths, and the mip pyramid's build and trilinear
+//! sampling. `cargo bench --bench foundation`.
 
+use altrep::cylinder::CoverageParams;
 use altrep::mip::{Pyramid, PyramidParams, Texture, WrapMode};
 use altrep_data_gen::{
-    BoundingCylinder, CylinderParams, RayByRay, Shape, ViewParams, capture_cylinder, capture_view,
-    scene_shape, shared_mesh,
+    BoundingCylinder, CylinderParams, Light, RayByRay, Shape, TruthParams, ViewParams,
+    capture_cylinder, capture_view, render_silhouette, render_truth, scene_shape, shared_mesh,
 };
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
 
@@ -111,6 +113,51 @@ fn cylinder_rays(c: &mut Criterion) {
                 b.iter(|| one.install(|| capture_cylinder(shape, &params).unwrap()))
             });
         }
+    }
+    g.finish();
+}
+
+/// The cylinder coverage check's ground truths (8 angles of 48² pixels, 2 × 2 sub-samples,
+/// `CoverageParams::default()`): the shaded truth it rendered before against the silhouette it
+/// renders now (`render_silhouette`, the same alpha bitwise), on one thread.
+fn coverage_truths(c: &mut Criterion) {
+    let p = CoverageParams::default();
+    let rays = p.angles * (p.size * p.supersample).pow(2);
+    let mut g = c.benchmark_group("coverage_truths_8x48x48k2");
+    g.throughput(Throughput::Elements(rays as u64));
+    g.sample_size(10);
+    let one = one_thread();
+    for m in ["teapot", "stanford-bunny"] {
+        let Some(mesh) = shared_mesh(m, "a coverage_truths mesh") else {
+            continue;
+        };
+        mesh.prepare_rays();
+        let params = |n: usize| TruthParams {
+            angle: p.angle(n),
+            width: p.size,
+            height: p.size,
+            supersample: p.supersample,
+            light: Light::default(),
+            cylinder: BoundingCylinder::default(),
+        };
+        g.bench_function(format!("{m}/truth/1_thread"), |b| {
+            b.iter(|| {
+                one.install(|| {
+                    (0..p.angles)
+                        .map(|n| render_truth(&mesh, &params(n)).unwrap().pixels.len())
+                        .sum::<usize>()
+                })
+            })
+        });
+        g.bench_function(format!("{m}/silhouette/1_thread"), |b| {
+            b.iter(|| {
+                one.install(|| {
+                    (0..p.angles)
+                        .map(|n| render_silhouette(&mesh, &params(n)).unwrap().len())
+                        .sum::<usize>()
+                })
+            })
+        });
     }
     g.finish();
 }
@@ -222,6 +269,7 @@ criterion_group!(
     ray_casting,
     ray_casting_bound,
     cylinder_rays,
+    coverage_truths,
     mip
 );
 criterion_main!(benches);

@@ -734,3 +734,70 @@ fn barycentric(tri: &Triangle, p: DVec3) -> [f32; 3] {
     let s: f64 = w.iter().sum();
     w.map(|x| (x / s) as f32)
 }
+
+#[cfg(test)]
+mod tests {
+    use proptest::prelude::*;
+
+    use super::*;
+    use crate::test_meshes::{mesh, soup};
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(64))]
+        /// Rays along the axes through the mesh's own vertices lie in the faces of the BVH's
+        /// leaf boxes (the adversarial case of `BOX_PAD`), on random soups of which a share is
+        /// squashed onto the plane `z = 0.25`, and a random ray through each vertex: the walk's
+        /// distance is bitwise the nearest of the triangle test over all triangles, and
+        /// `occluded` is exactly whether the walk finds a hit.
+        #[test]
+        fn the_padded_walk_finds_the_nearest_hit_on_rays_in_box_faces(
+            seed in any::<u64>(),
+            n in 1usize..80,
+            flat in 0.0f64..1.0,
+            dx in -1.0f64..1.0, dy in -1.0f64..1.0, dz in -1.0f64..1.0,
+        ) {
+            let mut tris = soup(seed, n);
+            for t in tris.iter_mut().take((flat * n as f64) as usize) {
+                for v in t.iter_mut() {
+                    v[2] = 0.25;
+                }
+            }
+            let m = mesh(tris);
+            let tr = m.traced();
+            let random = DVec3::new(dx, dy, dz);
+            prop_assume!(random.length() > 1e-3);
+            let dirs = [
+                DVec3::X,
+                DVec3::NEG_X,
+                DVec3::Y,
+                DVec3::NEG_Y,
+                DVec3::Z,
+                DVec3::NEG_Z,
+                random.normalize(),
+            ];
+            let vertices: Vec<DVec3> = tr
+                .triangles
+                .iter()
+                .flat_map(|t| [t.v0, t.v1, t.v2])
+                .map(|v| DVec3::new(v.x.into(), v.y.into(), v.z.into()))
+                .collect();
+            for (k, v) in vertices.iter().enumerate().take(90) {
+                for dir in dirs {
+                    let ray = Ray::new(*v - 3.0 * dir, dir);
+                    let mut bray = Mesh::to_bvh_ray(&ray, 0.0, 6.0);
+                    let mut nearest = None;
+                    for tri in &tr.triangles {
+                        let d = tri.intersect(&bray);
+                        if d < bray.tmax {
+                            bray.tmax = d;
+                            nearest = Some(d.to_bits());
+                        }
+                    }
+                    let walked = m.first_hit(&ray, 0.0, 6.0).map(|(_, d)| d.to_bits());
+                    prop_assert_eq!(walked, nearest, "vertex {}, direction {}", k, dir);
+                    prop_assert_eq!(m.occluded(&ray, 0.0, 6.0), walked.is_some());
+                }
+            }
+        }
+    }
+}

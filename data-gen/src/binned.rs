@@ -528,24 +528,14 @@ mod tests {
     use super::*;
     use crate::frame::OrthoFrame;
     use crate::geometry::{BoundingCylinder, PixelGrid, ViewGrid, direction, screen_right};
-    use crate::mesh::MeshLoadOptions;
-    use crate::test_meshes::{check_ray, mesh, soup, sphere};
+    use crate::shape::Shape;
+    use crate::test_meshes::{check_traced, mesh, soup, sphere, squash_flat};
 
     /// Checks the binned grid ray by ray ([`check_ray`]). Returns the number of ties: rays where
     /// the walk reports another triangle at the same distance.
     fn check_grid(mesh: &Mesh, rays: &ParallelRays) -> usize {
-        let mut binned = vec![None; rays.len()];
         let tracer = MeshTracer::new(mesh, rays).expect("the grid was not binned");
-        tracer.trace(0..rays.rows.len(), &mut binned, |_, h| h);
-        let w = rays.columns.len();
-        binned
-            .iter()
-            .enumerate()
-            .filter(|&(k, b)| {
-                let ray = (rays.ray)(k % w, k / w);
-                check_ray(mesh, &ray, (rays.t_min, rays.t_max), *b, k)
-            })
-            .count()
+        check_traced(mesh, &tracer, rays.ray, (rays.t_min, rays.t_max))
     }
 
     /// The `k × k` sub-sample grid of a `w × h` frame along `dir`, as
@@ -623,23 +613,18 @@ mod tests {
     /// the nearest hit over all triangles, on views and frames of each mesh.
     #[test]
     fn shipped_meshes_are_traced_exactly() {
-        let paths = crate::shared::shared_mesh_paths("the shipped meshes");
-        for path in paths {
-            let m = Mesh::load_obj(&path, &MeshLoadOptions::default()).unwrap();
+        for m in crate::shared_meshes("the shipped meshes") {
             let (mut ties, mut rays) = (0, 0);
             for (angle, n) in [(0.0, 24), (PI / 2.0, 19), (2.0, 21)] {
                 (ties, rays) = (ties + check_view(&m, angle, n, n), rays + n * n);
             }
             ties += check_frame(&m, DVec3::new(0.3, 0.8, -0.5), 14, 14);
             rays += 4 * 14 * 14;
-            eprintln!(
-                "{}: {rays} rays, {ties} ties with the BVH walk",
-                path.display()
-            );
+            eprintln!("{}: {rays} rays, {ties} ties with the BVH walk", m.name());
             assert!(
                 ties * 100 <= rays,
                 "{}: {ties} ties in {rays} rays",
-                path.display()
+                m.name()
             );
         }
     }
@@ -726,11 +711,7 @@ mod tests {
         ) {
             let mut tris = soup(seed, n);
             // Squash a share of the soup into the plane y = 0.5 (edge-on from horizontal views).
-            for t in tris.iter_mut().take((flat * n as f64) as usize) {
-                for v in t.iter_mut() {
-                    v[1] = 0.5 + 1e-7 * v[1];
-                }
-            }
+            squash_flat(&mut tris, (flat * n as f64) as usize);
             let m = mesh(tris);
             let dir = DVec3::new(dx, dy, dz);
             prop_assume!(dir.length() > 1e-3);

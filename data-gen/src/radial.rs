@@ -318,8 +318,8 @@ mod tests {
     use proptest::prelude::*;
 
     use super::*;
-    use crate::mesh::MeshLoadOptions;
-    use crate::test_meshes::{check_ray, mesh, soup, sphere};
+    use crate::shape::Shape;
+    use crate::test_meshes::{check_traced, mesh, soup, sphere, squash_flat};
 
     /// Checks the binned grid ray by ray ([`check_ray`]). Returns the number of ties: rays where
     /// the walk reports another triangle at the same distance.
@@ -327,15 +327,8 @@ mod tests {
     /// Rays along `x` or `z` (columns at multiples of `π/2`) lie in the faces of tight boxes
     /// where a mesh is symmetric about that plane; the walk's padded boxes keep their hits.
     fn check_grid(mesh: &Mesh, rays: &RadialRays) -> usize {
-        let mut binned = vec![None; rays.len()];
         let tracer = RadialTracer::new(mesh, rays).expect("the grid was not binned");
-        tracer.trace(0..rays.rows.len(), &mut binned, |_, h| h);
-        let w = rays.columns;
-        binned
-            .iter()
-            .enumerate()
-            .filter(|&(k, b)| check_ray(mesh, &rays.ray(k % w, k / w), (0.0, rays.t_max()), *b, k))
-            .count()
+        check_traced(mesh, &tracer, |c, r| rays.ray(c, r), (0.0, rays.t_max()))
     }
 
     /// `h` row heights spread over `[y0, y1]`, from the top down as a capture lays them out.
@@ -442,9 +435,7 @@ mod tests {
     /// the nearest hit over all triangles.
     #[test]
     fn shipped_meshes_are_traced_exactly() {
-        let paths = crate::shared::shared_mesh_paths("the shipped meshes");
-        for path in paths {
-            let m = Mesh::load_obj(&path, &MeshLoadOptions::default()).unwrap();
+        for m in crate::shared_meshes("the shipped meshes") {
             let ys = heights(11, m.bounds.0.y, m.bounds.1.y);
             let grid = RadialRays {
                 rows: &ys,
@@ -454,10 +445,10 @@ mod tests {
             let ties = check_grid(&m, &grid);
             eprintln!(
                 "{}: {} rays, {ties} ties with the BVH walk",
-                path.display(),
+                m.name(),
                 grid.len()
             );
-            assert!(ties * 100 <= grid.len(), "{}: {ties} ties", path.display());
+            assert!(ties * 100 <= grid.len(), "{}: {ties} ties", m.name());
         }
     }
 
@@ -531,11 +522,7 @@ mod tests {
         ) {
             let mut tris = soup(seed, n);
             let k = (flat * n as f64) as usize;
-            for t in tris.iter_mut().take(k) {
-                for v in t.iter_mut() {
-                    v[1] = 0.5 + 1e-7 * v[1];
-                }
-            }
+            squash_flat(&mut tris, k);
             for t in tris.iter_mut().skip(k).take((plane * n as f64) as usize) {
                 for v in t.iter_mut() {
                     v[2] *= 1e-7;

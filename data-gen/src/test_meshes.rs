@@ -3,6 +3,7 @@
 
 use std::f64::consts::{PI, TAU};
 
+use crate::binned::BandTracer;
 use crate::geometry::Ray;
 use crate::mesh::{Mesh, MeshLoadOptions};
 use crate::rng::SplitMix64;
@@ -44,6 +45,16 @@ pub(crate) fn soup(seed: u64, n: usize) -> Vec<[[f64; 3]; 3]> {
             [a, b, c]
         })
         .collect()
+}
+
+/// Squashes the first `count` triangles of `tris` onto (within `1e-7` of) the plane `y = 0.5`:
+/// edge-on from horizontal rays.
+pub(crate) fn squash_flat(tris: &mut [[[f64; 3]; 3]], count: usize) {
+    for t in tris.iter_mut().take(count) {
+        for v in t.iter_mut() {
+            v[1] = 0.5 + 1e-7 * v[1];
+        }
+    }
 }
 
 /// Checks the binned hit `binned` of ray `k` (`ray`, window `(t_min, t_max)`) against every
@@ -88,4 +99,23 @@ pub(crate) fn check_ray(
         }
         (a, b) => panic!("ray {k}: walked {a:?}, binned {b:?}"),
     }
+}
+
+/// Traces the whole grid of `tracer` and checks it ray by ray ([`check_ray`]): ray `(c, r)` is
+/// `ray(c, r)`, traced in `window`. Returns the number of ties: rays where the walk reports
+/// another triangle at the same distance.
+pub(crate) fn check_traced(
+    mesh: &Mesh,
+    tracer: &impl BandTracer,
+    ray: impl Fn(usize, usize) -> Ray,
+    window: (f64, f64),
+) -> usize {
+    let (w, h) = tracer.size();
+    let mut binned = vec![None; w * h];
+    tracer.trace(0..h, &mut binned, |_, hit| hit);
+    binned
+        .iter()
+        .enumerate()
+        .filter(|&(k, b)| check_ray(mesh, &ray(k % w, k / w), window, *b, k))
+        .count()
 }

@@ -98,16 +98,10 @@ pub fn render_silhouette(
         let wk = w * k;
         for (jl, row) in alpha.chunks_mut(w).enumerate() {
             for (i, a) in row.iter_mut().enumerate() {
-                // As `supersampled` counts and scales: the same `f32` operations.
-                let mut n = 0.0f32;
-                for sa in 0..k {
-                    for sb in 0..k {
-                        if met[(jl * k + sb) * wk + i * k + sa] {
-                            n += 1.0;
-                        }
-                    }
-                }
-                *a = n * (1.0 / (k * k) as f32);
+                // `supersampled`'s alpha: the share of sub-samples that meet the shape.
+                *a = supersampled(k, |sa, sb| {
+                    met[(jl * k + sb) * wk + i * k + sa].then_some(Vec3::ZERO)
+                })[3];
             }
         }
     });

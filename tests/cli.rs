@@ -68,6 +68,30 @@ fn capture_writes_views_with_depth_and_normals() {
         matches!(depth, image::DynamicImage::ImageLuma16(_)),
         "depth is 16-bit grey"
     );
+    // capture.json names the files that were renamed into --out (relative to its folder), and
+    // each view's coverage is the share of defined depths in its depth file.
+    let desc: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.path().join("capture.json")).unwrap())
+            .unwrap();
+    let files = desc["files"].as_array().unwrap();
+    assert_eq!(files.len(), 3);
+    for (k, f) in files.iter().enumerate() {
+        for kind in ["color", "albedo", "normal", "depth16"] {
+            let name = f[kind].as_str().unwrap();
+            assert_eq!(name, format!("view{k:03}.{kind}.png"));
+            assert!(dir.path().join(name).exists(), "{name} missing");
+        }
+        let depth = image::open(dir.path().join(f["depth16"].as_str().unwrap()))
+            .unwrap()
+            .into_luma16();
+        let defined = depth.pixels().filter(|p| p.0[0] != 0).count();
+        assert!(defined > 0, "view {k} sees nothing of the truck");
+        approx::assert_relative_eq!(
+            f["coverage"].as_f64().unwrap(),
+            defined as f64 / (16.0 * 16.0),
+            max_relative = 1e-12
+        );
+    }
 }
 
 #[test]

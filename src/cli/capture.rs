@@ -48,6 +48,10 @@ pub fn run(args: CaptureArgs) -> CliResult {
     let t_load = Instant::now();
     let shape = load_shape(args.mesh.as_ref(), args.shape.as_deref())?;
     let load_ms = t_load.elapsed().as_secs_f64() * 1e3;
+    // The rate counts tracing only: a mesh's BVH, built on its first ray query, is built here.
+    let t_setup = Instant::now();
+    shape.prepare_rays();
+    let setup_ms = t_setup.elapsed().as_secs_f64() * 1e3;
     // Everything is written into a staging folder beside `--out`, then swapped in whole: a rerun
     // never leaves files of an earlier run (e.g. more views) beside the new ones, and an
     // interrupted run leaves the earlier output intact.
@@ -69,7 +73,7 @@ pub fn run(args: CaptureArgs) -> CliResult {
     }
     std::fs::create_dir_all(&staging)
         .map_err(|e| format!("cannot create {}: {e}", staging.display()))?;
-    let result = capture_into(&args, shape.as_ref(), &staging, load_ms);
+    let result = capture_into(&args, shape.as_ref(), &staging, [load_ms, setup_ms]);
     match result {
         Ok(summary) => {
             crate::asset::replace_dir(&staging, &args.out)?;
@@ -83,12 +87,13 @@ pub fn run(args: CaptureArgs) -> CliResult {
     }
 }
 
-/// Captures the views into `dir`; returns the summary line.
+/// Captures the views into `dir`; returns the summary line. `[load_ms, setup_ms]`: the shape's
+/// load and its ray set-up (a mesh's BVH build), both before the timed captures.
 fn capture_into(
     args: &CaptureArgs,
     shape: &dyn Shape,
     dir: &std::path::Path,
-    load_ms: f64,
+    [load_ms, setup_ms]: [f64; 2],
 ) -> Result<String, Box<dyn std::error::Error + Send + Sync>> {
     let cylinder = BoundingCylinder::default();
     let size = args.size as usize;
@@ -110,15 +115,15 @@ fn capture_into(
         )?;
         capture_s += t0.elapsed().as_secs_f64();
         seen |= view.coverage() > 0.0;
-        let base = dir.join(format!("view{k:03}"));
-        let colour = base.with_extension("color.png");
-        view.shade(&Light::default()).write_png(&colour)?;
-        let albedo = base.with_extension("albedo.png");
-        view.write_albedo_png(&albedo)?;
-        let normal = base.with_extension("normal.png");
-        view.write_normal_png(&normal)?;
-        let depth = base.with_extension("depth16.png");
-        view.write_depth_png16(&depth)?;
+        // capture.json names the files relative to its own folder: the folder is written
+        // under a staging name and renamed, so a full path would name the staging folder.
+        let [colour, albedo, normal, depth] =
+            ["color", "albedo", "normal", "depth16"].map(|kind| format!("view{k:03}.{kind}.png"));
+        view.shade(&Light::default())
+            .write_png(&dir.join(&colour))?;
+        view.write_albedo_png(&dir.join(&albedo))?;
+        view.write_normal_png(&dir.join(&normal))?;
+        view.write_depth_png16(&dir.join(&depth))?;
         files.push(json!({
             "view": k, "angle_rad": angle, "coverage": view.coverage(),
             "color": colour, "albedo": albedo, "normal": normal, "depth16": depth,
@@ -135,13 +140,14 @@ fn capture_into(
     let desc = json!({
         "shape": shape.name(),
         "views": n, "size": size,
-        "conventions": "view k looks along -d(2πk/N); depth16: 0 = undefined, 1..65535 maps depth/R in [-1,1]; normal: rgb=(n+1)/2, object frame",
-        "load_ms": load_ms, "rays": rays, "rays_per_second": rps, "files": files,
+        "conventions": "view k looks along -d(2πk/N); files relative to this file's folder; depth16: 0 = undefined, 1..65535 maps depth/R in [-1,1]; normal: rgb=(n+1)/2, object frame",
+        "load_ms": load_ms, "ray_setup_ms": setup_ms, "rays": rays, "rays_per_second": rps,
+        "files": files,
     });
     let json_path = dir.join("capture.json");
     std::fs::write(&json_path, serde_json::to_string_pretty(&desc)?)?;
     Ok(format!(
-        "captured {} views of {} at {size}×{size} into {}: {rays:.0} rays in {:.1} ms, {rps:.3e} rays/s (load {load_ms:.0} ms)",
+        "captured {} views of {} at {size}×{size} into {}: {rays:.0} rays in {:.1} ms, {rps:.3e} rays/s (load {load_ms:.0} ms, ray set-up {setup_ms:.0} ms)",
         n,
         shape.name(),
         args.out.display(),

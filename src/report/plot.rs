@@ -1,6 +1,9 @@
 //! Plots of a [`RepresentationReport`]: one panel per cost axis (cost across, error up), one
-//! coloured curve per series, the source documents' operating points circled and named, their
-//! other claims as dashed vertical lines. Drawn with `plotters`, as SVG (text as `<text>`
+//! colour per series, the source documents' operating points circled and named, their other
+//! claims as dashed vertical lines. Each series' points on its cost–error front (no cheaper or
+//! equally cheap point of the series has an error as good) are filled and joined by a line in
+//! order of cost; the points it dominates are drawn hollow, unjoined, so a sweep over two
+//! parameters reads as one curve of the settings worth their cost. Drawn with `plotters`, as SVG (text as `<text>`
 //! elements) and PNG (text rasterised with DejaVu Sans, embedded in the binary by the `dejavu`
 //! crate and registered with plotters' `ab_glyph` backend: no system font is read, so PNGs come
 //! out the same on a bare machine).
@@ -195,6 +198,13 @@ fn draw_panel<DB: DrawingBackend>(
         .y_label_area_size(62)
         .build_cartesian_2d(ax.lo..ax.hi, ay.lo..ay.hi)
         .map_err(e)?;
+    // Labels of marks in the right half of the panel end at the mark instead of starting
+    // there, so that they stay inside the panel.
+    let right_half = |x: f64| x > 0.5 * (ax.lo + ax.hi);
+    let anchor = |right: bool| {
+        use plotters::style::text_anchor::{HPos, Pos, VPos};
+        Pos::new(if right { HPos::Right } else { HPos::Left }, VPos::Top)
+    };
     let xl = |v: &f64| ax.label(*v);
     let yl = |v: &f64| ay.label(*v);
     chart
@@ -217,12 +227,13 @@ fn draw_panel<DB: DrawingBackend>(
             .filter_map(|p| Some((ax.to(p.cost(cost)?), ay.to(r.error_of(p)?))))
             .filter(|(x, y)| x.is_finite() && y.is_finite())
             .collect();
-        if pts.is_empty() {
+        if pts.is_empty() && !legend {
             continue;
         }
-        pts.sort_by(|a, b| a.0.total_cmp(&b.0));
+        // A series with no point on this panel still gets its legend entry (an empty line).
+        let front = front(&mut pts, r.uses_psnr);
         let drawn = chart
-            .draw_series(LineSeries::new(pts.clone(), color.stroke_width(1)))
+            .draw_series(LineSeries::new(front.clone(), color.stroke_width(2)))
             .map_err(e)?;
         if legend {
             drawn.label(name.to_string()).legend(move |(x, y)| {
@@ -230,10 +241,18 @@ fn draw_panel<DB: DrawingBackend>(
             });
         }
         chart
-            .draw_series(pts.iter().map(|&p| Circle::new(p, 3, color.filled())))
+            .draw_series(front.iter().map(|&p| Circle::new(p, 3, color.filled())))
+            .map_err(e)?;
+        chart
+            .draw_series(
+                pts.iter()
+                    .filter(|p| !front.contains(p))
+                    .map(|&p| Circle::new(p, 3, color.stroke_width(1))),
+            )
             .map_err(e)?;
     }
-    for f in r.references.iter().filter(|f| f.cost == cost) {
+    // Labels of the claims' lines step down the panel so that close lines stay legible.
+    for (k, f) in r.references.iter().filter(|f| f.cost == cost).enumerate() {
         let x = ax.to(f.value);
         if !x.is_finite() {
             continue;
@@ -246,11 +265,12 @@ fn draw_panel<DB: DrawingBackend>(
                 BLACK.mix(0.6).stroke_width(1),
             ))
             .map_err(e)?;
+        let style = (FONT, 11).into_font().color(&BLACK.mix(0.8));
         chart
             .draw_series(std::iter::once(Text::new(
                 f.label.clone(),
-                (x, ay.hi - 0.04 * (ay.hi - ay.lo)),
-                (FONT, 11).into_font().color(&BLACK.mix(0.8)),
+                (x, ay.hi - (0.04 + 0.06 * k as f64) * (ay.hi - ay.lo)),
+                style.pos(anchor(right_half(x))),
             )))
             .map_err(e)?;
     }
@@ -263,11 +283,16 @@ fn draw_panel<DB: DrawingBackend>(
             continue;
         }
         let label = p.operating_point.clone().unwrap_or_default();
+        let right = right_half(at.0);
         chart
             .draw_series(std::iter::once(
                 EmptyElement::at(at)
                     + Circle::new((0, 0), 8, BLACK.stroke_width(2))
-                    + Text::new(label, (10, -16), (FONT, 12).into_font()),
+                    + Text::new(
+                        label,
+                        (if right { -10 } else { 10 }, -16),
+                        (FONT, 12).into_font().color(&BLACK).pos(anchor(right)),
+                    ),
             ))
             .map_err(e)?;
     }
@@ -288,9 +313,66 @@ fn draw_panel<DB: DrawingBackend>(
     Ok(())
 }
 
+/// The cost–error front of `pts` (drawn coordinates; cost is `.0`, error `.1`), in order of
+/// cost: the points whose error is strictly better than that of every cheaper point, and of every
+/// equally cheap point before them once sorted (higher error is better when
+/// `higher_is_better`). Sorts `pts` by cost, then from the best error down. Cost: `O(n log n)`.
+fn front(pts: &mut [(f64, f64)], higher_is_better: bool) -> Vec<(f64, f64)> {
+    let better = |a: f64, b: f64| if higher_is_better { a > b } else { a < b };
+    pts.sort_by(|a, b| {
+        let by_error = if higher_is_better {
+            b.1.total_cmp(&a.1)
+        } else {
+            a.1.total_cmp(&b.1)
+        };
+        a.0.total_cmp(&b.0).then(by_error)
+    });
+    let mut out: Vec<(f64, f64)> = Vec::new();
+    for &p in pts.iter() {
+        if out.last().is_none_or(|last| better(p.1, last.1)) {
+            out.push(p);
+        }
+    }
+    out
+}
+
 #[cfg(test)]
 mod tests {
-    use super::Axis;
+    use super::{Axis, front};
+
+    #[test]
+    fn the_front_keeps_the_points_no_cheaper_point_beats() {
+        let mut pts = vec![
+            (3.0, 12.0),
+            (1.0, 10.0),
+            (2.0, 9.0),
+            (3.0, 11.0),
+            (4.0, 12.0),
+            (5.0, 13.0),
+        ];
+        // Higher is better (PSNR): (2, 9) is beaten by the cheaper (1, 10), (3, 11) by the
+        // equally cheap (3, 12), (4, 12) only ties it.
+        assert_eq!(
+            front(&mut pts, true),
+            vec![(1.0, 10.0), (3.0, 12.0), (5.0, 13.0)]
+        );
+        assert_eq!(pts.len(), 6);
+        // Lower is better (an error): the cheapest point, then each cheaper error.
+        assert_eq!(front(&mut pts, false), vec![(1.0, 10.0), (2.0, 9.0)]);
+        assert!(front(&mut [], true).is_empty());
+        // Every point of the front beats every cheaper one; every other point is beaten.
+        let mut grid: Vec<(f64, f64)> = (0..40)
+            .map(|i| (f64::from(i % 7), f64::from((i * 13) % 11)))
+            .collect();
+        let f = front(&mut grid, true);
+        for p in &grid {
+            let beaten = grid
+                .iter()
+                .any(|q| q != p && q.0 <= p.0 && q.1 >= p.1 && (q.0 < p.0 || q.1 > p.1));
+            let tied_earlier = f.iter().any(|q| q != p && q.0 <= p.0 && q.1 == p.1);
+            assert_eq!(f.contains(p), !beaten && !tied_earlier, "{p:?}");
+        }
+    }
 
     #[test]
     fn axes_go_log_only_for_positive_values_spanning_a_factor_above_20() {

@@ -38,25 +38,10 @@ import sys
 import tempfile
 import time
 
+from venvs import ensure_venv
+
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-VENV = os.path.join(ROOT, "bench", ".venv-embree")
-VENV_PY = os.path.join(VENV, "bin", "python")
 MESHES = os.path.join(ROOT, "..", "shared", "data", "meshes")
-
-
-def ensure_venv():
-    """Create bench/.venv-embree with numpy, embreex and pillow, and re-exec inside it."""
-    if os.path.realpath(sys.prefix) == os.path.realpath(VENV):
-        return
-    if not os.path.exists(VENV_PY):
-        import venv
-
-        print(f"creating {VENV} (numpy, embreex, pillow from PyPI)...", flush=True)
-        venv.create(VENV, with_pip=True)
-        subprocess.check_call(
-            [VENV_PY, "-m", "pip", "install", "--quiet", "numpy", "embreex", "pillow"]
-        )
-    os.execv(VENV_PY, [VENV_PY, os.path.abspath(__file__)] + sys.argv[1:])
 
 
 def load_obj(path):
@@ -184,7 +169,7 @@ def compare(out, views_t, size, steps=4.0):
 
 
 def main():
-    ensure_venv()
+    ensure_venv(".venv-embree", ["numpy", "embreex", "pillow"], __file__)
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("meshes", nargs="*")
     ap.add_argument("--views", type=int, default=8)

@@ -26,24 +26,9 @@ import sys
 import tempfile
 import time
 
+from venvs import ensure_venv
+
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-VENV = os.path.join(ROOT, "bench", ".venv")
-VENV_PY = os.path.join(VENV, "bin", "python")
-
-
-def ensure_venv():
-    """Create bench/.venv with numpy and scipy, and re-exec this script inside it."""
-    if os.path.realpath(sys.prefix) == os.path.realpath(VENV):
-        return
-    if not os.path.exists(VENV_PY):
-        import venv
-
-        print(f"creating {VENV} (numpy, scipy from PyPI)...", flush=True)
-        venv.create(VENV, with_pip=True)
-        subprocess.check_call(
-            [VENV_PY, "-m", "pip", "install", "--quiet", "numpy", "scipy"]
-        )
-    os.execv(VENV_PY, [VENV_PY, os.path.abspath(__file__)] + sys.argv[1:])
 
 
 def run_altrep(args, out):
@@ -69,7 +54,7 @@ def run_altrep(args, out):
 
 
 def main():
-    ensure_venv()
+    ensure_venv(".venv", ["numpy", "scipy"], __file__)
     import numpy as np
     import scipy
     import scipy.io

@@ -3,10 +3,11 @@
 //! claims as dashed vertical lines. Each series' points on its cost–error front (no cheaper or
 //! equally cheap point of the series has an error as good) are filled and joined by a line in
 //! order of cost; the points it dominates are drawn hollow, unjoined, so a sweep over two
-//! parameters reads as one curve of the settings worth their cost. Drawn with `plotters`, as SVG (text as `<text>`
-//! elements) and PNG (text rasterised with DejaVu Sans, embedded in the binary by the `dejavu`
-//! crate and registered with plotters' `ab_glyph` backend: no system font is read, so PNGs come
-//! out the same on a bare machine).
+//! parameters reads as one curve of the settings worth their cost.
+//!
+//! Drawn with `plotters`, as SVG (text as `<text>` elements) and PNG (text rasterised with
+//! DejaVu Sans, embedded in the binary by the `dejavu` crate and registered with plotters'
+//! `ab_glyph` backend: no system font is read, so PNGs come out the same on a bare machine).
 //!
 //! A cost axis whose values are all positive and span more than a factor 20 is drawn on a log
 //! scale (ticks labelled with the values, the axis name says "log").

@@ -740,7 +740,7 @@ mod tests {
     use proptest::prelude::*;
 
     use super::*;
-    use crate::test_meshes::{mesh, soup};
+    use crate::test_meshes::{mesh, nearest_of_all, soup};
 
     proptest! {
         #![proptest_config(ProptestConfig::with_cases(64))]
@@ -784,15 +784,7 @@ mod tests {
             for (k, v) in vertices.iter().enumerate().take(90) {
                 for dir in dirs {
                     let ray = Ray::new(*v - 3.0 * dir, dir);
-                    let mut bray = Mesh::to_bvh_ray(&ray, 0.0, 6.0);
-                    let mut nearest = None;
-                    for tri in &tr.triangles {
-                        let d = tri.intersect(&bray);
-                        if d < bray.tmax {
-                            bray.tmax = d;
-                            nearest = Some(d.to_bits());
-                        }
-                    }
+                    let nearest = nearest_of_all(&m, &ray, (0.0, 6.0)).map(|(_, d)| d.to_bits());
                     let walked = m.first_hit(&ray, 0.0, 6.0).map(|(_, d)| d.to_bits());
                     prop_assert_eq!(walked, nearest, "vertex {}, direction {}", k, dir);
                     prop_assert_eq!(m.occluded(&ray, 0.0, 6.0), walked.is_some());

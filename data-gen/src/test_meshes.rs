@@ -57,6 +57,26 @@ pub(crate) fn squash_flat(tris: &mut [[[f64; 3]; 3]], count: usize) {
     }
 }
 
+/// The nearest hit of `ray` in `(t_min, t_max)` over every triangle of `mesh`, by the BVH's own
+/// `f32` triangle test without the BVH: the triangle (the first in triangle order among equal
+/// distances) and its distance.
+pub(crate) fn nearest_of_all(
+    mesh: &Mesh,
+    ray: &Ray,
+    (t_min, t_max): (f64, f64),
+) -> Option<(usize, f32)> {
+    let mut bray = Mesh::to_bvh_ray(ray, t_min, t_max);
+    let mut all = None;
+    for (t, tri) in mesh.traced().triangles.iter().enumerate() {
+        let d = tri.intersect(&bray);
+        if d < bray.tmax {
+            bray.tmax = d;
+            all = Some((t, d));
+        }
+    }
+    all
+}
+
 /// Checks the binned hit `binned` of ray `k` (`ray`, window `(t_min, t_max)`) against every
 /// triangle (the nearest hit of the same `f32` triangle test, the first in triangle order among
 /// equal distances: exactly) and against the BVH walk (the same distance, bitwise; where the
@@ -69,15 +89,7 @@ pub(crate) fn check_ray(
     binned: Option<(usize, f32)>,
     k: usize,
 ) -> bool {
-    let mut bray = Mesh::to_bvh_ray(ray, t_min, t_max);
-    let mut all = None;
-    for (t, tri) in mesh.traced().triangles.iter().enumerate() {
-        let d = tri.intersect(&bray);
-        if d < bray.tmax {
-            bray.tmax = d;
-            all = Some((t, d));
-        }
-    }
+    let all = nearest_of_all(mesh, ray, (t_min, t_max));
     assert_eq!(
         binned, all,
         "ray {k}: binned {binned:?}, nearest of all triangles {all:?}"

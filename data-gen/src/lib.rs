@@ -71,6 +71,6 @@ pub use shape::{
 };
 pub use shapes::{SCENE_SHAPES, scene_shape};
 #[doc(hidden)]
-pub use shared::{shared_mesh, shared_mesh_paths, shared_meshes};
+pub use shared::{shared_mesh, shared_mesh_paths, shared_meshes, skip, under_ci};
 pub use truth::{Light, TruthParams, render_silhouette, render_truth};
 pub use volume::{Volume, Voxel, VoxelParams, voxelize};

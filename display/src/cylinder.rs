@@ -30,13 +30,11 @@ use altrep::fit::axis_weight;
 use altrep::pipeline::Representation;
 use altrep::pipeline::cylinder::{Cylinder, CylinderData};
 use altrep_data_gen::{Light, PixelGrid};
-use wgpu::util::DeviceExt;
 
-pub use crate::parallax::Precision;
+use crate::offscreen::{self, Pipeline, storage};
 use crate::parallax::reals;
-use crate::{DisplayError, Frame, Gpu, invalid, offscreen};
-
-const SHADER: &str = include_str!("cylinder.wgsl");
+use crate::shader::{Precision, Shader};
+use crate::{DisplayError, Frame, Gpu, invalid};
 
 /// Loads a cylindrical-texture asset folder (e.g. `out/pear/cylinder`) through the library's
 /// loader: `AssetReader::open` (checks the description and every file's hash) then
@@ -101,7 +99,7 @@ struct Offsets {
 /// GPU, with the pipeline that draws it.
 pub struct CylinderDisplay {
     precision: Precision,
-    pipeline: wgpu::RenderPipeline,
+    pipeline: std::sync::Arc<Pipeline>,
     texture: CylindricalTexture,
     bounds: MarchBounds,
     offsets: Option<Offsets>,
@@ -122,13 +120,7 @@ impl CylinderDisplay {
         offsets: Option<&OffsetTexture>,
         precision: Precision,
     ) -> Result<Self, DisplayError> {
-        if precision == Precision::F64 && !gpu.has_f64 {
-            return Err(invalid(
-                "precision",
-                "f64",
-                "needs an adapter with SHADER_F64",
-            ));
-        }
+        let pipeline = offscreen::pipeline(gpu, Shader::Cylinder, precision)?;
         let t = &data.texture;
         if let Some(o) = offsets {
             // The library's own size check (a one-pixel render refuses a texture of another
@@ -157,18 +149,7 @@ impl CylinderDisplay {
                 None => tex.extend_from_slice(&[0.0; 8]),
             }
         }
-        let texels = gpu
-            .device
-            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                label: Some("cylinder texels"),
-                contents: bytemuck::cast_slice(&tex),
-                usage: wgpu::BufferUsages::STORAGE,
-            });
-        let src = match precision {
-            Precision::F32 => SHADER.to_string(),
-            Precision::F64 => SHADER.replacen("alias real = f32;", "alias real = f64;", 1),
-        };
-        let pipeline = offscreen::pipeline(gpu, "cylinder.wgsl", src)?;
+        let texels = storage(gpu, "cylinder texels", bytemuck::cast_slice(&tex));
         Ok(Self {
             precision,
             pipeline,
@@ -377,32 +358,15 @@ impl CylinderDisplay {
         ] {
             put_i(&mut ints, slot, v);
         }
-        let dev = &gpu.device;
-        let init = |label: &str, bytes: &[u8]| {
-            dev.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                label: Some(label),
-                contents: bytes,
-                usage: wgpu::BufferUsages::STORAGE,
-            })
-        };
-        let rbuf = init("cylinder reals", &reals(&rs, self.precision));
-        let ibuf = init("cylinder ints", bytemuck::cast_slice(&ints));
+        let rbuf = storage(gpu, "cylinder reals", &reals(&rs, self.precision));
+        let ibuf = storage(gpu, "cylinder ints", bytemuck::cast_slice(&ints));
         let light = [dir.x, dir.y, dir.z, d.light.ambient];
-        let lbuf = init("light", bytemuck::cast_slice(&light));
+        let lbuf = storage(gpu, "light", bytemuck::cast_slice(&light));
         let frags = d.width * d.height;
-        let steps = dev.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("steps"),
-            size: (frags * 4) as u64,
-            usage: wgpu::BufferUsages::STORAGE
-                | wgpu::BufferUsages::COPY_SRC
-                | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        });
         let drawn = offscreen::draw(
             gpu,
             &self.pipeline,
             &[&rbuf, &ibuf, &self.texels, &lbuf],
-            &steps,
             frags,
             (d.width, d.height),
             t0,

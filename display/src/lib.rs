@@ -16,13 +16,19 @@
 //!
 //! * Images are `altrep_data_gen::RgbaImage`: premultiplied **linear** RGBA `f32`, row 0 at the
 //!   top — the CPU renderers' format, so GPU and CPU images compare directly. The offscreen
-//!   target is `Rgba32Float` (no sRGB rounding on the GPU side); PNGs are written in sRGB by
-//!   [`RgbaImage::write_png`](altrep_data_gen::RgbaImage::write_png).
+//!   targets hold the shader's exact `f32` bits on every backend (an `Rgba32Uint` colour and an
+//!   `R32Uint` depth target: no sRGB rounding, and GL cannot render to `Rgba32Float`); PNGs are
+//!   written in sRGB by [`RgbaImage::write_png`](altrep_data_gen::RgbaImage::write_png).
 //! * Angles and geometry follow `altrep::parallax` (y up, `α` the azimuth, orthographic views).
 //! * Depth is written: orthographic, `0` at the front of the march cylinder, `1` at its back.
-//! * Adapters: wgpu's defaults, overridable by `WGPU_BACKEND`, `WGPU_ADAPTER_NAME`,
-//!   `WGPU_POWER_PREF`. On a machine without a GPU, Mesa's lavapipe (`mesa-vulkan-drivers`) is a
-//!   software Vulkan adapter; timings there are CPU emulation, not GPU time.
+//! * Adapters: whatever wgpu offers — Vulkan, Metal, DX12 or GL — chosen by wgpu's defaults,
+//!   overridable by `WGPU_BACKEND`, `WGPU_ADAPTER_NAME`, `WGPU_POWER_PREF`. The display needs
+//!   writable storage buffers in the fragment stage ([`Gpu::headless`] checks, and names what is
+//!   missing). On a machine without a GPU, Mesa's lavapipe (`mesa-vulkan-drivers`, Vulkan) or
+//!   llvmpipe (GL) are software adapters; timings there are CPU emulation, not GPU time. The
+//!   `f64` twins need `SHADER_F64` (lavapipe has it, GL has not).
+//! * Pipelines are built once per [`Gpu`] and (shader, precision), then reused by every display
+//!   drawn on that device: building costs seconds on a software adapter, drawing milliseconds.
 
 #![warn(missing_docs)]
 
@@ -31,14 +37,18 @@ pub mod cylinder;
 mod offscreen;
 pub mod parallax;
 pub mod pyramid;
+pub mod shader;
 pub mod sphere;
 
+use std::collections::HashMap;
 use std::path::Path;
+use std::sync::{Arc, Mutex};
 
 use altrep::asset::AssetReader;
 use altrep::pipeline::Representation;
 use altrep::pipeline::parallax::{Parallax, ParallaxData};
 pub use altrep_data_gen::RgbaImage;
+pub use shader::Precision;
 pub use wgpu;
 
 /// What went wrong while loading, uploading or drawing.
@@ -47,6 +57,14 @@ pub enum DisplayError {
     /// No adapter could be requested (no GPU and no software driver).
     #[error("no GPU adapter: {0} (install mesa-vulkan-drivers for a software adapter)")]
     NoAdapter(String),
+    /// The adapter lacks something every display needs.
+    #[error("adapter {adapter} cannot run the display: {missing}")]
+    Incapable {
+        /// Name, backend and type of the adapter.
+        adapter: String,
+        /// What it lacks.
+        missing: String,
+    },
     /// The adapter refused to create a device.
     #[error("device request failed: {0}")]
     Device(String),
@@ -94,7 +112,10 @@ pub(crate) fn invalid(
     }
 }
 
-/// A headless wgpu device and queue.
+/// Storage buffers the busiest display binds in its fragment stage (six inputs and the steps).
+const STORAGE_BUFFERS: u32 = 7;
+
+/// A headless wgpu device and queue, with the display pipelines built on it so far.
 pub struct Gpu {
     /// The device.
     pub device: wgpu::Device,
@@ -104,12 +125,20 @@ pub struct Gpu {
     pub info: wgpu::AdapterInfo,
     /// Whether the device has `SHADER_F64` (the exact `f64` twin of the CPU march).
     pub has_f64: bool,
+    /// Pipelines built on this device, one per (shader, precision).
+    pipelines: Mutex<HashMap<(shader::Shader, Precision), Arc<offscreen::Pipeline>>>,
+    /// On GL, held by every use of the device: wgpu's GL backend shares one context between
+    /// threads and gives up (a panic) after waiting 6 s for it, which concurrent draws on a
+    /// software adapter exceed. Other backends run concurrently.
+    serial: Option<Mutex<()>>,
 }
 
 impl Gpu {
     /// Requests an adapter without a display and creates a device (with `SHADER_F64` when the
     /// adapter has it). Honours wgpu's environment variables. Cost: 30–100 ms on lavapipe.
-    /// Errors: [`DisplayError::NoAdapter`] when none exists, [`DisplayError::Device`].
+    /// Errors: [`DisplayError::NoAdapter`] when none exists, [`DisplayError::Incapable`] when
+    /// the adapter cannot write storage buffers from the fragment stage or binds fewer than 7
+    /// of them there (WebGL 2 and some GL ES drivers), [`DisplayError::Device`].
     pub fn headless() -> Result<Gpu, DisplayError> {
         pollster::block_on(Self::headless_async())
     }
@@ -127,6 +156,40 @@ impl Gpu {
             })
             .await
             .map_err(|e| DisplayError::NoAdapter(e.to_string()))?;
+        Self::with_adapter_async(&adapter).await
+    }
+
+    /// Checks that `adapter` can run the display and creates its device (with `SHADER_F64`
+    /// when the adapter has it): for a caller that chose the adapter itself, e.g. one
+    /// compatible with a window's surface. Errors as [`Gpu::headless`].
+    pub fn with_adapter(adapter: &wgpu::Adapter) -> Result<Gpu, DisplayError> {
+        pollster::block_on(Self::with_adapter_async(adapter))
+    }
+
+    async fn with_adapter_async(adapter: &wgpu::Adapter) -> Result<Gpu, DisplayError> {
+        let describe =
+            |i: &wgpu::AdapterInfo| format!("{} {:?} {:?}", i.name, i.backend, i.device_type);
+        let limits = adapter.limits();
+        let downlevel = adapter.get_downlevel_capabilities();
+        let mut missing = Vec::new();
+        if !downlevel
+            .flags
+            .contains(wgpu::DownlevelFlags::FRAGMENT_WRITABLE_STORAGE)
+        {
+            missing.push("writable storage buffers in the fragment stage".to_string());
+        }
+        if limits.max_storage_buffers_per_shader_stage < STORAGE_BUFFERS {
+            missing.push(format!(
+                "{STORAGE_BUFFERS} storage buffers per stage (it has {})",
+                limits.max_storage_buffers_per_shader_stage
+            ));
+        }
+        if !missing.is_empty() {
+            return Err(DisplayError::Incapable {
+                adapter: describe(&adapter.get_info()),
+                missing: missing.join(", "),
+            });
+        }
         let has_f64 = adapter.features().contains(wgpu::Features::SHADER_F64);
         let required_features = if has_f64 {
             wgpu::Features::SHADER_F64
@@ -138,7 +201,7 @@ impl Gpu {
                 label: Some("altrep-display"),
                 required_features,
                 // Seven storage buffers in the fragment stage: above the downlevel defaults.
-                required_limits: adapter.limits(),
+                required_limits: limits,
                 experimental_features: wgpu::ExperimentalFeatures::disabled(),
                 memory_hints: wgpu::MemoryHints::Performance,
                 trace: wgpu::Trace::Off,
@@ -150,7 +213,17 @@ impl Gpu {
             queue,
             info: adapter.get_info(),
             has_f64,
+            pipelines: Mutex::new(HashMap::new()),
+            serial: (adapter.get_info().backend == wgpu::Backend::Gl).then(|| Mutex::new(())),
         })
+    }
+
+    /// On GL, a guard that keeps the device to the calling thread (see `serial`); `None`
+    /// elsewhere. A panic in another holder does not stop later uses.
+    pub(crate) fn exclusive(&self) -> Option<std::sync::MutexGuard<'_, ()>> {
+        self.serial
+            .as_ref()
+            .map(|m| m.lock().unwrap_or_else(std::sync::PoisonError::into_inner))
     }
 
     /// One line naming the adapter, e.g. `llvmpipe (LLVM 15.0.6, 256 bits) Vulkan Cpu`.

@@ -19,21 +19,11 @@ use std::time::Instant;
 
 use altrep::parallax::{BoundKind, Brim, ParallaxImages, Reconstruction, RowFilter};
 use altrep::pipeline::parallax::ParallaxData;
-use altrep_data_gen::{Light, RgbaImage};
-use wgpu::util::DeviceExt;
+use altrep_data_gen::Light;
 
-use crate::{DisplayError, Frame, Gpu, invalid, read_buffer};
-
-const SHADER: &str = include_str!("parallax.wgsl");
-
-/// Arithmetic of the march in the shader.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Precision {
-    /// `f32` throughout: the production shader.
-    F32,
-    /// Geometry and march in `f64` (needs `SHADER_F64`): the exact twin of the CPU's march.
-    F64,
-}
+use crate::offscreen::{self, Pipeline, storage};
+use crate::shader::{Precision, Shader};
+use crate::{DisplayError, Frame, Gpu, invalid};
 
 /// What to draw.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -58,7 +48,7 @@ pub struct DrawParams {
 /// An images-with-parallax asset uploaded to the GPU, with the pipeline that draws it.
 pub struct ParallaxDisplay {
     precision: Precision,
-    pipeline: wgpu::RenderPipeline,
+    pipeline: std::sync::Arc<Pipeline>,
     lx: usize,
     ly: usize,
     images: ParallaxImages,
@@ -89,13 +79,7 @@ impl ParallaxDisplay {
     /// Errors: [`Precision::F64`] on a device without `SHADER_F64`; a shader or pipeline the
     /// device rejects ([`DisplayError::Gpu`]).
     pub fn new(gpu: &Gpu, data: &ParallaxData, precision: Precision) -> Result<Self, DisplayError> {
-        if precision == Precision::F64 && !gpu.has_f64 {
-            return Err(invalid(
-                "precision",
-                "f64",
-                "needs an adapter with SHADER_F64",
-            ));
-        }
+        let pipeline = offscreen::pipeline(gpu, Shader::Parallax, precision)?;
         let images = &data.images;
         let p = &images.params;
         let (lx, ly, n) = (p.width, p.height, p.views);
@@ -114,16 +98,8 @@ impl ParallaxDisplay {
                 }
             }
         }
-        let dev = &gpu.device;
-        let storage = |label: &str, bytes: &[u8]| {
-            dev.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                label: Some(label),
-                contents: bytes,
-                usage: wgpu::BufferUsages::STORAGE,
-            })
-        };
-        let attr = storage("parallax attributes", bytemuck::cast_slice(&attr));
-        let code = storage("parallax depth codes", bytemuck::cast_slice(&code));
+        let attr = storage(gpu, "parallax attributes", bytemuck::cast_slice(&attr));
+        let code = storage(gpu, "parallax depth codes", bytemuck::cast_slice(&code));
         let mut bounds = Vec::new();
         for b in &data.bounds {
             if b.kind == BoundKind::Cylinder {
@@ -148,15 +124,12 @@ impl ParallaxDisplay {
                     }
                 }
             }
-            bounds.push((b.kind, storage(b.kind.slug(), &reals(&vals, precision))));
+            bounds.push((
+                b.kind,
+                storage(gpu, b.kind.slug(), &reals(&vals, precision)),
+            ));
         }
-        let dummy = storage("no bounds", &reals(&[0.0; 8], precision));
-
-        let src = match precision {
-            Precision::F32 => SHADER.to_string(),
-            Precision::F64 => SHADER.replacen("alias real = f32;", "alias real = f64;", 1),
-        };
-        let pipeline = crate::offscreen::pipeline(gpu, "parallax impostor", src)?;
+        let dummy = storage(gpu, "no bounds", &reals(&[0.0; 8], precision));
         let grid = images.pixel_grid();
         Ok(Self {
             precision,
@@ -280,16 +253,7 @@ impl ParallaxDisplay {
             let (sa, ca) = v.angle.sin_cos();
             pv.extend_from_slice(&[sa, ca]);
         }
-        let dev = &gpu.device;
-        let init = |label: &str, bytes: &[u8], usage| {
-            dev.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                label: Some(label),
-                contents: bytes,
-                usage,
-            })
-        };
-        let st = wgpu::BufferUsages::STORAGE;
-        let pbuf = init("P", &reals(&pv, self.precision), st);
+        let pbuf = storage(gpu, "P", &reals(&pv, self.precision));
         let u = [
             self.lx as u32,
             self.ly as u32,
@@ -308,7 +272,7 @@ impl ParallaxDisplay {
             u32::from(d.rec.carve_brims),
             u32::from(d.rec.soft_fallback),
         ];
-        let ubuf = init("U", bytemuck::cast_slice(&u), st);
+        let ubuf = storage(gpu, "U", bytemuck::cast_slice(&u));
         let l = [
             dir.x,
             dir.y,
@@ -319,167 +283,20 @@ impl ParallaxDisplay {
             w0 as f32,
             w3 as f32,
         ];
-        let lbuf = init("L", bytemuck::cast_slice(&l), st);
-        let frags = d.width * d.height;
-        let steps_bytes = (frags * 8) as u64;
-        let steps = dev.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("steps"),
-            size: steps_bytes,
-            usage: st | wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        });
-        let layout = self.pipeline.get_bind_group_layout(0);
-        let entries: Vec<wgpu::BindGroupEntry> =
-            [&pbuf, &ubuf, &lbuf, &self.attr, &self.code, bounds, &steps]
-                .iter()
-                .enumerate()
-                .map(|(i, b)| wgpu::BindGroupEntry {
-                    binding: i as u32,
-                    resource: b.as_entire_binding(),
-                })
-                .collect();
-        let scope = dev.push_error_scope(wgpu::ErrorFilter::Validation);
-        let bind = dev.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("parallax"),
-            layout: &layout,
-            entries: &entries,
-        });
-        let size = wgpu::Extent3d {
-            width: d.width as u32,
-            height: d.height as u32,
-            depth_or_array_layers: 1,
-        };
-        let target = |format, label| {
-            dev.create_texture(&wgpu::TextureDescriptor {
-                label: Some(label),
-                size,
-                mip_level_count: 1,
-                sample_count: 1,
-                dimension: wgpu::TextureDimension::D2,
-                format,
-                usage: wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC,
-                view_formats: &[],
-            })
-        };
-        let color = target(wgpu::TextureFormat::Rgba32Float, "colour");
-        let depth = target(wgpu::TextureFormat::Depth32Float, "depth");
-        let cview = color.create_view(&Default::default());
-        let dview = depth.create_view(&Default::default());
-        let pad = |b: usize| b.div_ceil(256) * 256;
-        let (crow, drow) = (d.width * 16, d.width * 4);
-        let readback = |bytes: usize, label| {
-            dev.create_buffer(&wgpu::BufferDescriptor {
-                label: Some(label),
-                size: bytes as u64,
-                usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
-                mapped_at_creation: false,
-            })
-        };
-        let cbuf = readback(pad(crow) * d.height, "colour read-back");
-        let dbuf = readback(pad(drow) * d.height, "depth read-back");
-        let sbuf = readback(steps_bytes as usize, "steps read-back");
-        let mut enc = dev.create_command_encoder(&Default::default());
-        enc.clear_buffer(&steps, 0, None);
-        {
-            let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
-                label: Some("impostor"),
-                color_attachments: &[Some(wgpu::RenderPassColorAttachment {
-                    view: &cview,
-                    depth_slice: None,
-                    resolve_target: None,
-                    ops: wgpu::Operations {
-                        load: wgpu::LoadOp::Clear(wgpu::Color::TRANSPARENT),
-                        store: wgpu::StoreOp::Store,
-                    },
-                })],
-                depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
-                    view: &dview,
-                    depth_ops: Some(wgpu::Operations {
-                        load: wgpu::LoadOp::Clear(1.0),
-                        store: wgpu::StoreOp::Store,
-                    }),
-                    stencil_ops: None,
-                }),
-                timestamp_writes: None,
-                occlusion_query_set: None,
-                multiview_mask: None,
-            });
-            pass.set_pipeline(&self.pipeline);
-            pass.set_bind_group(0, &bind, &[]);
-            pass.draw(0..6, 0..1);
-        }
-        let copy = |enc: &mut wgpu::CommandEncoder,
-                    tex: &wgpu::Texture,
-                    aspect: wgpu::TextureAspect,
-                    buf: &wgpu::Buffer,
-                    row: usize| {
-            enc.copy_texture_to_buffer(
-                wgpu::TexelCopyTextureInfo {
-                    texture: tex,
-                    mip_level: 0,
-                    origin: wgpu::Origin3d::ZERO,
-                    aspect,
-                },
-                wgpu::TexelCopyBufferInfo {
-                    buffer: buf,
-                    layout: wgpu::TexelCopyBufferLayout {
-                        offset: 0,
-                        bytes_per_row: Some(pad(row) as u32),
-                        rows_per_image: Some(d.height as u32),
-                    },
-                },
-                size,
-            );
-        };
-        copy(&mut enc, &color, wgpu::TextureAspect::All, &cbuf, crow);
-        copy(
-            &mut enc,
-            &depth,
-            wgpu::TextureAspect::DepthOnly,
-            &dbuf,
-            drow,
-        );
-        enc.copy_buffer_to_buffer(&steps, 0, &sbuf, 0, steps_bytes);
-        gpu.queue.submit([enc.finish()]);
-        if let Some(e) = pollster::block_on(scope.pop()) {
-            return Err(DisplayError::Gpu(e.to_string()));
-        }
-        let cbytes = read_buffer(gpu, &cbuf, crow, pad(crow), d.height)?;
-        let dbytes = read_buffer(gpu, &dbuf, drow, pad(drow), d.height)?;
-        let sbytes = read_buffer(gpu, &sbuf, steps_bytes as usize, steps_bytes as usize, 1)?;
-        let millis = t0.elapsed().as_secs_f64() * 1e3;
-        let image = RgbaImage {
-            width: d.width,
-            height: d.height,
-            pixels: f32s(&cbytes)
-                .chunks_exact(4)
-                .map(|c| [c[0], c[1], c[2], c[3]])
-                .collect(),
-        };
-        let depth = f32s(&dbytes);
-        let steps = u32s(&sbytes)
-            .chunks_exact(2)
-            .map(|c| [c[0], c[1]])
-            .collect();
+        let lbuf = storage(gpu, "L", bytemuck::cast_slice(&l));
+        let drawn = offscreen::draw(
+            gpu,
+            &self.pipeline,
+            &[&pbuf, &ubuf, &lbuf, &self.attr, &self.code, bounds],
+            2 * d.width * d.height,
+            (d.width, d.height),
+            t0,
+        )?;
         Ok(Frame {
-            image,
-            steps,
-            depth,
-            millis,
+            image: drawn.image,
+            steps: drawn.steps.chunks_exact(2).map(|c| [c[0], c[1]]).collect(),
+            depth: drawn.depth,
+            millis: drawn.millis,
         })
     }
-}
-
-fn f32s(bytes: &[u8]) -> Vec<f32> {
-    bytes
-        .chunks_exact(4)
-        .map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]]))
-        .collect()
-}
-
-fn u32s(bytes: &[u8]) -> Vec<u32> {
-    bytes
-        .chunks_exact(4)
-        .map(|c| u32::from_le_bytes([c[0], c[1], c[2], c[3]]))
-        .collect()
 }

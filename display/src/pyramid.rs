@@ -29,11 +29,10 @@ use altrep::pyramid::{
 };
 use altrep_data_gen::RgbaImage;
 use glam::DVec3;
-use wgpu::util::DeviceExt;
 
-use crate::{DisplayError, Gpu, invalid, read_buffer};
-
-const SHADER: &str = include_str!("pyramid.wgsl");
+use crate::offscreen::{self, Pipeline, storage};
+use crate::shader::{Precision, Shader};
+use crate::{DisplayError, Gpu, invalid};
 
 /// The point of the plane the camera looks at (`altrep::pyramid::truth`).
 const TARGET: [f64; 2] = [0.3, 0.7];
@@ -223,7 +222,7 @@ struct Slot {
 
 /// Mipmap, ripmap and fipmap uploaded to the GPU, with the pipeline that draws the plane.
 pub struct PyramidDisplay {
-    pipeline: wgpu::RenderPipeline,
+    pipeline: std::sync::Arc<Pipeline>,
     levels: wgpu::Buffer,
     texels: wgpu::Buffer,
     shear_f: wgpu::Buffer,
@@ -334,52 +333,11 @@ impl PyramidDisplay {
             shear_f.push([0.0; 4]);
             shear_i.push([0; 4]);
         }
-        let dev = &gpu.device;
-        let storage = |label: &str, bytes: &[u8]| {
-            dev.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                label: Some(label),
-                contents: bytes,
-                usage: wgpu::BufferUsages::STORAGE,
-            })
-        };
-        let levels = storage("pyramid level table", bytemuck::cast_slice(&pk.table));
-        let texels = storage("pyramid texels", bytemuck::cast_slice(&pk.texels));
-        let shear_f = storage("fip shears (f32)", bytemuck::cast_slice(&shear_f));
-        let shear_i = storage("fip shears (u32)", bytemuck::cast_slice(&shear_i));
-
-        let scope = dev.push_error_scope(wgpu::ErrorFilter::Validation);
-        let module = dev.create_shader_module(wgpu::ShaderModuleDescriptor {
-            label: Some("pyramid.wgsl"),
-            source: wgpu::ShaderSource::Wgsl(SHADER.into()),
-        });
-        let pipeline = dev.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-            label: Some("pyramid plane"),
-            layout: None,
-            vertex: wgpu::VertexState {
-                module: &module,
-                entry_point: Some("vs_main"),
-                compilation_options: Default::default(),
-                buffers: &[],
-            },
-            primitive: wgpu::PrimitiveState::default(),
-            depth_stencil: None,
-            multisample: Default::default(),
-            fragment: Some(wgpu::FragmentState {
-                module: &module,
-                entry_point: Some("fs_main"),
-                compilation_options: Default::default(),
-                targets: &[Some(wgpu::ColorTargetState {
-                    format: wgpu::TextureFormat::Rgba32Float,
-                    blend: None,
-                    write_mask: wgpu::ColorWrites::ALL,
-                })],
-            }),
-            multiview_mask: None,
-            cache: None,
-        });
-        if let Some(e) = pollster::block_on(scope.pop()) {
-            return Err(DisplayError::Gpu(e.to_string()));
-        }
+        let pipeline = offscreen::pipeline(gpu, Shader::Pyramid, Precision::F32)?;
+        let levels = storage(gpu, "pyramid level table", bytemuck::cast_slice(&pk.table));
+        let texels = storage(gpu, "pyramid texels", bytemuck::cast_slice(&pk.texels));
+        let shear_f = storage(gpu, "fip shears (f32)", bytemuck::cast_slice(&shear_f));
+        let shear_i = storage(gpu, "fip shears (u32)", bytemuck::cast_slice(&shear_i));
         Ok(Self {
             pipeline,
             levels,
@@ -489,140 +447,24 @@ impl PyramidDisplay {
             slot.rip[2],
             slot.shears,
         ];
-        let dev = &gpu.device;
-        let st = wgpu::BufferUsages::STORAGE;
-        let init = |label: &str, bytes: &[u8]| {
-            dev.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                label: Some(label),
-                contents: bytes,
-                usage: st,
-            })
-        };
-        let fbuf = init("F", bytemuck::cast_slice(&floats));
-        let ibuf = init("I", bytemuck::cast_slice(&ints));
-        let frags = pixels * pixels;
-        let steps_bytes = (frags * 8) as u64;
-        let steps = dev.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("pyramid steps"),
-            size: steps_bytes,
-            usage: st | wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        });
-        let layout = self.pipeline.get_bind_group_layout(0);
-        let entries: Vec<wgpu::BindGroupEntry> = [
-            &fbuf,
-            &ibuf,
-            &self.levels,
-            &self.texels,
-            &self.shear_f,
-            &self.shear_i,
-            &steps,
-        ]
-        .iter()
-        .enumerate()
-        .map(|(i, b)| wgpu::BindGroupEntry {
-            binding: i as u32,
-            resource: b.as_entire_binding(),
-        })
-        .collect();
-        let scope = dev.push_error_scope(wgpu::ErrorFilter::Validation);
-        let bind = dev.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("pyramid"),
-            layout: &layout,
-            entries: &entries,
-        });
-        let size = wgpu::Extent3d {
-            width: pixels as u32,
-            height: pixels as u32,
-            depth_or_array_layers: 1,
-        };
-        let color = dev.create_texture(&wgpu::TextureDescriptor {
-            label: Some("pyramid colour"),
-            size,
-            mip_level_count: 1,
-            sample_count: 1,
-            dimension: wgpu::TextureDimension::D2,
-            format: wgpu::TextureFormat::Rgba32Float,
-            usage: wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC,
-            view_formats: &[],
-        });
-        let cview = color.create_view(&Default::default());
-        let crow = pixels * 16;
-        let padded = crow.div_ceil(256) * 256;
-        let readback = |bytes: usize, label| {
-            dev.create_buffer(&wgpu::BufferDescriptor {
-                label: Some(label),
-                size: bytes as u64,
-                usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
-                mapped_at_creation: false,
-            })
-        };
-        let cbuf = readback(padded * pixels, "pyramid colour read-back");
-        let sbuf = readback(steps_bytes as usize, "pyramid steps read-back");
-        let mut enc = dev.create_command_encoder(&Default::default());
-        enc.clear_buffer(&steps, 0, None);
-        {
-            let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
-                label: Some("pyramid plane"),
-                color_attachments: &[Some(wgpu::RenderPassColorAttachment {
-                    view: &cview,
-                    depth_slice: None,
-                    resolve_target: None,
-                    ops: wgpu::Operations {
-                        load: wgpu::LoadOp::Clear(wgpu::Color::TRANSPARENT),
-                        store: wgpu::StoreOp::Store,
-                    },
-                })],
-                depth_stencil_attachment: None,
-                timestamp_writes: None,
-                occlusion_query_set: None,
-                multiview_mask: None,
-            });
-            pass.set_pipeline(&self.pipeline);
-            pass.set_bind_group(0, &bind, &[]);
-            pass.draw(0..6, 0..1);
-        }
-        enc.copy_texture_to_buffer(
-            wgpu::TexelCopyTextureInfo {
-                texture: &color,
-                mip_level: 0,
-                origin: wgpu::Origin3d::ZERO,
-                aspect: wgpu::TextureAspect::All,
-            },
-            wgpu::TexelCopyBufferInfo {
-                buffer: &cbuf,
-                layout: wgpu::TexelCopyBufferLayout {
-                    offset: 0,
-                    bytes_per_row: Some(padded as u32),
-                    rows_per_image: Some(pixels as u32),
-                },
-            },
-            size,
-        );
-        enc.copy_buffer_to_buffer(&steps, 0, &sbuf, 0, steps_bytes);
-        gpu.queue.submit([enc.finish()]);
-        if let Some(e) = pollster::block_on(scope.pop()) {
-            return Err(DisplayError::Gpu(e.to_string()));
-        }
-        let cbytes = read_buffer(gpu, &cbuf, crow, padded, pixels)?;
-        let sbytes = read_buffer(gpu, &sbuf, steps_bytes as usize, steps_bytes as usize, 1)?;
-        let millis = t0.elapsed().as_secs_f64() * 1e3;
-        let floats: Vec<f32> = cbytes
-            .chunks_exact(4)
-            .map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]]))
-            .collect();
-        let words: Vec<u32> = sbytes
-            .chunks_exact(4)
-            .map(|c| u32::from_le_bytes([c[0], c[1], c[2], c[3]]))
-            .collect();
-        let image = RgbaImage {
-            width: pixels,
-            height: pixels,
-            pixels: floats
-                .chunks_exact(4)
-                .map(|c| [c[0], c[1], c[2], c[3]])
-                .collect(),
-        };
+        let fbuf = storage(gpu, "F", bytemuck::cast_slice(&floats));
+        let ibuf = storage(gpu, "I", bytemuck::cast_slice(&ints));
+        let drawn = offscreen::draw(
+            gpu,
+            &self.pipeline,
+            &[
+                &fbuf,
+                &ibuf,
+                &self.levels,
+                &self.texels,
+                &self.shear_f,
+                &self.shear_i,
+            ],
+            2 * pixels * pixels,
+            (pixels, pixels),
+            t0,
+        )?;
+        let (image, words, millis) = (drawn.image, drawn.steps, drawn.millis);
         let scheme = words
             .chunks_exact(2)
             .map(|c| match c[0] {

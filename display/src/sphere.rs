@@ -30,13 +30,11 @@ use altrep::pipeline::sphere::SphereRepr;
 use altrep::sphere::{MAX_EXTRA_FRAMES, SphereImages, enclosing_frames, extra_frames};
 use altrep_data_gen::{Light, RgbaImage};
 use glam::DVec3;
-use wgpu::util::DeviceExt;
 
-pub use crate::parallax::Precision;
+use crate::offscreen::{self, Pipeline, storage};
 use crate::parallax::reals;
-use crate::{DisplayError, Gpu, invalid, offscreen};
-
-const SHADER: &str = include_str!("sphere.wgsl");
+use crate::shader::{Precision, Shader};
+use crate::{DisplayError, Gpu, invalid};
 
 /// Loads an any-direction asset folder (e.g. `out/truck-from-above/sphere`) through the
 /// library's loader: `AssetReader::open` (checks the description and every file's hash) then
@@ -127,7 +125,7 @@ impl SphereFrame {
 /// An any-direction asset uploaded to the GPU, with the pipeline that draws it.
 pub struct SphereDisplay {
     precision: Precision,
-    pipeline: wgpu::RenderPipeline,
+    pipeline: std::sync::Arc<Pipeline>,
     images: SphereImages,
     tex: wgpu::Buffer,
     attr: wgpu::Buffer,
@@ -146,13 +144,7 @@ impl SphereDisplay {
         images: &SphereImages,
         precision: Precision,
     ) -> Result<Self, DisplayError> {
-        if precision == Precision::F64 && !gpu.has_f64 {
-            return Err(invalid(
-                "precision",
-                "f64",
-                "needs an adapter with SHADER_F64",
-            ));
-        }
+        let pipeline = offscreen::pipeline(gpu, Shader::Sphere, precision)?;
         let f = images.params.size;
         let frames = images.frames.len();
         let texels = frames * f * f;
@@ -190,25 +182,12 @@ impl SphereDisplay {
                 }
             }
         }
-        let dev = &gpu.device;
-        let storage = |label: &str, bytes: &[u8]| {
-            dev.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                label: Some(label),
-                contents: bytes,
-                usage: wgpu::BufferUsages::STORAGE,
-            })
-        };
-        let src = match precision {
-            Precision::F32 => SHADER.to_string(),
-            Precision::F64 => SHADER.replacen("alias real = f32;", "alias real = f64;", 1),
-        };
-        let pipeline = offscreen::pipeline(gpu, "any-direction impostor", src)?;
         Ok(Self {
             precision,
             pipeline,
-            tex: storage("sphere planes", &reals(&tex, precision)),
-            attr: storage("sphere attributes", bytemuck::cast_slice(&attr)),
-            code: storage("sphere codes", bytemuck::cast_slice(&code)),
+            tex: storage(gpu, "sphere planes", &reals(&tex, precision)),
+            attr: storage(gpu, "sphere attributes", bytemuck::cast_slice(&attr)),
+            code: storage(gpu, "sphere codes", bytemuck::cast_slice(&code)),
             images: images.clone(),
         })
     }
@@ -309,31 +288,14 @@ impl SphereDisplay {
             u.push(e.frame as u32);
         }
         let light = [ldir.x, ldir.y, ldir.z, d.light.ambient];
-        let dev = &gpu.device;
-        let init = |label: &str, bytes: &[u8]| {
-            dev.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                label: Some(label),
-                contents: bytes,
-                usage: wgpu::BufferUsages::STORAGE,
-            })
-        };
-        let pbuf = init("sphere reals", &reals(&pv, self.precision));
-        let ubuf = init("sphere ints", bytemuck::cast_slice(&u));
-        let lbuf = init("light", bytemuck::cast_slice(&light));
+        let pbuf = storage(gpu, "sphere reals", &reals(&pv, self.precision));
+        let ubuf = storage(gpu, "sphere ints", bytemuck::cast_slice(&u));
+        let lbuf = storage(gpu, "light", bytemuck::cast_slice(&light));
         let frags = d.size * d.size;
-        let steps = dev.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("steps"),
-            size: (frags * 8) as u64,
-            usage: wgpu::BufferUsages::STORAGE
-                | wgpu::BufferUsages::COPY_SRC
-                | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        });
         let drawn = offscreen::draw(
             gpu,
             &self.pipeline,
             &[&pbuf, &ubuf, &lbuf, &self.tex, &self.attr, &self.code],
-            &steps,
             2 * frags,
             (d.size, d.size),
             t0,

@@ -22,15 +22,14 @@ use altrep::pipeline::{Needs, Representation, Source};
 use altrep_data_gen::{
     BoundingCylinder, Light, PixelGrid, RgbaImage, TruthParams, render_truth, scene_shape,
 };
+use altrep_display::Precision;
 use altrep_display::check::{pixel_errors, quantile, write_artefacts};
-use altrep_display::cylinder::{
-    CylinderDisplay, CylinderDraw, CylinderMode, Precision, load_cylinder,
-};
+use altrep_display::cylinder::{CylinderDisplay, CylinderDraw, CylinderMode, load_cylinder};
 use altrep_display::{DisplayError, Gpu};
 use approx::assert_abs_diff_eq;
 
 mod common;
-use common::{failures_dir, gpu};
+use common::{failures_dir, gpu, gpu_f64};
 
 /// Shapes of the step-count and image checks (star-shaped, flat faces, thin branches).
 const SHAPES: [&str; 3] = ["pear", "truck", "tree"];
@@ -204,10 +203,10 @@ fn gpu_image_matches_cpu_renderer_for_every_mode_f32() {
     let mut worst = f64::INFINITY;
     for shape in SHAPES {
         let (data, off) = asset(shape, dir.path());
-        let disp = CylinderDisplay::new(&gpu, &data, Some(&off), Precision::F32).unwrap();
+        let disp = CylinderDisplay::new(gpu, &data, Some(&off), Precision::F32).unwrap();
         for mode in MODES {
             for alpha in ANGLES {
-                let frame = disp.render(&gpu, &draw(mode, alpha)).unwrap();
+                let frame = disp.render(gpu, &draw(mode, alpha)).unwrap();
                 let (cpu, _) = cpu_render(&data, &off, mode, alpha);
                 let name = format!("cyl-{shape}-{}-{alpha:.2}", mode.name());
                 let (db, _) = check_image(&name, &frame.image, &cpu, 40.0, 0.02);
@@ -273,15 +272,8 @@ fn step_mismatches(gpu: &Gpu, precision: Precision) -> (usize, usize, Vec<String
 
 #[test]
 fn gpu_step_counts_equal_cpu_per_fragment_in_f64() {
-    let Some(gpu) = gpu() else { return };
-    if !gpu.has_f64 {
-        eprintln!(
-            "skipped: adapter {} has no SHADER_F64 (the f32 test still runs)",
-            gpu.describe()
-        );
-        return;
-    }
-    let (bad, total, notes) = step_mismatches(&gpu, Precision::F64);
+    let Some(gpu) = gpu_f64() else { return };
+    let (bad, total, notes) = step_mismatches(gpu, Precision::F64);
     eprintln!("f64: {bad} of {total} fragments differ");
     assert_eq!(bad, 0, "step counts differ:\n{}", notes.join("\n"));
 }
@@ -293,7 +285,7 @@ fn gpu_step_counts_equal_cpu_per_fragment_in_f64() {
 #[test]
 fn gpu_step_counts_match_cpu_per_fragment_in_f32_but_for_rounding() {
     let Some(gpu) = gpu() else { return };
-    let (bad, total, notes) = step_mismatches(&gpu, Precision::F32);
+    let (bad, total, notes) = step_mismatches(gpu, Precision::F32);
     let share = bad as f64 / total as f64;
     eprintln!(
         "f32: {bad} of {total} fragments differ ({:.4} %)\n{}",
@@ -314,7 +306,7 @@ fn gpu_psnr_against_ray_cast_truth_within_half_db_of_cpu() {
     let light = Light::default();
     for shape in SHAPES {
         let (data, off) = asset(shape, dir.path());
-        let disp = CylinderDisplay::new(&gpu, &data, Some(&off), Precision::F32).unwrap();
+        let disp = CylinderDisplay::new(gpu, &data, Some(&off), Precision::F32).unwrap();
         let s = scene_shape(shape).unwrap();
         for alpha in ANGLES {
             let truth = render_truth(
@@ -331,7 +323,7 @@ fn gpu_psnr_against_ray_cast_truth_within_half_db_of_cpu() {
             .unwrap();
             for mode in [CylinderMode::Bounded, CylinderMode::Hybrid { steps: 4 }] {
                 let (cpu, _) = cpu_render(&data, &off, mode, alpha);
-                let frame = disp.render(&gpu, &draw(mode, alpha)).unwrap();
+                let frame = disp.render(gpu, &draw(mode, alpha)).unwrap();
                 let (db_cpu, db_gpu) = (
                     psnr(&cpu, &truth).unwrap(),
                     psnr(&frame.image, &truth).unwrap(),
@@ -351,9 +343,9 @@ fn bad_draw_parameters_are_typed_errors() {
     let Some(gpu) = gpu() else { return };
     let dir = tempfile::tempdir().unwrap();
     let (data, off) = asset("pear", dir.path());
-    let bare = CylinderDisplay::new(&gpu, &data, None, Precision::F32).unwrap();
+    let bare = CylinderDisplay::new(gpu, &data, None, Precision::F32).unwrap();
     assert!(!bare.has_offsets());
-    let full = CylinderDisplay::new(&gpu, &data, Some(&off), Precision::F32).unwrap();
+    let full = CylinderDisplay::new(gpu, &data, Some(&off), Precision::F32).unwrap();
     let cases = [
         (&bare, draw(CylinderMode::Fitted, 0.3)),
         (&full, draw(CylinderMode::Hybrid { steps: 0 }, 0.3)),
@@ -374,7 +366,7 @@ fn bad_draw_parameters_are_typed_errors() {
         ),
     ];
     for (disp, d) in cases {
-        let e = disp.render(&gpu, &d).unwrap_err();
+        let e = disp.render(gpu, &d).unwrap_err();
         assert!(
             matches!(e, DisplayError::InvalidParameter { .. }),
             "{d:?}: {e}"
@@ -398,7 +390,7 @@ fn bad_draw_parameters_are_typed_errors() {
         Cylinder::build(&spec, &Needs::default(), &dec, &src).unwrap()
     };
     assert!(matches!(
-        CylinderDisplay::new(&gpu, &other, Some(&off), Precision::F32),
+        CylinderDisplay::new(gpu, &other, Some(&off), Precision::F32),
         Err(DisplayError::InvalidParameter { .. })
     ));
     assert!(matches!(
@@ -407,10 +399,10 @@ fn bad_draw_parameters_are_typed_errors() {
     ));
     // The full turn: α and α + 2π draw the same frame.
     let a = full
-        .render(&gpu, &draw(CylinderMode::Bounded, 0.7))
+        .render(gpu, &draw(CylinderMode::Bounded, 0.7))
         .unwrap();
     let b = full
-        .render(&gpu, &draw(CylinderMode::Bounded, 0.7 + TAU))
+        .render(gpu, &draw(CylinderMode::Bounded, 0.7 + TAU))
         .unwrap();
     assert!(psnr(&a.image, &b.image).unwrap() > 40.0);
 }

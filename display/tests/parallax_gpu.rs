@@ -18,13 +18,14 @@ use altrep::parallax::{
 use altrep::pipeline::parallax::{Parallax, ParallaxData, ParallaxSpec};
 use altrep::pipeline::{Needs, Representation, Source};
 use altrep_data_gen::{BoundingCylinder, Light, TruthParams, render_truth, scene_shape};
+use altrep_display::Precision;
 use altrep_display::check::{pixel_errors, quantile, write_artefacts};
-use altrep_display::parallax::{DrawParams, ParallaxDisplay, Precision};
+use altrep_display::parallax::{DrawParams, ParallaxDisplay};
 use altrep_display::{DisplayError, Gpu, load_parallax};
 use approx::assert_abs_diff_eq;
 
 mod common;
-use common::{failures_dir, gpu};
+use common::{failures_dir, gpu, gpu_f64};
 
 /// Shapes of the step-count and image checks (flat faces, a hole, thin branches).
 const SHAPES: [&str; 3] = ["truck", "torus", "tree"];
@@ -137,11 +138,11 @@ fn gpu_image_matches_cpu_renderer_for_every_bound_kind_f32() {
     let mut halved = 0;
     for shape in SHAPES {
         let data = asset(shape, dir.path());
-        let disp = ParallaxDisplay::new(&gpu, &data, Precision::F32).unwrap();
+        let disp = ParallaxDisplay::new(gpu, &data, Precision::F32).unwrap();
         assert_eq!(disp.kinds().len(), 5, "cylinder + 4 stored kinds");
         for b in &data.bounds {
             for alpha in ANGLES {
-                let frame = disp.render(&gpu, &draw(b.kind, alpha)).unwrap();
+                let frame = disp.render(gpu, &draw(b.kind, alpha)).unwrap();
                 let (cpu, _) = render_bounded(&data.images, b, alpha, &light).unwrap();
                 let name = format!("{shape}-{}-{alpha:.2}", b.kind.slug());
                 let (db, _) = check_image(&name, &frame.image, &cpu, 40.0, 0.02);
@@ -188,7 +189,7 @@ fn gpu_cylinder_march_matches_cpu_render_at_other_screen_sizes() {
     let Some(gpu) = gpu() else { return };
     let dir = tempfile::tempdir().unwrap();
     let data = asset("truck", dir.path());
-    let disp = ParallaxDisplay::new(&gpu, &data, Precision::F32).unwrap();
+    let disp = ParallaxDisplay::new(gpu, &data, Precision::F32).unwrap();
     for (w, h) in [(48, 40), (20, 32)] {
         for alpha in ANGLES {
             let screen = RenderParams {
@@ -204,7 +205,7 @@ fn gpu_cylinder_march_matches_cpu_render_at_other_screen_sizes() {
                 height: h,
                 ..draw(BoundKind::Cylinder, alpha)
             };
-            let frame = disp.render(&gpu, &d).unwrap();
+            let frame = disp.render(gpu, &d).unwrap();
             check_image(
                 &format!("truck-{w}x{h}-{alpha:.2}"),
                 &frame.image,
@@ -225,7 +226,7 @@ fn gpu_original_reconstruction_matches_cpu_original() {
     let dir = tempfile::tempdir().unwrap();
     let light = Light::default();
     let data = asset("tree", dir.path());
-    let disp = ParallaxDisplay::new(&gpu, &data, Precision::F32).unwrap();
+    let disp = ParallaxDisplay::new(gpu, &data, Precision::F32).unwrap();
     let best = data
         .bounds
         .iter()
@@ -237,7 +238,7 @@ fn gpu_original_reconstruction_matches_cpu_original() {
             rec: orig,
             ..draw(BoundKind::BestC, alpha)
         };
-        let frame = disp.render(&gpu, &d).unwrap();
+        let frame = disp.render(gpu, &d).unwrap();
         let cpu = render_bounded_with(&data.images, best, alpha, &light, &orig).unwrap();
         check_image(
             &format!("tree-original-{alpha:.2}"),
@@ -266,7 +267,7 @@ fn gpu_original_reconstruction_matches_cpu_original() {
             height: 40,
             ..draw(BoundKind::Cylinder, alpha)
         };
-        let frame = disp.render(&gpu, &DrawParams { rec: orig, ..d }).unwrap();
+        let frame = disp.render(gpu, &DrawParams { rec: orig, ..d }).unwrap();
         check_image(
             &format!("tree-original-48x40-{alpha:.2}"),
             &frame.image,
@@ -333,15 +334,8 @@ fn step_mismatches(gpu: &Gpu, precision: Precision) -> (usize, usize, Vec<String
 
 #[test]
 fn gpu_step_counts_equal_cpu_per_fragment_in_f64() {
-    let Some(gpu) = gpu() else { return };
-    if !gpu.has_f64 {
-        eprintln!(
-            "skipped: adapter {} has no SHADER_F64 (the f32 test still runs)",
-            gpu.describe()
-        );
-        return;
-    }
-    let (bad, total, notes) = step_mismatches(&gpu, Precision::F64);
+    let Some(gpu) = gpu_f64() else { return };
+    let (bad, total, notes) = step_mismatches(gpu, Precision::F64);
     eprintln!("f64: {bad} of {total} fragments differ");
     assert_eq!(bad, 0, "step counts differ:\n{}", notes.join("\n"));
 }
@@ -353,7 +347,7 @@ fn gpu_step_counts_equal_cpu_per_fragment_in_f64() {
 #[test]
 fn gpu_step_counts_match_cpu_per_fragment_in_f32_but_for_rounding() {
     let Some(gpu) = gpu() else { return };
-    let (bad, total, notes) = step_mismatches(&gpu, Precision::F32);
+    let (bad, total, notes) = step_mismatches(gpu, Precision::F32);
     let share = bad as f64 / total as f64;
     eprintln!(
         "f32: {bad} of {total} fragments differ ({:.4} %)\n{}",
@@ -374,7 +368,7 @@ fn gpu_psnr_against_ray_cast_truth_within_half_db_of_cpu() {
     let light = Light::default();
     for shape in SHAPES {
         let data = asset(shape, dir.path());
-        let disp = ParallaxDisplay::new(&gpu, &data, Precision::F32).unwrap();
+        let disp = ParallaxDisplay::new(gpu, &data, Precision::F32).unwrap();
         let s = scene_shape(shape).unwrap();
         let best = data
             .bounds
@@ -395,7 +389,7 @@ fn gpu_psnr_against_ray_cast_truth_within_half_db_of_cpu() {
             )
             .unwrap();
             let (cpu, _) = render_bounded(&data.images, best, alpha, &light).unwrap();
-            let frame = disp.render(&gpu, &draw(BoundKind::BestC, alpha)).unwrap();
+            let frame = disp.render(gpu, &draw(BoundKind::BestC, alpha)).unwrap();
             let (db_cpu, db_gpu) = (
                 psnr(&cpu, &truth).unwrap(),
                 psnr(&frame.image, &truth).unwrap(),
@@ -412,7 +406,7 @@ fn bad_draw_parameters_are_typed_errors() {
     let dir = tempfile::tempdir().unwrap();
     let mut data = asset("box", dir.path());
     data.bounds.retain(|b| b.kind == BoundKind::ZMinMax);
-    let disp = ParallaxDisplay::new(&gpu, &data, Precision::F32).unwrap();
+    let disp = ParallaxDisplay::new(gpu, &data, Precision::F32).unwrap();
     let bad = [
         draw(BoundKind::BestC, 0.3),
         DrawParams {
@@ -426,7 +420,7 @@ fn bad_draw_parameters_are_typed_errors() {
         draw(BoundKind::Cylinder, f64::NAN),
     ];
     for d in bad {
-        let e = disp.render(&gpu, &d).unwrap_err();
+        let e = disp.render(gpu, &d).unwrap_err();
         assert!(
             matches!(e, DisplayError::InvalidParameter { .. }),
             "{d:?}: {e}"

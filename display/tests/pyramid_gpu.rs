@@ -248,13 +248,13 @@ fn check_image(
 fn gpu_pyramid_lookups_match_the_cpu_samplers() {
     let Some(gpu) = gpu() else { return };
     let s = setup();
-    let disp = PyramidDisplay::new(&gpu, &[&s.mip, &s.rip], Some(&s.fip)).unwrap();
+    let disp = PyramidDisplay::new(gpu, &[&s.mip, &s.rip], Some(&s.fip)).unwrap();
     assert_eq!(disp.samplers(), Sampler::ALL.to_vec());
     for sampler in Sampler::ALL {
         let mut worst = f64::INFINITY;
         let mut ms = Vec::new();
         for v in views() {
-            let frame = disp.render(&gpu, sampler, &v, PIXELS).unwrap();
+            let frame = disp.render(gpu, sampler, &v, PIXELS).unwrap();
             ms.push(frame.millis);
             let (vals, _, _) = cpu_panel(&s, sampler, &v);
             let cpu = values_to_image(&vals, 1, PIXELS).unwrap();
@@ -275,7 +275,7 @@ fn gpu_pyramid_lookups_match_the_cpu_samplers() {
 fn gpu_pyramid_psnr_against_supersampled_truth_within_half_db_of_cpu() {
     let Some(gpu) = gpu() else { return };
     let s = setup();
-    let disp = PyramidDisplay::new(&gpu, &[&s.mip, &s.rip], Some(&s.fip)).unwrap();
+    let disp = PyramidDisplay::new(gpu, &[&s.mip, &s.rip], Some(&s.fip)).unwrap();
     for v in views() {
         let t = truth(&s, &v);
         let mut line = format!(
@@ -283,7 +283,7 @@ fn gpu_pyramid_psnr_against_supersampled_truth_within_half_db_of_cpu() {
             v.texels_per_pixel, v.tilt_deg, v.azimuth_deg
         );
         for sampler in Sampler::ALL {
-            let frame = disp.render(&gpu, sampler, &v, PIXELS).unwrap();
+            let frame = disp.render(gpu, sampler, &v, PIXELS).unwrap();
             let (vals, _, _) = cpu_panel(&s, sampler, &v);
             let cpu = values_to_image(&vals, 1, PIXELS).unwrap();
             let (db_cpu, db_gpu) = (
@@ -305,13 +305,13 @@ fn gpu_pyramid_psnr_against_supersampled_truth_within_half_db_of_cpu() {
 fn gpu_fip_decisions_and_lookup_counts_match_cpu_per_fragment() {
     let Some(gpu) = gpu() else { return };
     let s = setup();
-    let disp = PyramidDisplay::new(&gpu, &[&s.mip, &s.rip], Some(&s.fip)).unwrap();
+    let disp = PyramidDisplay::new(gpu, &[&s.mip, &s.rip], Some(&s.fip)).unwrap();
     let (mut seen_mip, mut seen_rip, mut seen_fip) = (false, false, false);
     let (mut bad_counts, mut total) = (0usize, 0usize);
     for sampler in Sampler::ALL {
         let mut sum_gpu = 0u64;
         for v in views() {
-            let frame = disp.render(&gpu, sampler, &v, PIXELS).unwrap();
+            let frame = disp.render(gpu, sampler, &v, PIXELS).unwrap();
             let (_, schemes, lookups) = cpu_panel(&s, sampler, &v);
             for (f, (g, c)) in frame.scheme.iter().zip(&schemes).enumerate() {
                 assert_eq!(
@@ -368,19 +368,19 @@ fn bad_pyramid_inputs_are_typed_errors() {
     let Some(gpu) = gpu() else { return };
     let s = setup();
     assert!(matches!(
-        PyramidDisplay::new(&gpu, &[], None),
+        PyramidDisplay::new(gpu, &[], None),
         Err(DisplayError::InvalidParameter { .. })
     ));
     assert!(matches!(
-        PyramidDisplay::new(&gpu, &[&s.mip, &s.mip], None),
+        PyramidDisplay::new(gpu, &[&s.mip, &s.mip], None),
         Err(DisplayError::InvalidParameter { .. })
     ));
     let other = FipMap::build(test_texture(64, 1), params()).unwrap();
     assert!(matches!(
-        PyramidDisplay::new(&gpu, &[&s.mip], Some(&other)),
+        PyramidDisplay::new(gpu, &[&s.mip], Some(&other)),
         Err(DisplayError::InvalidParameter { .. })
     ));
-    let disp = PyramidDisplay::new(&gpu, &[&s.mip], None).unwrap();
+    let disp = PyramidDisplay::new(gpu, &[&s.mip], None).unwrap();
     let ok = views()[0];
     let bad = [
         (Sampler::Rip, ok, PIXELS),
@@ -403,7 +403,7 @@ fn bad_pyramid_inputs_are_typed_errors() {
         ),
     ];
     for (sampler, v, px) in bad {
-        let e = disp.render(&gpu, sampler, &v, px).unwrap_err();
+        let e = disp.render(gpu, sampler, &v, px).unwrap_err();
         assert!(
             matches!(e, DisplayError::InvalidParameter { .. }),
             "{sampler:?} {v:?} {px}: {e}"

@@ -19,13 +19,14 @@ use altrep::sphere::{
 };
 use altrep_data_gen::{Light, RgbaImage, scene_shape};
 use altrep_display::DisplayError;
+use altrep_display::Precision;
 use altrep_display::check::{pixel_errors, quantile, write_artefacts};
-use altrep_display::sphere::{Precision, SphereDisplay, SphereDraw, SphereFrame, load_sphere};
+use altrep_display::sphere::{SphereDisplay, SphereDraw, SphereFrame, load_sphere};
 use approx::assert_abs_diff_eq;
 use glam::DVec3;
 
 mod common;
-use common::{failures_dir, gpu};
+use common::{failures_dir, gpu, gpu_f64};
 
 /// Shapes checked (flat faces, thin branches, a seat over open space), with the view set and
 /// surface model each is stored with.
@@ -125,9 +126,9 @@ fn gpu_image_and_steps_match_the_cpu_warp_in_f32() {
     let mut worst_db = f64::INFINITY;
     for (shape, coverage, model) in CASES {
         let images = asset(shape, coverage, model, dir.path());
-        let disp = SphereDisplay::new(&gpu, &images, Precision::F32).unwrap();
+        let disp = SphereDisplay::new(gpu, &images, Precision::F32).unwrap();
         for d in directions(&images) {
-            let frame = disp.render(&gpu, &SphereDraw::new(d, SIZE)).unwrap();
+            let frame = disp.render(gpu, &SphereDraw::new(d, SIZE)).unwrap();
             let want = cpu(&images, d);
             let name = format!("sphere-{shape}-{:.2}-{:.2}-{:.2}", d.x, d.y, d.z);
             let db = check_image(&name, &frame.image, &want.image, 50.0, 0.01);
@@ -171,14 +172,7 @@ fn gpu_image_and_steps_match_the_cpu_warp_in_f32() {
 /// comes first, and from there the point found).
 #[test]
 fn gpu_steps_and_flags_match_the_cpu_per_ray_in_f64_but_for_ties() {
-    let Some(gpu) = gpu() else { return };
-    if !gpu.has_f64 {
-        eprintln!(
-            "skipped: adapter {} has no SHADER_F64 (the f32 test still runs)",
-            gpu.describe()
-        );
-        return;
-    }
+    let Some(gpu) = gpu_f64() else { return };
     let dir = tempfile::tempdir().unwrap();
     let (mut differ, mut total, mut worst_db) = (0usize, 0usize, f64::INFINITY);
     let (mut flags_gpu, mut flags_cpu) = (0usize, 0usize);
@@ -186,9 +180,9 @@ fn gpu_steps_and_flags_match_the_cpu_per_ray_in_f64_but_for_ties() {
     let (mut tied, mut untied) = (0usize, 0usize);
     for (shape, coverage, model) in CASES {
         let images = asset(shape, coverage, model, dir.path());
-        let disp = SphereDisplay::new(&gpu, &images, Precision::F64).unwrap();
+        let disp = SphereDisplay::new(gpu, &images, Precision::F64).unwrap();
         for d in directions(&images) {
-            let frame = disp.render(&gpu, &SphereDraw::new(d, SIZE)).unwrap();
+            let frame = disp.render(gpu, &SphereDraw::new(d, SIZE)).unwrap();
             let want = cpu(&images, d);
             let name = format!("sphere-f64-{shape}-{:.2}-{:.2}-{:.2}", d.x, d.y, d.z);
             let g = traced_steps(&frame);
@@ -238,11 +232,11 @@ fn gpu_psnr_against_ray_cast_truth_within_a_twentieth_of_a_db_of_the_cpu() {
     let light = Light::default();
     for (shape, coverage, model) in CASES {
         let images = asset(shape, coverage, model, dir.path());
-        let disp = SphereDisplay::new(&gpu, &images, Precision::F32).unwrap();
+        let disp = SphereDisplay::new(gpu, &images, Precision::F32).unwrap();
         let dirs = directions(&images);
         let truths = truth_images(&scene_shape(shape).unwrap(), &dirs, SIZE, 4, &light).unwrap();
         for (&d, truth) in dirs.iter().zip(&truths) {
-            let frame = disp.render(&gpu, &SphereDraw::new(d, SIZE)).unwrap();
+            let frame = disp.render(gpu, &SphereDraw::new(d, SIZE)).unwrap();
             let (db_cpu, db_gpu) = (
                 psnr(&cpu(&images, d).image, truth).unwrap(),
                 psnr(&frame.image, truth).unwrap(),
@@ -266,7 +260,7 @@ fn bad_draw_parameters_are_typed_errors() {
         SurfaceModel::DEFAULT,
         dir.path(),
     );
-    let disp = SphereDisplay::new(&gpu, &images, Precision::F32).unwrap();
+    let disp = SphereDisplay::new(gpu, &images, Precision::F32).unwrap();
     let ok = SphereDraw::new(DVec3::new(0.3, 0.8, 0.2), 16);
     for d in [
         SphereDraw { size: 0, ..ok },
@@ -296,13 +290,13 @@ fn bad_draw_parameters_are_typed_errors() {
             ..ok
         },
     ] {
-        let e = disp.render(&gpu, &d).unwrap_err();
+        let e = disp.render(gpu, &d).unwrap_err();
         assert!(
             matches!(e, DisplayError::InvalidParameter { .. }),
             "{d:?}: {e}"
         );
     }
-    assert!(disp.render(&gpu, &ok).is_ok());
+    assert!(disp.render(gpu, &ok).is_ok());
     assert!(matches!(
         load_sphere(&dir.path().join("nothing-here")),
         Err(DisplayError::Asset { .. })
@@ -316,13 +310,13 @@ fn gpu_hole_depth_matches_the_cpu() {
     let (mut emptied, mut worst_db) = (0usize, f64::INFINITY);
     for (shape, coverage, model) in CASES {
         let images = asset(shape, coverage, model, dir.path());
-        let disp = SphereDisplay::new(&gpu, &images, Precision::F32).unwrap();
+        let disp = SphereDisplay::new(gpu, &images, Precision::F32).unwrap();
         for d in directions(&images) {
             let draw = SphereDraw {
                 hole_depth: Some(0.05),
                 ..SphereDraw::new(d, SIZE)
             };
-            let frame = disp.render(&gpu, &draw).unwrap();
+            let frame = disp.render(gpu, &draw).unwrap();
             let rp = RenderParams {
                 size: SIZE,
                 hole_depth: Some(0.05),
@@ -354,13 +348,13 @@ fn gpu_extra_frames_match_the_cpu() {
         let mut worst_db = f64::INFINITY;
         for (shape, coverage, model) in CASES {
             let images = asset(shape, coverage, model, dir.path());
-            let disp = SphereDisplay::new(&gpu, &images, Precision::F32).unwrap();
+            let disp = SphereDisplay::new(gpu, &images, Precision::F32).unwrap();
             for d in directions(&images) {
                 let draw = SphereDraw {
                     extra_frames: extra,
                     ..SphereDraw::new(d, SIZE)
                 };
-                let frame = disp.render(&gpu, &draw).unwrap();
+                let frame = disp.render(gpu, &draw).unwrap();
                 let rp = RenderParams {
                     size: SIZE,
                     extra_frames: extra,

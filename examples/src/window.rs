@@ -180,15 +180,8 @@ where
             apply_limit_buckets: false,
         }))
         .map_err(|e| WindowError::Gpu(e.to_string()))?;
-        let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
-            label: Some("altrep window"),
-            required_features: wgpu::Features::empty(),
-            required_limits: adapter.limits(),
-            experimental_features: wgpu::ExperimentalFeatures::disabled(),
-            memory_hints: wgpu::MemoryHints::Performance,
-            trace: wgpu::Trace::Off,
-        }))
-        .map_err(|e| WindowError::Gpu(e.to_string()))?;
+        let gpu = Gpu::with_adapter(&adapter).map_err(|e| WindowError::Gpu(e.to_string()))?;
+        let device = &gpu.device;
         let size = window.inner_size();
         let mut config = surface
             .get_default_config(&adapter, size.width.max(1), size.height.max(1))
@@ -200,7 +193,7 @@ where
         if let Some(f) = caps.formats.iter().find(|f| f.is_srgb()) {
             config.format = *f;
         }
-        surface.configure(&device, &config);
+        surface.configure(device, &config);
         let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
             label: Some("blit"),
             source: wgpu::ShaderSource::Wgsl(BLIT.into()),
@@ -227,12 +220,6 @@ where
             cache: None,
         });
         let sampler = device.create_sampler(&wgpu::SamplerDescriptor::default());
-        let gpu = Gpu {
-            device,
-            queue,
-            info: adapter.get_info(),
-            has_f64: false,
-        };
         let setup = self
             .setup
             .take()

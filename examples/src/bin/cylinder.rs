@@ -26,9 +26,8 @@ use altrep::cylinder::{OffsetParams, OffsetTexture};
 use altrep::pipeline::cylinder::{Cylinder, CylinderData, CylinderSpec};
 use altrep::pipeline::{Needs, Representation, Source};
 use altrep_data_gen::{BoundingCylinder, Light, RgbaImage, TruthParams, render_truth, scene_shape};
-use altrep_display::cylinder::{
-    CylinderDisplay, CylinderDraw, CylinderMode, Precision, load_cylinder,
-};
+use altrep_display::Precision;
+use altrep_display::cylinder::{CylinderDisplay, CylinderDraw, CylinderMode, load_cylinder};
 use altrep_display::{Gpu, to_srgb8};
 use altrep_examples::window;
 use clap::Parser;

@@ -30,7 +30,8 @@ use altrep::sphere::{
     RenderParams, SphereImages, azimuth_elevation, render_engine_baseline, truth_images,
 };
 use altrep_data_gen::{Light, RgbaImage, scene_shape};
-use altrep_display::sphere::{Precision, SphereDisplay, SphereDraw, load_sphere};
+use altrep_display::Precision;
+use altrep_display::sphere::{SphereDisplay, SphereDraw, load_sphere};
 use altrep_display::{Gpu, to_srgb8};
 use altrep_examples::window;
 use clap::Parser;

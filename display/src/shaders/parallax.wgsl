@@ -2,10 +2,6 @@
 // (src/parallax/warp.rs). Every formula below is the CPU's, in the same order of operations; the
 // conventions (θ = display angle − view angle, x_e = x_t cos θ + z_t sin θ, the march toward +x_t
 // for θ ≥ 0, cells between texel centres, half-open piece test) are those of src/parallax/mod.rs.
-//
-// `real` is f32 (the production shader) or f64 (the exact twin used by the step-count tests when
-// the adapter has SHADER_F64); the host replaces the alias line.
-alias real = f32;
 
 // Scalars in `real`: see `ParallaxDisplay::render` for the layout.
 @group(0) @binding(0) var<storage, read> P: array<real>;
@@ -44,22 +40,6 @@ const CO3: u32 = 13u;         // cos, sin of θ3 = θ2 − Δθ (fallback view k
 const SI3: u32 = 14u;
 const MAX_SLOPE: u32 = 15u;   // brim max slope (images.rs `Brim`: 0 flat)
 const VIEW_SC: u32 = 16u;     // per view k: sin α_k at 16 + 2k, cos α_k at 17 + 2k
-
-struct VsOut {
-    @builtin(position) pos: vec4<f32>,
-};
-
-@vertex
-fn vs_main(@builtin(vertex_index) vi: u32) -> VsOut {
-    // The impostor quad [−R, R] × [0, H] fills the viewport: two triangles.
-    var corners = array<vec2<f32>, 6>(
-        vec2<f32>(-1.0, -1.0), vec2<f32>(1.0, -1.0), vec2<f32>(1.0, 1.0),
-        vec2<f32>(-1.0, -1.0), vec2<f32>(1.0, 1.0), vec2<f32>(-1.0, 1.0),
-    );
-    var out: VsOut;
-    out.pos = vec4<f32>(corners[vi], 0.0, 1.0);
-    return out;
-}
 
 fn x_at(u: real) -> real {
     return -P[R_CAP] + u * P[PITCH];
@@ -337,15 +317,7 @@ fn shade(k: u32, j: u32, h: Hit) -> vec3<f32> {
         a = ma + t * (a - ma);
         n = mn + t * (n - mn);
     }
-    // glam's normalize_or_zero.
-    let rcp = 1.0 / sqrt(dot(n, n));
-    var nn = vec3<f32>(0.0);
-    if rcp > 0.0 && rcp < 3.0e38 {
-        nn = n * rcp;
-    }
-    let dir = vec3<f32>(L[0], L[1], L[2]);
-    let amb = L[3];
-    return a * (amb + (1.0 - amb) * max(dot(nn, dir), 0.0));
+    return diffuse(a, normalize_or_zero(n), vec4<f32>(L[0], L[1], L[2], L[3]));
 }
 
 // warp.rs `edge_coverage`: 1 − u/2 on a brim (u from the texel centre outward), else 1.
@@ -641,11 +613,6 @@ fn ray_row(j: u32, x: real, px: u32) -> RowOut {
     return o;
 }
 
-struct FsOut {
-    @location(0) color: vec4<f32>,
-    @builtin(frag_depth) depth: f32,
-};
-
 @fragment
 fn fs_main(@builtin(position) pos: vec4<f32>) -> FsOut {
     let px = u32(pos.x);
@@ -701,10 +668,7 @@ fn fs_main(@builtin(position) pos: vec4<f32>) -> FsOut {
     if !hit {
         discard;
     }
-    var out: FsOut;
-    out.color = acc;
     // Orthographic depth: z_e = R' (nearest) → 0, z_e = −R' → 1.
     let r = P[MARCH_R];
-    out.depth = clamp(f32((r - z_e) / (2.0 * r)), 0.0, 1.0);
-    return out;
+    return fragment_out(acc, clamp(f32((r - z_e) / (2.0 * r)), 0.0, 1.0));
 }

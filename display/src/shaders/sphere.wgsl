@@ -2,10 +2,6 @@
 // pixel (src/sphere/warp.rs). Every formula below is the CPU's, in the same order of operations;
 // the conventions (frame units over the bounding sphere, texel coordinates, the surface of a texel,
 // free points, carving free space) are those of src/sphere/mod.rs.
-//
-// `real` is f32 (the production shader) or f64 (the exact twin used by the step-count tests when
-// the adapter has SHADER_F64); the host replaces the alias line.
-alias real = f32;
 
 // Scalars in `real`, see `SphereDisplay::render`: 0 F (texels per frame side), 1 visibility
 // (texel pitches), 2 "infinity", 3 the CPU's 1e-300 (smallest direction component marched),
@@ -35,22 +31,6 @@ const MAX_CARVE_ROUNDS: u32 = 8u;
 const MAX_SLOTS: u32 = 11u;
 
 var<private> steps: u32;
-
-struct VsOut {
-    @builtin(position) pos: vec4<f32>,
-};
-
-@vertex
-fn vs_main(@builtin(vertex_index) vi: u32) -> VsOut {
-    // The impostor quad (the bounding sphere's square) fills the viewport: two triangles.
-    var corners = array<vec2<f32>, 6>(
-        vec2<f32>(-1.0, -1.0), vec2<f32>(1.0, -1.0), vec2<f32>(1.0, 1.0),
-        vec2<f32>(-1.0, -1.0), vec2<f32>(1.0, 1.0), vec2<f32>(-1.0, 1.0),
-    );
-    var out: VsOut;
-    out.pos = vec4<f32>(corners[vi], 0.0, 1.0);
-    return out;
-}
 
 fn size_f() -> real {
     return P[0];
@@ -282,9 +262,7 @@ fn code_value(c: u32) -> real {
 
 // The light (data-gen `Light::shade`).
 fn shade(albedo: vec3<f32>, normal: vec3<f32>) -> vec3<f32> {
-    let dir = vec3<f32>(L[0], L[1], L[2]);
-    let amb = L[3];
-    return albedo * (amb + (1.0 - amb) * max(dot(normal, dir), 0.0));
+    return diffuse(albedo, normal, vec4<f32>(L[0], L[1], L[2], L[3]));
 }
 
 struct Attr {
@@ -337,11 +315,6 @@ fn attributes_at(k: u32, p: vec2<real>) -> Attr {
     }
     return out;
 }
-
-struct FsOut {
-    @location(0) colour: vec4<f32>,
-    @builtin(frag_depth) depth: f32,
-};
 
 @fragment
 fn fs_main(in: VsOut) -> FsOut {
@@ -484,9 +457,9 @@ fn fs_main(in: VsOut) -> FsOut {
     if unresolved {
         flags = flags | 2u;
     }
-    var out: FsOut;
+    var colour: vec4<f32>;
     if wsum > real(0.0) {
-        out.colour = vec4<f32>(col / f32(wsum), 1.0);
+        colour = vec4<f32>(col / f32(wsum), 1.0);
     } else if have_nearest {
         flags = flags | 1u;
         if nearest_gap > P[7] {
@@ -495,15 +468,15 @@ fn fs_main(in: VsOut) -> FsOut {
             STEPS[2u * frag + 1u] = flags & 5u;
             discard;
         }
-        out.colour = vec4<f32>(nearest_col, 1.0);
+        colour = vec4<f32>(nearest_col, 1.0);
     } else {
         STEPS[2u * frag] = steps;
         STEPS[2u * frag + 1u] = flags & 4u;
         discard;
     }
     // Orthographic depth: 0 at the front of the bounding sphere, 1 at its back.
-    out.depth = clamp(f32((real(1.0) - z_c) * real(0.5)), 0.0, 1.0);
+    let depth = clamp(f32((real(1.0) - z_c) * real(0.5)), 0.0, 1.0);
     STEPS[2u * frag] = steps;
     STEPS[2u * frag + 1u] = flags;
-    return out;
+    return fragment_out(colour, depth);
 }

@@ -44,21 +44,6 @@ const HALF_PI: f32 = 1.57079632679490;
 
 var<private> lookups: u32;
 
-struct VsOut {
-    @builtin(position) pos: vec4<f32>,
-};
-
-@vertex
-fn vs_main(@builtin(vertex_index) vi: u32) -> VsOut {
-    var corners = array<vec2<f32>, 6>(
-        vec2<f32>(-1.0, -1.0), vec2<f32>(1.0, -1.0), vec2<f32>(1.0, 1.0),
-        vec2<f32>(-1.0, -1.0), vec2<f32>(1.0, 1.0), vec2<f32>(-1.0, 1.0),
-    );
-    var out: VsOut;
-    out.pos = vec4<f32>(corners[vi], 0.0, 1.0);
-    return out;
-}
-
 fn wrap_index(mode: u32, i: i32, n: i32) -> i32 {
     if mode == 0u {
         return clamp(i, 0, n - 1);
@@ -217,7 +202,7 @@ fn decide(dir: vec3<f32>) -> u32 {
 }
 
 @fragment
-fn fs_main(in: VsOut) -> @location(0) vec4<f32> {
+fn fs_main(in: VsOut) -> @location(0) vec4<u32> {
     let px = u32(in.pos.x);
     let py = u32(in.pos.y);
     let side = I[1];
@@ -236,7 +221,7 @@ fn fs_main(in: VsOut) -> @location(0) vec4<f32> {
     if d.z >= 0.0 {
         STEPS[2u * frag] = 0u;
         STEPS[2u * frag + 1u] = 0u;
-        return vec4<f32>(0.0);
+        return colour_bits(vec4<f32>(0.0));
     }
     let cz = back.z - e.z;
     let t = dist * back.z / cz;
@@ -289,5 +274,5 @@ fn fs_main(in: VsOut) -> @location(0) vec4<f32> {
     if ch == 4u {
         out.w = s.w;
     }
-    return out;
+    return colour_bits(out);
 }

@@ -10,10 +10,6 @@
 // row cell, the silhouette mask interval and the y weights of the offset fetch. The fragment does
 // the rest: slice interpolation, projection, facing, coverage, the march or the fetch, the
 // validation and the refinement, the shading.
-//
-// `real` is f32 (the production shader) or f64 (the exact twin used by the step-count tests when
-// the adapter has SHADER_F64); the host replaces the alias line.
-alias real = f32;
 
 // Reals: per-draw scalars (see the host), then tables at the offsets stored in I.
 @group(0) @binding(0) var<storage, read> R: array<real>;
@@ -62,22 +58,6 @@ const R_L: u32 = 5u;          // L as a real
 var<private> ROW_J: u32;
 var<private> ROW_T: f32;
 var<private> ROW_LERP: bool;
-
-struct VsOut {
-    @builtin(position) pos: vec4<f32>,
-};
-
-@vertex
-fn vs_main(@builtin(vertex_index) vi: u32) -> VsOut {
-    // The impostor quad [−R, R] × [0, H] fills the viewport: two triangles.
-    var corners = array<vec2<f32>, 6>(
-        vec2<f32>(-1.0, -1.0), vec2<f32>(1.0, -1.0), vec2<f32>(1.0, 1.0),
-        vec2<f32>(-1.0, -1.0), vec2<f32>(1.0, 1.0), vec2<f32>(-1.0, 1.0),
-    );
-    var out: VsOut;
-    out.pos = vec4<f32>(corners[vi], 0.0, 1.0);
-    return out;
-}
 
 fn n_cols() -> i32 {
     return I[I_L];
@@ -545,20 +525,9 @@ fn fetch(x: real, py: u32) -> Fetch {
 
 // Light::shade with glam's normalize_or_zero.
 fn shade(albedo: vec3<f32>, normal: vec3<f32>) -> vec3<f32> {
-    let rcp = 1.0 / sqrt(dot(normal, normal));
-    var nn = vec3<f32>(0.0);
-    if rcp > 0.0 && rcp < 3.0e38 {
-        nn = normal * rcp;
-    }
-    let dir = vec3<f32>(LIGHT[0], LIGHT[1], LIGHT[2]);
-    let amb = LIGHT[3];
-    return albedo * (amb + (1.0 - amb) * max(dot(nn, dir), 0.0));
+    let light = vec4<f32>(LIGHT[0], LIGHT[1], LIGHT[2], LIGHT[3]);
+    return diffuse(albedo, normalize_or_zero(normal), light);
 }
-
-struct FsOut {
-    @location(0) color: vec4<f32>,
-    @builtin(frag_depth) depth: f32,
-};
 
 @fragment
 fn fs_main(@builtin(position) pos: vec4<f32>) -> FsOut {
@@ -598,9 +567,7 @@ fn fs_main(@builtin(position) pos: vec4<f32>) -> FsOut {
     if !m.f.ok {
         discard;
     }
-    var out: FsOut;
-    out.color = vec4<f32>(shade(m.f.albedo, m.f.normal), 1.0);
     // Orthographic depth: z = R (nearest) → 0, z = −R → 1.
-    out.depth = clamp(f32((1.0 - m.f.depth) * 0.5), 0.0, 1.0);
-    return out;
+    let depth = clamp(f32((1.0 - m.f.depth) * 0.5), 0.0, 1.0);
+    return fragment_out(vec4<f32>(shade(m.f.albedo, m.f.normal), 1.0), depth);
 }

@@ -1,4 +1,4 @@
-//! Ellipsoid micro-primitives, eigen-solver, filtering and octree (SPEC §8, issue 6): closed forms
+//! Ellipsoid micro-primitives, eigen-solver, filtering and octree (docs/design.md §8): closed forms
 //! against quadrature, adversarial eigen suite, filter invariants, property tests.
 
 use std::f64::consts::PI;

@@ -1,5 +1,5 @@
 //! `altrep ellipsoid-bench`: the eigen-solver table, the filter-rule table, the sin²θ fit and the
-//! octree report of SPEC §8 (issue 6), printed and optionally written as JSON.
+//! octree report of docs/design.md §8, printed and optionally written as JSON.
 
 use std::collections::BTreeMap;
 use std::path::PathBuf;

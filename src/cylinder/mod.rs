@@ -1,4 +1,4 @@
-//! # Cylindrical textures (SPEC §6; chapter 3 of the report seed)
+//! # Cylindrical textures (docs/design.md §6; chapter 3 of Baboud's report)
 //!
 //! An object is stored as one column of samples per capture angle: column `c` of `L` holds, for
 //! each of `Ly` heights, the first hit of a horizontal ray from the bounding cylinder toward the

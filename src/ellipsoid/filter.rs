@@ -6,7 +6,8 @@
 //! and turn the mean back into an ellipsoid with the eigen-solver:
 //!
 //! - [`FilterRule::Seed1995`]: `M = Q⁻¹ = R L² Rᵀ`, lengths `√λ` of the eigenvalues of the mean
-//!   (the seed writes `λ^{-2}` of `Q`'s eigenvalues; SPEC §14: it is `λ^{-1/2}`, the same thing).
+//!   (Neyret 1995 writes `λ^{-2}` of `Q`'s eigenvalues; it is `λ^{-1/2}`, the same thing:
+//!   docs/design.md §14).
 //!   Motivation (seed §3.3.2): `f_Q` is homogeneous of degree 1 in `Q⁻¹`, so the sum of identical
 //!   shapes is exact, and for two similar ellipsoids at angle θ the error is `O(sin² θ)`.
 //! - [`FilterRule::Sggx`]: `M = S = π² det(Q⁻¹) Q = π² adj(Q⁻¹)`, the SGGX microflake matrix of

@@ -137,7 +137,8 @@ impl Ellipsoid {
     }
 
     /// The ellipsoid of the quadratic form `Q` (symmetric positive definite; upper triangle read):
-    /// lengths `λ^{-1/2}` of the eigenvalues of `Q` (SPEC §14: not the seed's `λ^{-2}`).
+    /// lengths `λ^{-1/2}` of the eigenvalues of `Q` (not Neyret 1995's `λ^{-2}`: docs/design.md
+    /// §14).
     pub fn from_quadratic_form(q: &Matrix3<f64>) -> Result<Self, EllipsoidError> {
         let e = sym_eigen3(q)?;
         if e.values[0] <= 0.0 {

@@ -562,7 +562,7 @@ pub fn from_shape(shape: &dyn Shape, params: &ShapeParams) -> Result<TexelVolume
     TexelVolume::new(d, params.voxel, rgba)
 }
 
-/// The test tiles of the measurements (issue 13).
+/// The test tiles of the slice measurements (`altrep slices`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 pub enum TestTile {
     /// 40 tapered, leaning grass blades rooted at `y = 0`, no soil (the surface under the

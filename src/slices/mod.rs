@@ -1,4 +1,4 @@
-//! # Volumetric textures as stacks of alpha slices (SPEC §9; the 1998 seed, Meyer & Neyret)
+//! # Volumetric textures as stacks of alpha slices (docs/design.md §9; Meyer & Neyret 1998)
 //!
 //! A **texel** is a small tileable reference volume (premultiplied RGBA, lighting baked) that is
 //! repeated over a surface. It is drawn as a stack of alpha-blended textured slices composited
@@ -12,8 +12,8 @@
 //!
 //! ## Conventions (written once here)
 //!
-//! * **Texel frame.** `y` is the height above the surface (SPEC §2: `y` vertical); `x` and `z`
-//!   are the surface directions. Voxels are cubes of edge `s` (world units); a volume of
+//! * **Texel frame.** `y` is the height above the surface (docs/design.md §2: `y` vertical); `x`
+//!   and `z` are the surface directions. Voxels are cubes of edge `s` (world units); a volume of
 //!   `nx × ny × nz` voxels spans `[0, nx·s] × [0, ny·s] × [0, nz·s]`. Voxel `(x, y, z)` covers
 //!   `[x·s, (x+1)·s] × …`, its centre is at `(x + ½, y + ½, z + ½)·s`, storage index
 //!   `x + nx·(y + ny·z)` (as data-gen's voxel volumes). The volume **tiles** (is periodic) along

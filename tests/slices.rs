@@ -490,7 +490,7 @@ fn criterion_counts_slices() {
         })
     ));
     assert_eq!(level_for_slices(Axis::Y, 32, 33, false).unwrap(), 0);
-    // The seed's criterion for the views it picks: h·tan a / d ≤ 1.
+    // Meyer & Neyret's criterion for the views it picks: h·tan a / d ≤ 1.
     let vol = uniform(32, [0.0; 4]);
     for polar in [5.0f64, 10.0, 20.0, 40.0] {
         let c = choose(

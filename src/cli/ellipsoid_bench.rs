@@ -62,7 +62,7 @@ pub enum Section {
 /// Filter rule on the command line.
 #[derive(clap::ValueEnum, Clone, Copy, Debug)]
 pub enum RuleArg {
-    /// Weighted mean of Q⁻¹ (the 1995 seed).
+    /// Weighted mean of Q⁻¹ (Neyret 1995).
     Seed1995,
     /// Weighted mean of the SGGX matrix S (Heitz et al. 2015).
     Sggx,

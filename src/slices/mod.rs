@@ -5,7 +5,7 @@
 //! back to front. This module builds texel volumes ([`build`]), cuts them into stacks along the
 //! three axes with **mipmapped slice merges** ([`build_slices`]: level `k` holds `N/2^k` slices,
 //! each the composite of `2^k` layers, each slice also mip-mapped in 2D), chooses a direction and
-//! a level per view ([`stack`]: the seed's criterion `h·tan a / d ≤ 1` and its direction rule
+//! a level per view ([`stack`]: the paper's criterion `h·tan a / d ≤ 1` and its direction rule
 //! `argmin (1/c_i² − 1)·h_i²`), draws them on the CPU over a flat patch ([`render_slices`]) or
 //! a curved one ([`curved`]: shells over a cylinder) and measures them against a ray-marched
 //! ground truth of the same volume ([`render_truth`], [`measure()`]).
@@ -47,7 +47,7 @@
 //! * **Opacity correction.** A slice of alpha `a` (for thickness `h`) crossed at cosine `c`
 //!   between the view and its normal is drawn with `a' = 1 − (1 − a)^(1/|c|)` and its colour
 //!   scaled by `a'/a` (the path through the slab is `h/|c|`); [`RenderParams::opacity_correction`]
-//!   turns it off to draw as the seed's fixed-function hardware did.
+//!   turns it off to draw as the paper's fixed-function hardware did.
 //! * **Compositing.** The slices a ray crosses are composited with `over`, nearest last in the
 //!   back-to-front formulation; the CPU renderer accumulates the equivalent front-to-back sum.
 //!

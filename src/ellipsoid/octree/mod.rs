@@ -1,4 +1,4 @@
-//! The multiscale octree volume of the 1995 seed: leaves from a voxelised RGBA + density volume,
+//! The multiscale octree volume of Neyret 1995: leaves from a voxelised RGBA + density volume,
 //! coarser levels by filtering, uniform and empty regions pruned, level lookup by footprint.
 //!
 //! # Levels and coordinates

@@ -4,8 +4,8 @@
 Usage: python3 bench/embree_compare.py [--views 8] [--size 512] [--repeat 5]
                                        [--altrep PATH] [MESH.obj ...]
 
-Issue 15 asks for at least Embree's rays per second per core on the shipped meshes (teapot,
-beetle, Stanford bunny by default, from ../shared/data/meshes). This script measures both on
+The speed goal for ray casting is at least Embree's rays per second per core on the shipped
+meshes (teapot, beetle, Stanford bunny by default, from ../shared/data/meshes). This script measures both on
 this machine, in the same minutes:
 
 - altrep: `altrep capture --mesh M --views V --size S` with RAYON_NUM_THREADS=1 (one core), the

@@ -1,7 +1,8 @@
 //! Images with parallax: inverse-warping cost per bound type, and cost against error over the
-//! number of views and the view size (SPEC §13). The bound type changes the cost only (the image
-//! is the same); views and size change both. Setup prints steps per frame and PSNR against the
-//! ground truth (one ray per pixel, as rendered) so each timing can be read against its error.
+//! number of views and the view size (docs/design.md §13). The bound type changes the cost only
+//! (the image is the same); views and size change both. Setup prints steps per frame and PSNR
+//! against the ground truth (one ray per pixel, as rendered) so each timing can be read against its
+//! error.
 
 use std::hint::black_box;
 

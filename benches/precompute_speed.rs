@@ -1,6 +1,6 @@
-//! Speed of two precompute stages against their targets of issue 15: the parallax bounds (best c,
-//! 8 views of 64², default parameters) on every shipped mesh, and the octree build at 256³ (the
-//! `tree` scene voxelised once in the setup; only the build is timed).
+//! Speed of two precompute stages against their goals (bench/RESULTS.md, speed work): the parallax
+//! bounds (best c, 8 views of 64², default parameters) on every shipped mesh, and the octree build
+//! at 256³ (the `tree` scene voxelised once in the setup; only the build is timed).
 //!
 //! The shipped meshes are read from `../shared/data/meshes` (or `$ALTREP_MESHES`); without them
 //! the bounds group prints that it is skipped and times nothing.

@@ -1,4 +1,4 @@
-//! Cylindrical textures against the ray-cast ground truth (SPEC §6).
+//! Cylindrical textures against the ray-cast ground truth (docs/design.md §6).
 
 use altrep::cylinder::{
     CylinderRender, CylindricalTexture, DrawOrder, ExactMethod, RadiusModel, RenderParams,
@@ -369,7 +369,8 @@ fn cylinder_command_writes_its_json() {
     }
 }
 
-/// The flat cut-out of the issue: a 2 × 2 square in the plane z = 0, which holds the axis.
+/// The flat cut-out the coverage check must refuse: a 2 × 2 square in the plane z = 0, which holds
+/// the axis.
 fn flat_cut_out() -> altrep::data_gen::Mesh {
     altrep::data_gen::Mesh::from_raw_triangles(
         "flat",

@@ -1,4 +1,4 @@
-//! Ellipsoid micro-primitives, eigen-solver, filtering and octree (SPEC §8, issue 6): closed forms
+//! Ellipsoid micro-primitives, eigen-solver, filtering and octree (docs/design.md §8): closed forms
 //! against quadrature, adversarial eigen suite, filter invariants, property tests.
 
 use std::f64::consts::PI;
@@ -331,7 +331,7 @@ fn filter_errors_vanish_for_identical_and_grow_with_angle() {
             "{rule:?} {err:?}"
         );
     }
-    // The seed's worst case is worse than 30°, for both rules.
+    // Neyret 1995's worst case is worse than 30°, for both rules.
     for rule in FilterRule::ALL {
         let mut last = 0.0;
         for case in [
@@ -366,8 +366,8 @@ fn seed_sin2_law_holds_for_both_rules() {
 
 #[test]
 fn sggx_turns_cylinder_pieces_into_a_cylinder_and_wins_every_case() {
-    // The seed says flat pieces tangent to a large cylinder filter into a cylinder-like ellipsoid
-    // (long along the cylinder's axis y). Measured: true for the SGGX rule only.
+    // Neyret 1995 says flat pieces tangent to a large cylinder filter into a cylinder-like
+    // ellipsoid (long along the cylinder's axis y). Measured: true for the SGGX rule only.
     let case = FilterCase::cylinder_pieces(32).unwrap();
     let f = filter(&case.ellipsoids, &case.weights, FilterRule::Sggx).unwrap();
     let l = f.lengths();

@@ -1,7 +1,7 @@
-//! Images with parallax (SPEC §7): warping against the capture and the ground truth, direct
-//! against inverse warping, conservativeness of every bound type, and the best-c family against
-//! the report's pair. Meshes from `../shared/data/meshes/` are used when present, skipped with a
-//! message otherwise.
+//! Images with parallax (docs/design.md §7): warping against the capture and the ground truth,
+//! direct against inverse warping, conservativeness of every bound type, and the best-c family
+//! against the report's pair. Meshes from `../shared/data/meshes/` are used when present, skipped
+//! with a message otherwise.
 
 use altrep::data_gen::{
     BoundingCylinder, Light, Mesh, RgbaImage, Shape, TruthParams, ViewParams, capture_view,
@@ -692,12 +692,13 @@ fn the_error_split_adds_up_to_the_mse() {
     assert!(error_split(&img, &RgbaImage::new(8, 8)).is_err());
 }
 
-/// Issue 11: the default reconstruction (tangent brims, row filter, fallback views with doubtful
-/// hits at half coverage, soft edges, hole filling, brim carving) against the original, 64², 3×3-ray truth, 16 angles.
+/// The default reconstruction (docs/design.md §7.6: tangent brims, row filter, fallback views with
+/// doubtful hits at half coverage, soft edges, hole filling, brim carving) against the original,
+/// 64², 3×3-ray truth, 16 angles.
 #[test]
 fn the_improved_reconstruction_beats_the_original_and_more_views_never_look_worse() {
     // Floors: the measured PSNR less 0.5 dB (see the constants). Torus and capsule scored 0.6
-    // and 0.2 dB lower at N = 16 than at N = 8 before brim carving (README, issue 11).
+    // and 0.2 dB lower at N = 16 than at N = 8 before brim carving (bench/RESULTS.md).
     let floors = [
         ("truck", FLOOR_TRUCK),
         ("chair", FLOOR_CHAIR),
@@ -739,7 +740,7 @@ fn the_improved_reconstruction_beats_the_original_and_more_views_never_look_wors
     }
 }
 
-/// Issue 11: the fandisk, the last of the 15 evaluation shapes whose N = 16 scored below N = 8
+/// The fandisk, the last of the 15 evaluation shapes whose N = 16 scored below N = 8
 /// (31.43 against 31.76 dB before doubtful fallback hits counted at half coverage; now 31.69
 /// against 31.78), with a floor 0.5 dB under its measured N = 8. Needs `../shared`.
 #[test]

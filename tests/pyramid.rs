@@ -1,7 +1,8 @@
-//! Pyramids for minification (SPEC §10): every prefilter against a brute-force integral on sizes
-//! that are not powers of two, wrap modes against explicitly extended textures, linear-light
-//! sRGB, premultiplied alpha, alpha coverage, normal maps, ripmap / fipmap / EWA lookups against
-//! the supersampled truth, the mip/rip/fip decision, quad-tree fusion, and property tests.
+//! Pyramids for minification (docs/design.md §10): every prefilter against a brute-force integral
+//! on sizes that are not powers of two, wrap modes against explicitly extended textures,
+//! linear-light sRGB, premultiplied alpha, alpha coverage, normal maps, ripmap / fipmap / EWA
+//! lookups against the supersampled truth, the mip/rip/fip decision, quad-tree fusion, and property
+//! tests.
 
 use altrep::pyramid::fusion::{fusion_experiment, psnr};
 use altrep::pyramid::truth::{PlaneView, SweepParams, measure_view, test_texture};

@@ -1,4 +1,4 @@
-//! Volumetric textures as slices (SPEC §9, issue 13): merges, criterion, direction choice and the
+//! Volumetric textures as slices (docs/design.md §9): merges, criterion, direction choice and the
 //! CPU renderer against the ray-marched ground truth and closed forms.
 
 use altrep::metrics::psnr;
@@ -490,7 +490,7 @@ fn criterion_counts_slices() {
         })
     ));
     assert_eq!(level_for_slices(Axis::Y, 32, 33, false).unwrap(), 0);
-    // The seed's criterion for the views it picks: h·tan a / d ≤ 1.
+    // Meyer & Neyret's criterion for the views it picks: h·tan a / d ≤ 1.
     let vol = uniform(32, [0.0; 4]);
     for polar in [5.0f64, 10.0, 20.0, 40.0] {
         let c = choose(
@@ -732,8 +732,7 @@ fn bad_input_gives_typed_errors() {
     assert!(slices_needed(1.0, 0.1, 0.0).is_err());
 }
 
-/// Only what the views select is built: directions and levels (SPEC §9, "skip what a view does
-/// not need").
+/// Only what the views select is built: directions and levels (docs/design.md §9).
 #[test]
 fn for_views_builds_only_the_selected_axes_and_levels() {
     let vol = uniform(16, [0.1, 0.1, 0.1, 0.2]);

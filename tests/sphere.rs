@@ -1,6 +1,6 @@
-//! Images with parallax from any direction (SPEC §7b): a frame warped at its own direction
-//! reproduces it; a new direction against a fresh capture there; the cone bounds on a sweep ten
-//! times finer than the evaluation; the engine baseline measured, not assumed. Procedural
+//! Images with parallax from any direction (docs/design.md §7b): a frame warped at its own
+//! direction reproduces it; a new direction against a fresh capture there; the cone bounds on a
+//! sweep ten times finer than the evaluation; the engine baseline measured, not assumed. Procedural
 //! shapes only, so the tests run without `../shared`.
 
 use altrep::data_gen::{Light, OrthoFrame, capture_frame, scene_shape};

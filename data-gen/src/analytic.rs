@@ -146,7 +146,8 @@ impl AnalyticVolume {
         }
     }
 
-    /// A lawn texel like the seed's: a ground slab and 16 tilted grass blades (capsules), seeded.
+    /// A lawn texel like Neyret 1995's: a ground slab and 16 tilted grass blades (capsules),
+    /// seeded.
     pub fn lawn(n: usize, seed: u64) -> Self {
         let mut rng = SplitMix64::new(seed);
         let mut shapes = vec![(

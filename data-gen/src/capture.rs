@@ -1,4 +1,4 @@
-//! Ray-cast capture: orthographic views (SPEC §3a) and cylindrical textures (SPEC §6).
+//! Ray-cast capture: orthographic views and cylindrical textures (docs/design.md §3.3).
 //!
 //! Both produce a [`SampleGrid`]: per pixel an optional [`Sample`] (albedo, normal, depth).
 //! For a **view** at angle `α`, the ray of pixel `(i, j)` starts at `x·right(α) + y·ŷ + 2R·d(α)`
@@ -201,8 +201,8 @@ fn sample_of(ray: &Ray, hit: &Hit, dir_out: DVec3, radius: f64) -> Sample {
     }
 }
 
-/// Captures an orthographic view of `shape` (SPEC §3a). Cost: `width × height` rays, traced
-/// together by [`Shape::parallel_tracer`] in bands of rows (each ray starts `2R` in front of
+/// Captures an orthographic view of `shape` (docs/design.md §3.3). Cost: `width × height` rays,
+/// traced together by [`Shape::parallel_tracer`] in bands of rows (each ray starts `2R` in front of
 /// its pixel centre, as a single cast would).
 ///
 /// Errors: zero sizes, a non-finite angle or an invalid cylinder.
@@ -239,9 +239,9 @@ pub fn capture_view(shape: &dyn Shape, params: &ViewParams) -> Result<SampleGrid
     })
 }
 
-/// Captures a cylindrical texture of `shape` (SPEC §6). Cost: `columns × rows` rays, traced
-/// together by [`Shape::radial_tracer`] in bands of rows (each ray starts `2R` outside the axis
-/// at its row's height and runs through the axis, as a single cast would).
+/// Captures a cylindrical texture of `shape` (docs/design.md §3.3, §6). Cost: `columns × rows`
+/// rays, traced together by [`Shape::radial_tracer`] in bands of rows (each ray starts `2R` outside
+/// the axis at its row's height and runs through the axis, as a single cast would).
 pub fn capture_cylinder(
     shape: &dyn Shape,
     params: &CylinderParams,

@@ -1,5 +1,5 @@
-//! Orthographic frames along **any** direction (SPEC §7b): the capture and the ground truth of
-//! views over the sphere.
+//! Orthographic frames along **any** direction (docs/design.md §7b): the capture and the ground
+//! truth of views over the sphere.
 //!
 //! ## Conventions
 //!

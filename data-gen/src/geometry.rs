@@ -168,8 +168,8 @@ impl<'a> ParallelRays<'a> {
     }
 }
 
-/// The rays of a cylindrical capture (SPEC §6): horizontal rays through the `y` axis, traced
-/// together by [`crate::Shape::radial_tracer`].
+/// The rays of a cylindrical capture (docs/design.md §3.3): horizontal rays through the `y` axis,
+/// traced together by [`crate::Shape::radial_tracer`].
 ///
 /// Column `c < columns` looks along `−d(α_c)`, `α_c = 2πc/L` ([`direction`]); row `r` lies at
 /// height `rows[r]`. Ray `(c, r)` starts at `(0, rows[r], 0) + 2R·d(α_c)`, outside the bounding

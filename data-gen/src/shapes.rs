@@ -1,4 +1,5 @@
-//! The bundled procedural scene (SPEC §3), built for the default cylinder `R = 1`, `H = 2`.
+//! The bundled procedural scene (docs/design.md §3.1), built for the default cylinder
+//! `R = 1`, `H = 2`.
 
 use glam::{DVec3, Vec3};
 

@@ -1,4 +1,4 @@
-//! Voxelisation of a shape into a density + colour + normal volume (SPEC §3c), periodic
+//! Voxelisation of a shape into a density + colour + normal volume (docs/design.md §3.4), periodic
 //! (tileable) along the axes asked for.
 //!
 //! Voxel `(x, y, z)` covers `[min + (x, y, z)·voxel_size, min + (x+1, y+1, z+1)·voxel_size]`;

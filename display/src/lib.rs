@@ -1,4 +1,4 @@
-//! # altrep-display: the thin wgpu display (SPEC §11)
+//! # altrep-display: the thin wgpu display (docs/design.md §11)
 //!
 //! Draws what the precompute pipeline wrote, on the GPU, headless by default: an asset folder is
 //! loaded **only** through the library's loader ([`load_parallax`]: `AssetReader::open` then

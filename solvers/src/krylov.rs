@@ -326,7 +326,7 @@ fn pcg_impl<Op: LinearOperator + ?Sized>(
     Ok(run.finish(x, it, StopReason::MaxIterations))
 }
 
-/// Preconditioned biconjugate gradient (PBiCG), the report seed's method, for general square
+/// Preconditioned biconjugate gradient (PBiCG), the method of Baboud's report, for general square
 /// `A`. On a symmetric `A` with a symmetric preconditioner it produces CG's iterates at twice
 /// the cost. Cost per iteration: one product with `A`, one with `Aᵀ`, two preconditioner
 /// applications, `16n` flops.

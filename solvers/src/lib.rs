@@ -1,10 +1,10 @@
 //! # altrep-solvers — sparse iterative solvers on `sprs` matrices
 //!
-//! The trilinear least-squares fit of altrep (SPEC §5) produces a sparse symmetric positive
-//! **semi**-definite system (normal equations, at most 27 non-zeros per row), singular where
-//! nodes are not touched by any defined sample. The report seed solved it with a preconditioned
-//! biconjugate gradient (PBiCG). This crate implements PBiCG and the methods a numerical analyst
-//! holds it against:
+//! The trilinear least-squares fit of altrep (docs/design.md §5) produces a sparse symmetric
+//! positive **semi**-definite system (normal equations, at most 27 non-zeros per row), singular
+//! where nodes are not touched by any defined sample. Baboud's report solved it with a
+//! preconditioned biconjugate gradient (PBiCG). This crate implements PBiCG and the methods a
+//! numerical analyst holds it against:
 //!
 //! | method | for | per iteration |
 //! |---|---|---|

@@ -52,7 +52,7 @@ pub trait LinearOperator: Sync {
 
 /// A product with at least this many stored entries runs in parallel (under
 /// [`crate::Parallelism::Auto`]); below it, serially. On the fit's default normal matrix (2304
-/// rows, 45 344 non-zeros) a rayon split and join costs more than the product itself: issue 15
+/// rows, 45 344 non-zeros) a rayon split and join costs more than the product itself: we
 /// measured 77 µs per PCG iteration split against about 30 µs for a serial loop. The split pays
 /// once each thread gets a few hundred µs of work, hence 2^18 entries (about 0.1–0.2 ms serially
 /// on the project's machine). `cargo bench --bench solvers` (group `csr_product_split`: serial

@@ -7,7 +7,7 @@ use crate::precond::PreconditionerKind;
 /// The iterative methods of this crate.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
 pub enum Method {
-    /// Preconditioned biconjugate gradient (the report seed's method). Two operator products
+    /// Preconditioned biconjugate gradient (the method of Baboud's report). Two operator products
     /// (`A·p`, `Aᵀ·p̃`) and two preconditioner applications per iteration.
     Pbicg,
     /// Preconditioned conjugate gradient: symmetric positive (semi-)definite systems. One

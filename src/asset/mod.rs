@@ -1,4 +1,4 @@
-//! # Asset folders: the files a renderer loads (SPEC §12)
+//! # Asset folders: the files a renderer loads (docs/design.md §12)
 //!
 //! Every representation is written as one **asset folder**: the data files (PNG for 8- and
 //! 16-bit images, EXR for 32-bit float images, little-endian `.bin` for records) and one
@@ -176,8 +176,8 @@ pub struct FileEntry {
     pub blake3: String,
 }
 
-/// The conventions every asset's data follow (SPEC §2), written into each `asset.json` so a
-/// renderer author does not have to read altrep's code.
+/// The conventions every asset's data follow (docs/design.md §2), written into each `asset.json` so
+/// a renderer author does not have to read altrep's code.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct Conventions {

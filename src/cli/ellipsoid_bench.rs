@@ -1,5 +1,5 @@
 //! `altrep ellipsoid-bench`: the eigen-solver table, the filter-rule table, the sin²θ fit and the
-//! octree report of SPEC §8 (issue 6), printed and optionally written as JSON.
+//! octree report of docs/design.md §8, printed and optionally written as JSON.
 
 use std::collections::BTreeMap;
 use std::path::PathBuf;
@@ -62,7 +62,7 @@ pub enum Section {
 /// Filter rule on the command line.
 #[derive(clap::ValueEnum, Clone, Copy, Debug)]
 pub enum RuleArg {
-    /// Weighted mean of Q⁻¹ (the 1995 seed).
+    /// Weighted mean of Q⁻¹ (Neyret 1995).
     Seed1995,
     /// Weighted mean of the SGGX matrix S (Heitz et al. 2015).
     Sggx,

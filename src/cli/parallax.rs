@@ -1,4 +1,4 @@
-//! `altrep parallax` — images with parallax (SPEC §7): march steps per bound type, bound
+//! `altrep parallax` — images with parallax (docs/design.md §7): march steps per bound type, bound
 //! violations, precompute time and bytes, and image quality against the ground truth.
 
 use std::path::PathBuf;
@@ -56,7 +56,7 @@ pub struct ParallaxArgs {
     /// Display angles of the quality table.
     #[arg(long, default_value_t = 16, value_parser = clap::value_parser!(u32).range(1..=4096))]
     pub quality_angles: u32,
-    /// Instead of the steps and quality tables: the reconstruction sweep of issue 11 (each option
+    /// Instead of the steps and quality tables: the reconstruction sweep (each option
     /// of the reconstruction alone and all together, the one-step offset, the 64-view blend with
     /// and without the row filter; PSNR, IoU and the error split by distance to the outline),
     /// then the steps and dense-sweep violations of the bounds for the flat and tangent brims.

@@ -1,6 +1,6 @@
-//! `altrep pyramid` — pyramids for minification (SPEC §10): the error/time table of mip, rip,
-//! fip and EWA lookups against the supersampled truth over distances and tilts, build times per
-//! prefilter, and the PSNR of quad-tree texture fusion with and without median rejection.
+//! `altrep pyramid` — pyramids for minification (docs/design.md §10): the error/time table of mip,
+//! rip, fip and EWA lookups against the supersampled truth over distances and tilts, build times
+//! per prefilter, and the PSNR of quad-tree texture fusion with and without median rejection.
 
 use std::path::PathBuf;
 use std::time::Instant;

@@ -1,5 +1,5 @@
-//! `altrep report` — run time against error for every representation (SPEC §13): sweeps, CSV,
-//! JSON and plots (SVG, PNG) with the source documents' operating points marked. See
+//! `altrep report` — run time against error for every representation (docs/design.md §13): sweeps,
+//! CSV, JSON and plots (SVG, PNG) with the source documents' operating points marked. See
 //! [`crate::report`].
 
 use std::path::PathBuf;

@@ -1,4 +1,4 @@
-//! `altrep slices`: volumetric textures as slices (SPEC §9, issue 13). Builds the four test
+//! `altrep slices`: volumetric textures as slices (docs/design.md §9). Builds the four test
 //! tiles, cuts them into three stacks with mipmapped merges under every rule, and prints PSNR
 //! against the ray-marched volume per view angle, distance and side (all slices, dropped slices
 //! and every merge rule at the criterion's level, one direction against three, one sample per

@@ -1,5 +1,5 @@
-//! `altrep sphere` — images with parallax from any direction (SPEC §7b): the exact warp of
-//! octahedral frames against the engines' octahedral impostor, memory against PSNR.
+//! `altrep sphere` — images with parallax from any direction (docs/design.md §7b): the exact warp
+//! of octahedral frames against the engines' octahedral impostor, memory against PSNR.
 
 use std::path::PathBuf;
 

@@ -1,5 +1,5 @@
-//! Conservative march bounds: the exact inverse warp at a few sector tests (beyond the source;
-//! SPEC §6 "the fit is a start, not an answer").
+//! Conservative march bounds: the exact inverse warp at a few sector tests (beyond the source:
+//! the fit is a start, not an answer; docs/design.md §6.5).
 //!
 //! Exact inverse warping marches, per pixel, the sectors a screen ray crosses front to back
 //! (march positions `n = 0, 1, …` from the sector holding `β_front = α − asin x`) and stops at

@@ -1,4 +1,4 @@
-//! # Cylindrical textures (SPEC §6; chapter 3 of the report seed)
+//! # Cylindrical textures (docs/design.md §6; chapter 3 of Baboud's report)
 //!
 //! An object is stored as one column of samples per capture angle: column `c` of `L` holds, for
 //! each of `Ly` heights, the first hit of a horizontal ray from the bounding cylinder toward the
@@ -37,11 +37,11 @@
 //!   increases). Because `β` is monotonic along every ray, the **sectors** (wedges
 //!   `[α_s, α_{s+1}]`) are met in a fixed order: front to back is decreasing `s` on the right
 //!   half and increasing `s` on the left half. The two halves cannot hide each other; the sectors
-//!   that straddle the dividing line belong to both and are clipped. This is the seed's `k0`:
+//!   that straddle the dividing line belong to both and are clipped. This is the report's `k0`:
 //!   the march starts in the sector holding `β_front`.
 //! * Sector `s` holds at most two edges: the **outer** edge between columns `s` and `s + 1` (both
 //!   radii positive) and the **inner** edge between columns `s + L/2` and `s + L/2 + 1` (both
-//!   negative). With 0, 1 or 2 samples on each bounding half-line this gives the seed's nine
+//!   negative). With 0, 1 or 2 samples on each bounding half-line this gives the report's nine
 //!   configurations ([`SliceView::sector_edges`]). Samples with radii of both signs are never
 //!   joined.
 //! * **Facing.** An edge from column `a` to `b = a + 1` is traversed counter-clockwise; its

@@ -47,9 +47,9 @@ impl Texel {
     }
 }
 
-/// A cylindrical texture (SPEC §6): `L` columns (angles `α_c = 2πc/L`) × `Ly` rows (heights
-/// `y_j = H − (j + ½)H/Ly`), each texel an optional [`Texel`] (`None` where the capture ray
-/// missed). Row-major, row 0 at the top: `texels[j·L + c]`.
+/// A cylindrical texture (docs/design.md §6): `L` columns (angles `α_c = 2πc/L`) × `Ly` rows
+/// (heights `y_j = H − (j + ½)H/Ly`), each texel an optional [`Texel`] (`None` where the capture
+/// ray missed). Row-major, row 0 at the top: `texels[j·L + c]`.
 ///
 /// Storage as the source counts it: two RGBA8 textures (albedo + coverage alpha; normal + radius),
 /// 8 bytes per texel — 128 KiB at the default 256 × 64. [`CylindricalTexture::quantized_rgba8`]
@@ -445,8 +445,8 @@ impl CylindricalTexture {
 /// albedo and normal.
 const PYRAMID_CHANNELS: usize = 16;
 
-/// Vertical minification (SPEC §6, §10): the rows of a texture as a mip pyramid built by
-/// [`crate::mip`] (exact area-weighted box, clamp at the top and bottom). Columns are kept: they
+/// Vertical minification (docs/design.md §6.7, §10): the rows of a texture as a mip pyramid built
+/// by [`crate::mip`] (exact area-weighted box, clamp at the top and bottom). Columns are kept: they
 /// are the capture angles, which the warps need.
 ///
 /// How the pyramid is built with the foundation's 2D pyramid: the texture becomes a `1 × Ly`

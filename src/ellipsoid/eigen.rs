@@ -474,7 +474,7 @@ fn rotated(r: &Matrix3<f64>, d: [f64; 3]) -> Matrix3<f64> {
     (m + m.transpose()) * 0.5
 }
 
-/// The adversarial suite of the spec (§8, issue 6), seeded: exact diagonal input; zero; multiples of
+/// The adversarial suite (docs/design.md §8), seeded: exact diagonal input; zero; multiples of
 /// the identity; triple and double eigenvalues under random rotations; near-degenerate gaps from
 /// 1e-8 to 1e-15 (pairs and near-triples); anisotropy ratios 1e-2 to 1e-12 (flat, cylinder, graded);
 /// indefinite spectra; random symmetric matrices; and every structured case scaled by 10^s for

@@ -6,9 +6,10 @@
 //! and turn the mean back into an ellipsoid with the eigen-solver:
 //!
 //! - [`FilterRule::Seed1995`]: `M = Q⁻¹ = R L² Rᵀ`, lengths `√λ` of the eigenvalues of the mean
-//!   (the seed writes `λ^{-2}` of `Q`'s eigenvalues; SPEC §14: it is `λ^{-1/2}`, the same thing).
-//!   Motivation (seed §3.3.2): `f_Q` is homogeneous of degree 1 in `Q⁻¹`, so the sum of identical
-//!   shapes is exact, and for two similar ellipsoids at angle θ the error is `O(sin² θ)`.
+//!   (Neyret 1995 writes `λ^{-2}` of `Q`'s eigenvalues; it is `λ^{-1/2}`, the same thing:
+//!   docs/design.md §14).
+//!   Motivation (Neyret 1995, §3.3.2): `f_Q` is homogeneous of degree 1 in `Q⁻¹`, so the sum of
+//!   identical shapes is exact, and for two similar ellipsoids at angle θ the error is `O(sin² θ)`.
 //! - [`FilterRule::Sggx`]: `M = S = π² det(Q⁻¹) Q = π² adj(Q⁻¹)`, the SGGX microflake matrix of
 //!   Heitz, Dupuy, Crassin & Dachsbacher, *The SGGX Microflake Distribution* (SIGGRAPH 2015).
 //!
@@ -50,7 +51,7 @@ use super::rng::SplitMix64;
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize)]
 #[serde(rename_all = "lowercase")]
 pub enum FilterRule {
-    /// The 1995 seed: weighted mean of `Q⁻¹`.
+    /// Neyret 1995: weighted mean of `Q⁻¹`.
     Seed1995,
     /// SGGX (Heitz et al. 2015): weighted mean of `S = π² det(Q⁻¹) Q`.
     Sggx,
@@ -265,7 +266,7 @@ impl FilterCase {
         })
     }
 
-    /// The seed's worst case: the pair at 90°, i.e. longest axes orthogonal.
+    /// Neyret 1995's worst case: the pair at 90°, i.e. longest axes orthogonal.
     pub fn orthogonal_pair() -> Result<Self, EllipsoidError> {
         let mut c = Self::rotated_pair(std::f64::consts::FRAC_PI_2)?;
         c.name = "orthogonal-pair".into();
@@ -293,8 +294,8 @@ impl FilterCase {
     }
 
     /// A large cylinder (axis `y`) made of `n` flat pieces (aspect 0.05, normalised) tangent to it:
-    /// normals `(cos φ, 0, sin φ)`, `φ = 2πk/n`, equal weights. The seed says this must filter into
-    /// one cylinder-like ellipsoid (long along `y`).
+    /// normals `(cos φ, 0, sin φ)`, `φ = 2πk/n`, equal weights. Neyret 1995 says this must filter
+    /// into one cylinder-like ellipsoid (long along `y`).
     pub fn cylinder_pieces(n: usize) -> Result<Self, EllipsoidError> {
         let mut ellipsoids = Vec::with_capacity(n);
         for k in 0..n {
@@ -343,7 +344,7 @@ pub fn log_log_slope(points: &[(f64, f64)]) -> Option<f64> {
     Some(sxy / sxx)
 }
 
-/// The sin²θ test of the seed's claim, for one rule.
+/// The sin²θ test of Neyret 1995's claim, for one rule.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct Sin2Fit {
     /// Rule name.

@@ -1,4 +1,4 @@
-//! Ellipsoid micro-primitives and multiscale volumes (the 1995 seed, SPEC §8).
+//! Ellipsoid micro-primitives and multiscale volumes (Neyret 1995, docs/design.md §8).
 //!
 //! - [`primitive`]: the [`Ellipsoid`] (basis + lengths ⇄ quadratic form), projected area, normal
 //!   distribution `f_Q`, Phong reflectance by two independent methods.

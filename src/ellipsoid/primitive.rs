@@ -22,7 +22,7 @@
 //!
 //! # Normalisation
 //!
-//! The 1995 seed removes size: "the mean apparent surface, approximated by evaluating the apparent
+//! Neyret 1995 removes size: "the mean apparent surface, approximated by evaluating the apparent
 //! surface in the three axis directions". We take the ellipsoid's own three **principal** axes,
 //! which makes the normalisation rotation-invariant: `π (l₀l₁ + l₁l₂ + l₂l₀)/3 = π` (the unit
 //! sphere's), i.e. `l₀l₁ + l₁l₂ + l₂l₀ = 3`. ([`Ellipsoid::mean_projected_area`] gives the exact
@@ -137,7 +137,8 @@ impl Ellipsoid {
     }
 
     /// The ellipsoid of the quadratic form `Q` (symmetric positive definite; upper triangle read):
-    /// lengths `λ^{-1/2}` of the eigenvalues of `Q` (SPEC §14: not the seed's `λ^{-2}`).
+    /// lengths `λ^{-1/2}` of the eigenvalues of `Q` (not Neyret 1995's `λ^{-2}`: docs/design.md
+    /// §14).
     pub fn from_quadratic_form(q: &Matrix3<f64>) -> Result<Self, EllipsoidError> {
         let e = sym_eigen3(q)?;
         if e.values[0] <= 0.0 {
@@ -440,8 +441,8 @@ impl Ellipsoid {
         Ok(r.value[0])
     }
 
-    /// The same reflectance by the seed's method: sample the apparent ellipse along `v` uniformly,
-    /// find the visible surface point under each sample and its normal, average
+    /// The same reflectance by Neyret 1995's method: sample the apparent ellipse along `v`
+    /// uniformly, find the visible surface point under each sample and its normal, average
     /// `brdf(n, l, v) max(0, n·l)`. Independent of `f_Q` and of the sphere quadrature.
     ///
     /// The unit disk is mapped onto the ellipse linearly (`K = C Cᵀ`, `p = C⁻ᵀ d`), and `d` is

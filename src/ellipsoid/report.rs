@@ -315,7 +315,7 @@ pub struct EllipsoidBenchReport {
     pub eigen: Vec<EigenRow>,
     /// Filter table.
     pub filter: Vec<FilterRow>,
-    /// `k` of `L1 error ∝ (sin²θ)^k` per rule name (the seed's claim: `k = 1`).
+    /// `k` of `L1 error ∝ (sin²θ)^k` per rule name (Neyret 1995's claim: `k = 1`).
     pub sin2_exponent: BTreeMap<String, f64>,
     /// The (θ, L1 error) points behind each fit.
     pub sin2_points: BTreeMap<String, Vec<(f64, f64)>>,

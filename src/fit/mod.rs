@@ -1,4 +1,4 @@
-//! # Trilinear least-squares fit (SPEC §5, appendix of the report seed)
+//! # Trilinear least-squares fit (docs/design.md §5, appendix of Baboud's report)
 //!
 //! Approximate `f : [0,1]³ → R`, known by samples `d` on a fine `Nx × Ny × Nz` grid (some
 //! undefined), by `g`, the trilinear interpolant of node values `a[i,j,k]` on a coarse grid of

@@ -1,5 +1,5 @@
-//! Per-pixel march bounds (SPEC §7): cylinder, zmin/zmax, the report's `f_θ` pair, the best-`c`
-//! family, and the best-`c` family with separate ranges for θ < 0 and θ > 0.
+//! Per-pixel march bounds (docs/design.md §7.5): cylinder, zmin/zmax, the report's `f_θ` pair, the
+//! best-`c` family, and the best-`c` family with separate ranges for θ < 0 and θ > 0.
 //!
 //! ## How the bounds are made conservative (exact sweep, no sampling margin)
 //!
@@ -26,9 +26,9 @@
 //!
 //! With `a = (1 + c)·X`, `v_max(a) = max (z + a·τ)` over the boxes' upper corners and
 //! `v_min(a) = min (z + a·τ)` over their lower corners: the spread `v_max − v_min` is convex and
-//! piecewise linear in `a` (SPEC §7). Only the upper hull of the upper corners and the lower hull of
-//! the lower corners matter; the minimum lies at one of their breakpoints, which are all
-//! evaluated (exact, `O(h²)` for hulls of `h` vertices). `c = ±1` are always candidates, so the
+//! piecewise linear in `a` (docs/design.md §7.5). Only the upper hull of the upper corners and the
+//! lower hull of the lower corners matter; the minimum lies at one of their breakpoints, which are
+//! all evaluated (exact, `O(h²)` for hulls of `h` vertices). `c = ±1` are always candidates, so the
 //! best `c` is never worse than the pair, and the storage grid of `c` contains `±1` exactly.
 
 use std::f64::consts::PI;

@@ -96,8 +96,8 @@ impl ParallaxParams {
 /// a depth jump): the half piece from the texel centre to the cell boundary. A representation
 /// option ([`ParallaxImages::with_brim`]); it adds no stored data (it is derived from the stored
 /// depth and normal) and changes the march, the direct warp and the bounds together, since all of
-/// them read the same pieces. The default is [`Brim::DEFAULT`] (tangent, max slope 4: issue 11
-/// measured it 1.1 dB better than flat on the teapot at N = 8); [`Brim::Flat`] is the original
+/// them read the same pieces. The default is [`Brim::DEFAULT`] (tangent, max slope 4, measured
+/// 1.1 dB better than flat on the teapot at N = 8); [`Brim::Flat`] is the original
 /// model.
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub enum Brim {
@@ -215,7 +215,7 @@ impl View {
     }
 }
 
-/// `N` views with parallax of one object (SPEC §7): the representation a display draws.
+/// `N` views with parallax of one object (docs/design.md §7): the representation a display draws.
 #[derive(Clone, Debug)]
 pub struct ParallaxImages {
     /// The parameters the views were built with.

@@ -429,7 +429,7 @@ pub struct Variant {
 }
 
 impl Variant {
-    /// The original path before issue 11 (flat brims, nearest row, two views, hard coverage).
+    /// The original path, as in the report (flat brims, nearest row, two views, hard coverage).
     pub fn original() -> Self {
         Self {
             name: "original inverse warp".into(),
@@ -438,8 +438,8 @@ impl Variant {
         }
     }
 
-    /// The best combination measured (issue 11), the default since: tangent brims (max slope 4,
-    /// [`Brim::DEFAULT`]), linear row filter, fallback to the next views out (doubtful hits at
+    /// The best combination measured (docs/design.md §7.6), the default: tangent brims (max slope
+    /// 4, [`Brim::DEFAULT`]), linear row filter, fallback to the next views out (doubtful hits at
     /// half coverage), soft edges, hole filling, brim carving ([`Reconstruction::DEFAULT`]; the
     /// depth test, measured alone at ±0.05 dB, is left out).
     pub fn best() -> Self {
@@ -506,10 +506,10 @@ pub struct SweepRow {
     pub bytes: usize,
 }
 
-/// The quality table of issue 11: for every size and N of `params`, each of `variants` (inverse
-/// warping with a surface model and reconstruction options), the one-step offset at the same N,
-/// and the blend of `blend_views` views without and with the row filter, against the
-/// supersampled ground truth, with the error split by distance to the outline. Cost: as
+/// The reconstruction quality table (bench/RESULTS.md): for every size and N of `params`, each of
+/// `variants` (inverse warping with a surface model and reconstruction options), the one-step
+/// offset at the same N, and the blend of `blend_views` views without and with the row filter,
+/// against the supersampled ground truth, with the error split by distance to the outline. Cost: as
 /// [`measure_quality`] times the variants.
 ///
 /// Errors: invalid parameters, capture or comparison errors.

@@ -1,4 +1,4 @@
-//! # Images with parallax (SPEC §7, chapter 4 of the report seed)
+//! # Images with parallax (docs/design.md §7, chapter 4 of Baboud's report)
 //!
 //! An object is stored as `N` orthographic views `I_k` at `α_k = 2πk/N` (default 8 views of
 //! 64 × 64), each texel holding colour + alpha, a normal and a depth (a height field per view).
@@ -14,10 +14,10 @@
 //!
 //! Measured (`altrep parallax --shape truck`, 64², N = 8, 8-bit bounds, 360 angles, every
 //! fragment of the quad, per warped view): mean steps 16.0 (cylinder), 1.98 (zmin/zmax), 1.41
-//! (pair), 1.04 (best c), 0.67 (best c, split θ); zero violations on the dense sweep. See the
-//! closing note of issue 5 for all six shapes and the report's ÷5 / ÷12.
+//! (pair), 1.04 (best c), 0.67 (best c, split θ); zero violations on the dense sweep.
+//! bench/RESULTS.md has all six shapes and the report's ÷5 / ÷12.
 //!
-//! **Reconstruction** (issue 11): the surface at unjoined texel ends ([`Brim`],
+//! **Reconstruction** (docs/design.md §7.6): the surface at unjoined texel ends ([`Brim`],
 //! [`ParallaxImages::with_brim`]: along the stored normal's tangent by default, or flat as
 //! originally), and in [`render_with`] / [`render_bounded_with`] a linear filter between view
 //! rows, a fallback to the next views out where both miss (doubtful fallback hits at half
@@ -27,7 +27,7 @@
 //! [`measure_quality_sweep`] measures each option alone and all together, with the error split
 //! by distance to the true outline ([`error_split`]).
 //!
-//! ## Sign conventions (derived once from data-gen's; SPEC §14 says the report slips)
+//! ## Sign conventions (derived once from data-gen's; the report's slip: docs/design.md §14)
 //!
 //! data-gen's view at angle `α` has screen abscissa `x = p·right(α)`, `right(α) = (sin α, 0,
 //! −cos α)`, and depth `z = p·d(α)` (toward the camera). Write the view `k` frame `(x_t, z_t)` =

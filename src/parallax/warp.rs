@@ -178,9 +178,9 @@ pub enum RowFilter {
 }
 
 /// How the two warped views are turned into a pixel ([`render_with`]). The default
-/// ([`Reconstruction::DEFAULT`], issue 11) filters linearly between view rows, falls back to the
-/// next views out where both bracketing views miss, fills holes hidden in both views and
-/// softens silhouette brims;
+/// ([`Reconstruction::DEFAULT`], docs/design.md §7.6) filters linearly between view rows, falls
+/// back to the next views out where both bracketing views miss, fills holes hidden in both views
+/// and softens silhouette brims;
 /// [`Reconstruction::ORIGINAL`] is the original path (nearest row, hard coverage, two views).
 /// The surface model at silhouettes is a property of the images instead ([`super::Brim`],
 /// [`ParallaxImages::with_brim`]).
@@ -216,7 +216,7 @@ pub struct Reconstruction {
     /// step between two defined, unjoined texels, which the surface model otherwise leaves open)
     /// whose crossing the other view also hides; the nearer of the two, coloured by the texel
     /// on the far (lower) side of the step. A ray every point of which one view or the other
-    /// sees empty stays empty (a true gap, as through the teapot's handle). Issue 11, N = 8,
+    /// sees empty stays empty (a true gap, as through the teapot's handle). Measured at N = 8,
     /// 64²: tree +4.8 dB, beetle +1.0, teapot −0.5. Costs two more marches from the cylinder
     /// (not counted in the step tables) per ray missed by all views read. Default `true`.
     pub fill_holes: bool,
@@ -225,7 +225,7 @@ pub struct Reconstruction {
     /// defined one, `±1`, whose depth is within [`CARVE_DEPTH_TEXELS`] texel pitches of the
     /// point's): the brim sticks out past that view's outline, so the hit is dropped (a miss;
     /// fallback views and hole filling still apply). A miss beside no such texel (a thin part
-    /// that the other view's texels step over) keeps the hit. Issue 11, 64², 15 shapes, mean
+    /// that the other view's texels step over) keeps the hit. Measured at 64², 15 shapes, mean
     /// PSNR N = 8 / 16: 31.38 / 31.98 → 31.61 / 32.43 dB; N = 16 is no longer below N = 8 on
     /// the torus and capsule, where brims stuck out (the fandisk stays 0.33 dB below). Costs
     /// three texel reads per ray that one view misses. Default `true`.
@@ -237,7 +237,7 @@ pub struct Reconstruction {
     /// ([`DOUBTFUL_FALLBACK_COVERAGE`]): the nearer views say the point lies just outside the
     /// surface, the farther view says inside, and half is the coverage that minimises the
     /// expected squared error when either is as likely. A thin part that both bracketing views
-    /// step over has no outline texel there and keeps its full hit. Issue 11, 64², 15 shapes,
+    /// step over has no outline texel there and keeps its full hit. Measured at 64², 15 shapes,
     /// mean PSNR N = 8 / 16: 31.61 / 32.43 → 31.72 / 32.59 dB; the fandisk's N = 16 goes from
     /// 0.33 dB below N = 8 to 0.09. Costs up to six texel reads per ray hit by one fallback
     /// view only. Default `true`.
@@ -245,8 +245,8 @@ pub struct Reconstruction {
 }
 
 impl Reconstruction {
-    /// The default reconstruction (issue 11): linear row filter, fallback views (doubtful hits
-    /// at half coverage), soft edges, hole filling, brim carving, no depth test.
+    /// The default reconstruction (docs/design.md §7.6): linear row filter, fallback views
+    /// (doubtful hits at half coverage), soft edges, hole filling, brim carving, no depth test.
     pub const DEFAULT: Reconstruction = Reconstruction {
         rows: RowFilter::Linear,
         depth_test: false,
@@ -258,7 +258,7 @@ impl Reconstruction {
     };
 
     /// The original path: nearest view row, the two bracketing views only, hard coverage.
-    /// With [`super::Brim::Flat`] images it reproduces the renders before issue 11 exactly.
+    /// With [`super::Brim::Flat`] images it reproduces the original renders exactly.
     pub const ORIGINAL: Reconstruction = Reconstruction {
         rows: RowFilter::Nearest,
         depth_test: false,
@@ -740,7 +740,7 @@ fn warp_row_into(
 
 /// Renders the object at display angle `alpha` with the default reconstruction
 /// ([`Reconstruction::DEFAULT`]; [`render_with`] selects another, [`Reconstruction::ORIGINAL`]
-/// the path before issue 11): the two bracketing views are warped and combined per ray —
+/// the original path): the two bracketing views are warped and combined per ray —
 /// undefined in both: the next views out; defined in one: that one, its silhouette brims with
 /// partial coverage; in both: the shaded colours blended by angular proportion
 /// ([`ParallaxImages::bracketing`]) — and view rows are filtered linearly. Returns
@@ -973,7 +973,7 @@ pub(crate) fn combine(
 }
 
 /// Depth window of [`Reconstruction::carve_brims`], in texel pitches: the other view's texel
-/// beside the point must lie within it of the point's depth in that view (measured, issue 11:
+/// beside the point must lie within it of the point's depth in that view (measured:
 /// 2 beats 4, which carved true surface on the sphere at N = 16).
 pub const CARVE_DEPTH_TEXELS: f64 = 2.0;
 

@@ -1,4 +1,4 @@
-//! The cylindrical texture (SPEC §6) in the pipeline: the texture and its per-cell march
+//! The cylindrical texture (docs/design.md §6) in the pipeline: the texture and its per-cell march
 //! bounds, so a shader draws the exact inverse warp in a few sector tests.
 //!
 //! Files: `texture-albedo.png` (RGBA8: sRGB albedo, or the baked colour; alpha 255 = defined),

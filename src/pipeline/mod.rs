@@ -1,4 +1,4 @@
-//! # The precompute pipeline (SPEC §12)
+//! # The precompute pipeline (docs/design.md §12)
 //!
 //! `altrep precompute SCENE.toml --out DIR` reads a [`Manifest`], and for every asset and every
 //! representation it wants: **plans** what the scene needs (and what to skip, with the reason),

@@ -1,4 +1,4 @@
-//! The ellipsoid octree (SPEC §8) in the pipeline.
+//! The ellipsoid octree (docs/design.md §8) in the pipeline.
 //!
 //! One file, `octree.bin`: the nodes breadth-first, root first, 52-byte little-endian records
 //! `density f32, colour f32×3 (linear RGB), has_ellipsoid u32 (0/1), rotation quaternion f32×4

@@ -1,5 +1,5 @@
-//! Texture pyramids (SPEC §10) in the pipeline: a mipmap or a ripmap of a texture asset, only
-//! the levels the scene's screen sizes use.
+//! Texture pyramids (docs/design.md §10) in the pipeline: a mipmap or a ripmap of a texture asset,
+//! only the levels the scene's screen sizes use.
 //!
 //! **Kind.** Views that never tilt beyond `mip_max_tilt_deg` from the polygon normal
 //! (`needs.grazing_deg ≤ mip_max_tilt_deg`) get a mipmap; more grazing views a ripmap, whose

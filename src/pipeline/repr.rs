@@ -1,6 +1,6 @@
-//! The one shape every representation has for the pipeline (SPEC §12): `Spec` (the manifest's
-//! parameters, serde with documented defaults) → [`Representation::plan`] from the scene's needs
-//! → [`Representation::build`] → `Data` + report → [`Representation::write`] /
+//! The one shape every representation has for the pipeline (docs/design.md §12): `Spec` (the
+//! manifest's parameters, serde with documented defaults) → [`Representation::plan`] from the
+//! scene's needs → [`Representation::build`] → `Data` + report → [`Representation::write`] /
 //! [`Representation::read`] an asset folder → [`Representation::measure`] against the ray-cast
 //! ground truth. The pipeline drives every representation through these verbs alone.
 

@@ -3,8 +3,8 @@
 //! mipmap (isotropic) and the ripmap (axis-aligned box) over-blur.
 //!
 //! ## The transform
-//! The seed's PIFS transform on `(x, y, z)` (position, grey level) is
-//! `[x̄ ȳ]ᵀ = [a b; c d]·[x y]ᵀ + [e f]ᵀ`, `z̄ = s·z + o` ([`FipTransform`]). As the seed
+//! The paper's PIFS transform on `(x, y, z)` (position, grey level) is
+//! `[x̄ ȳ]ᵀ = [a b; c d]·[x y]ᵀ + [e f]ᵀ`, `z̄ = s·z + o` ([`FipTransform`]). As the paper
 //! prescribes, `a = d = 1`, `e = f = 0` and one of `b`, `c` is a shear:
 //! * [`ShearAxis::V`], `c ≠ 0`: `u' = u`, `v' = v + c·u` — aligns a footprint whose major axis
 //!   points along `(cos φ, sin φ)` in `(u, v)` with the `u'` axis when `c = −tan φ`;
@@ -12,7 +12,7 @@
 //!   `b = −cot φ`.
 //!
 //! After the shear the footprint is nearly axis-aligned, so the ripmap of the sheared texture
-//! filters it with little excess blur. `s` and `o` (contrast and brightness) are the seed's
+//! filters it with little excess blur. `s` and `o` (contrast and brightness) are the paper's
 //! depth cue: `1` and `0` without atmosphere ([`FipTransform::with_depth_cue`] sets them from the
 //! viewing distance); the lookup returns `s·value + o`.
 //!
@@ -24,7 +24,7 @@
 //! estimated with `8 × 8` point samples per texel in linear light. The database holds the shears
 //! `±k/n` for `k = 1 … n` (`n = fip_shear_steps`) on both axes, plus the plain ripmap and mipmap.
 //!
-//! ## The decision (the seed's colour-cube rule)
+//! ## The decision (the paper's colour-cube rule)
 //! In the frame of the textured polygon — `R` the image of the texture's `u` axis, `G` the
 //! normal, `B` the image of `v` — let `(r, g, b)` be the unit direction from the surface point to
 //! the camera. If its angle to `G` is at most `mip_max_tilt_deg`: mipmap ("greenish"). Otherwise
@@ -43,9 +43,9 @@ use super::rip::RipMap;
 /// Which texture axis a shear moves.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 pub enum ShearAxis {
-    /// `v' = v + c·u` (the seed's `c`).
+    /// `v' = v + c·u` (Bornik & Ferko's `c`).
     V,
-    /// `u' = u + b·v` (the seed's `b`).
+    /// `u' = u + b·v` (Bornik & Ferko's `b`).
     U,
 }
 
@@ -85,7 +85,7 @@ impl Shear {
         }
     }
 
-    /// The seed's transform for this shear (`a = d = 1`, `s = 1`, `o = 0`).
+    /// Bornik & Ferko's transform for this shear (`a = d = 1`, `s = 1`, `o = 0`).
     pub fn transform(&self) -> FipTransform {
         let c = self.value();
         let (b, c) = match self.axis {
@@ -116,7 +116,7 @@ impl Shear {
     }
 }
 
-/// The seed's PIFS transform: `[x̄ ȳ] = [a b; c d][x y]`, `z̄ = s·z + o` (module docs).
+/// Bornik & Ferko's PIFS transform: `[x̄ ȳ] = [a b; c d][x y]`, `z̄ = s·z + o` (module docs).
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct FipTransform {
     /// `x̄ = a x + b y`.
@@ -135,7 +135,7 @@ pub struct FipTransform {
 
 impl FipTransform {
     /// Contrast and brightness of exponential depth cueing: `s = exp(−density·distance)`,
-    /// `o = (1 − s)·haze`, the seed's "atmospheric perspective" (distance and density in any
+    /// `o = (1 − s)·haze`, Bornik & Ferko's "atmospheric perspective" (distance and density in any
     /// reciprocal units).
     pub fn with_depth_cue(mut self, distance: f64, density: f64, haze: f64) -> Self {
         self.s = (-density * distance).exp();

@@ -4,7 +4,7 @@
 //! ## Registration
 //! The texture is `N × N` texels, `N = 2^L`; quad-tree level `ℓ` has `2^ℓ × 2^ℓ` nodes (level `L`
 //! = texels). A [`FusionView`] of scale `m` is an image of `(N/2^m)²` pixels whose pixel `(x, y)`
-//! covers texels `[x·2^m, (x+1)·2^m) × [y·2^m, (y+1)·2^m)` — the recursion of the seed stops where
+//! covers texels `[x·2^m, (x+1)·2^m) × [y·2^m, (y+1)·2^m)` — the paper's recursion stops where
 //! the projected node matches the pixel, so the view fills level `L − m`.
 //!
 //! ## Rejection (per node, per level)

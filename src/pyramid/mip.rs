@@ -1,5 +1,5 @@
 //! Mip pyramids (Williams 1983) with level selection from texture-coordinate derivatives
-//! (Heckbert), the one pyramid every representation uses (SPEC §10).
+//! (Heckbert), the one pyramid every representation uses (docs/design.md §10).
 //!
 //! ## Conventions
 //! * A [`Texture`] is row-major, `channels` floats per texel, row 0 at the top. Colour textures

@@ -1,5 +1,5 @@
-//! Pyramids for minification (SPEC §10; Williams 1983, Bornik & Ferko 2002): mipmaps with the
-//! prefilters and colour handling current tools use, ripmaps, fipmaps chosen per view, an EWA
+//! Pyramids for minification (docs/design.md §10; Williams 1983, Bornik & Ferko 2002): mipmaps with
+//! the prefilters and colour handling current tools use, ripmaps, fipmaps chosen per view, an EWA
 //! reference lookup, the supersampled ground truth they are measured against, and quad-tree
 //! texture fusion from several views.
 //!

@@ -1,4 +1,4 @@
-//! # Run time against error (SPEC §13, `altrep report`)
+//! # Run time against error (docs/design.md §13, `altrep report`)
 //!
 //! For each representation, a sweep of its main parameters through the existing measurement
 //! functions (nothing is re-measured here: each sweep calls the function the representation's

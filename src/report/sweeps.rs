@@ -141,7 +141,7 @@ pub fn fit(quick: bool) -> Result<RepresentationReport, ReportError> {
 /// ([`crate::parallax::measure_steps`]); the PSNR of inverse warping (the same for every bound:
 /// bounds never change the image) and of the two baselines from
 /// [`crate::parallax::measure_quality`]. Operating point: N = 8 views of 64² (source), best-c
-/// bounds; the seed's ÷5 (zmin/zmax) and ÷12 (two functions) step claims as lines at the
+/// bounds; Baboud's ÷5 (zmin/zmax) and ÷12 (two functions) step claims as lines at the
 /// cylinder bound's mean steps divided by 5 and 12.
 pub fn parallax(quick: bool, mesh: Option<&Path>) -> Result<RepresentationReport, ReportError> {
     use crate::parallax::{
@@ -357,7 +357,7 @@ pub fn cylinder(quick: bool, mesh: Option<&Path>) -> Result<RepresentationReport
 
 /// Slices: [`crate::slices::measure`](fn@crate::slices::measure)'s error against level (slice count) for every merge rule,
 /// averaged over the tiles, and the criterion's choice among three directions as the
-/// operating point (the seed's rule `h·tan a / d ≤ 1`).
+/// operating point (Meyer & Neyret's rule `h·tan a / d ≤ 1`).
 pub fn slices(quick: bool) -> Result<RepresentationReport, ReportError> {
     use crate::slices::{MeasureParams, MergeRule, TestTile, measure};
     const R: &str = "slices";
@@ -450,7 +450,7 @@ pub fn slices(quick: bool) -> Result<RepresentationReport, ReportError> {
 /// The ellipsoid octree through the pipeline's own build and measurement
 /// ([`crate::pipeline::octree::OctreeRepr`]): leaf resolution per filter rule, of the `tree`
 /// shape. Cost: voxelisation + build, bytes of the node array; error: PSNR of level 0 against
-/// the ray-cast truth. The seed's claims (91–93 % compression at 128³, 8 s to build 256³) as
+/// the ray-cast truth. Neyret 1995's claims (91–93 % compression at 128³, 8 s to build 256³) as
 /// lines.
 pub fn octree(quick: bool) -> Result<RepresentationReport, ReportError> {
     use crate::pipeline::octree::{NODE_BYTES, OctreeRepr, OctreeSpec};

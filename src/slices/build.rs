@@ -1,4 +1,4 @@
-//! Builders of texel volumes (the 1998 seed, §3): a height field (grey image or cyclic Perlin
+//! Builders of texel volumes (Meyer & Neyret 1998, §3): a height field (grey image or cyclic Perlin
 //! noise; columns filled to the height, shading from the gradient normal), an implicit function
 //! (evaluated per voxel), a data-gen shape (voxelised by [`altrep_data_gen::voxelize`], the
 //! interior filled with the colour of the boundary so that nothing looks hollow at oblique
@@ -534,7 +534,7 @@ impl Default for ShapeParams {
 
 /// Builds a texel from a data-gen shape: [`voxelize`] (periodic in `x` and `z`) gives coverage,
 /// albedo and normals; boundary voxels are shaded, the interior takes the colour of its nearest
-/// boundary voxel (the seed's §3.2 fill). Cost: data-gen's voxelisation plus one pass.
+/// boundary voxel (Meyer & Neyret's §3.2 fill). Cost: data-gen's voxelisation plus one pass.
 ///
 /// Errors: data-gen's (zero sizes, non-finite box), zero voxel size, bad light.
 pub fn from_shape(shape: &dyn Shape, params: &ShapeParams) -> Result<TexelVolume, SliceError> {
@@ -562,7 +562,7 @@ pub fn from_shape(shape: &dyn Shape, params: &ShapeParams) -> Result<TexelVolume
     TexelVolume::new(d, params.voxel, rgba)
 }
 
-/// The test tiles of the measurements (issue 13).
+/// The test tiles of the slice measurements (`altrep slices`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 pub enum TestTile {
     /// 40 tapered, leaning grass blades rooted at `y = 0`, no soil (the surface under the

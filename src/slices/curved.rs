@@ -1,7 +1,7 @@
-//! The texel over a curved surface: a **cylindrical patch**, the seed's per-vertex height
+//! The texel over a curved surface: a **cylindrical patch**, Meyer & Neyret's per-vertex height
 //! vectors taken to the limit of a smooth surface (every height vector radial). Slices of the
 //! height axis (`y`) become coaxial cylindrical shells; the other two directions are not defined
-//! on a curved patch (the seed: "if the texel is not too deformed").
+//! on a curved patch (the paper: "if the texel is not too deformed").
 //!
 //! ## Mapping (texel → world)
 //!

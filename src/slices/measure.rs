@@ -1,7 +1,7 @@
-//! Measurements against the ray-marched ground truth (issue 13): PSNR of every merge rule and of
-//! dropped slices at the level the criterion picks, over a sweep of view angles, distances and
-//! both sides; one slice direction against three; error against level for every rule; slices
-//! drawn, bytes and build time.
+//! Measurements against the ray-marched ground truth (docs/design.md §9): PSNR of every merge
+//! rule and of dropped slices at the level the criterion picks, over a sweep of view angles,
+//! distances and both sides; one slice direction against three; error against level for every rule;
+//! slices drawn, bytes and build time.
 //!
 //! A view's **distance** is its pixel size in voxels `p`; the visible depth of the criterion is
 //! `d = d_pixels · p · s`. The slices and the truth are both rendered with

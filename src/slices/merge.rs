@@ -103,9 +103,9 @@ impl SliceParams {
         Ok(())
     }
 
-    /// Parameters that build only the axes and levels `views` select (SPEC §9, "skip what a view
-    /// does not need"): the direction and level [`super::choose`] picks for each view with
-    /// visible depth `depth` (world units) among all three axes, every other field as given in
+    /// Parameters that build only the axes and levels `views` select (docs/design.md §9: what no
+    /// view selects is not built): the direction and level [`super::choose`] picks for each view
+    /// with visible depth `depth` (world units) among all three axes, every other field as given in
     /// `base`. Errors: no view, invalid views or depth.
     pub fn for_views(
         volume: &TexelVolume,

@@ -1,19 +1,19 @@
-//! # Volumetric textures as stacks of alpha slices (SPEC §9; the 1998 seed, Meyer & Neyret)
+//! # Volumetric textures as stacks of alpha slices (docs/design.md §9; Meyer & Neyret 1998)
 //!
 //! A **texel** is a small tileable reference volume (premultiplied RGBA, lighting baked) that is
 //! repeated over a surface. It is drawn as a stack of alpha-blended textured slices composited
 //! back to front. This module builds texel volumes ([`build`]), cuts them into stacks along the
 //! three axes with **mipmapped slice merges** ([`build_slices`]: level `k` holds `N/2^k` slices,
 //! each the composite of `2^k` layers, each slice also mip-mapped in 2D), chooses a direction and
-//! a level per view ([`stack`]: the seed's criterion `h·tan a / d ≤ 1` and its direction rule
+//! a level per view ([`stack`]: the paper's criterion `h·tan a / d ≤ 1` and its direction rule
 //! `argmin (1/c_i² − 1)·h_i²`), draws them on the CPU over a flat patch ([`render_slices`]) or
 //! a curved one ([`curved`]: shells over a cylinder) and measures them against a ray-marched
 //! ground truth of the same volume ([`render_truth`], [`measure()`]).
 //!
 //! ## Conventions (written once here)
 //!
-//! * **Texel frame.** `y` is the height above the surface (SPEC §2: `y` vertical); `x` and `z`
-//!   are the surface directions. Voxels are cubes of edge `s` (world units); a volume of
+//! * **Texel frame.** `y` is the height above the surface (docs/design.md §2: `y` vertical); `x`
+//!   and `z` are the surface directions. Voxels are cubes of edge `s` (world units); a volume of
 //!   `nx × ny × nz` voxels spans `[0, nx·s] × [0, ny·s] × [0, nz·s]`. Voxel `(x, y, z)` covers
 //!   `[x·s, (x+1)·s] × …`, its centre is at `(x + ½, y + ½, z + ½)·s`, storage index
 //!   `x + nx·(y + ny·z)` (as data-gen's voxel volumes). The volume **tiles** (is periodic) along
@@ -47,7 +47,7 @@
 //! * **Opacity correction.** A slice of alpha `a` (for thickness `h`) crossed at cosine `c`
 //!   between the view and its normal is drawn with `a' = 1 − (1 − a)^(1/|c|)` and its colour
 //!   scaled by `a'/a` (the path through the slab is `h/|c|`); [`RenderParams::opacity_correction`]
-//!   turns it off to draw as the seed's fixed-function hardware did.
+//!   turns it off to draw as the paper's fixed-function hardware did.
 //! * **Compositing.** The slices a ray crosses are composited with `over`, nearest last in the
 //!   back-to-front formulation; the CPU renderer accumulates the equivalent front-to-back sum.
 //!

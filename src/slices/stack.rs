@@ -1,4 +1,4 @@
-//! Slice directions and how many slices a view needs (the 1998 seed, §4.1–4.2).
+//! Slice directions and how many slices a view needs (Meyer & Neyret 1998, §4.1–4.2).
 //!
 //! * **Criterion.** With slice spacing `h`, view angle `a` from the slice normal and the depth
 //!   `d` (world units) the user accepts to see into an object (`d ≤ e/2`, `e` the feature
@@ -18,7 +18,7 @@ use super::{SliceError, TexelVolume};
 pub enum Axis {
     /// Slices normal to `x` (vertical, across the surface).
     X,
-    /// Slices normal to `y` (parallel to the surface: the seed's default stack).
+    /// Slices normal to `y` (parallel to the surface: Meyer & Neyret's default stack).
     Y,
     /// Slices normal to `z` (vertical, across the surface).
     Z,
@@ -112,8 +112,8 @@ pub fn level_for_slices(
     Ok(k)
 }
 
-/// The seed's direction rule: the axis minimising `(1/c_i² − 1)·h_i²`, `c_i = |view_i|` (view a
-/// unit vector), `h_i = L_i/N_i` from `spacing`. Among `allowed` axes only; ties go to the
+/// Meyer & Neyret's direction rule: the axis minimising `(1/c_i² − 1)·h_i²`, `c_i = |view_i|` (view
+/// a unit vector), `h_i = L_i/N_i` from `spacing`. Among `allowed` axes only; ties go to the
 /// earliest allowed axis in `Y, X, Z` order. Errors: a non-finite or zero view vector, no allowed
 /// axis.
 pub fn choose_direction(

@@ -1,4 +1,4 @@
-//! # Images with parallax from any direction (SPEC §7b, issue 16)
+//! # Images with parallax from any direction (docs/design.md §7b)
 //!
 //! The views of [`crate::parallax`] turn about the vertical axis only. Here an object is stored
 //! as orthographic **frames over the sphere or the upper hemisphere**, on the octahedral grids

@@ -1,4 +1,4 @@
-//! The ellipsoid octree (SPEC §8) beside the ray-cast original — a **CPU render**: no GPU
+//! The ellipsoid octree (docs/design.md §8) beside the ray-cast original — a **CPU render**: no GPU
 //! display of the octree exists yet, so its levels are drawn by the library's CPU volume renderer
 //! (`Octree::render_level`, the one the pipeline's measurement uses).
 //!

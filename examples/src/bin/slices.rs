@@ -1,8 +1,8 @@
-//! Volumetric textures as slices (SPEC §9) beside the ray-marched volume — a **CPU render**: no
-//! GPU display of slice stacks exists yet, so the stacks are drawn by the library's CPU renderer
-//! (`altrep::slices::render_slices`, the one `altrep slices --images` uses) and the truth by
-//! `altrep::slices::render_truth`. The pipeline writes no slice asset yet either: the stacks are
-//! built in memory with `build_slices`.
+//! Volumetric textures as slices (docs/design.md §9) beside the ray-marched volume — a **CPU
+//! render**: no GPU display of slice stacks exists yet, so the stacks are drawn by the library's
+//! CPU renderer (`altrep::slices::render_slices`, the one `altrep slices --images` uses) and the
+//! truth by `altrep::slices::render_truth`. The pipeline writes no slice asset yet either: the
+//! stacks are built in memory with `build_slices`.
 //!
 //! Writes under `--out`:
 //!

@@ -57,7 +57,7 @@ pub struct OctreeReport {
     pub nodes_per_level: Vec<usize>,
     /// Input voxels `nx·ny·nz`.
     pub voxels: usize,
-    /// `1 − nodes / voxels`: the seed's "compression" (91–93 % at 128³ in the seed).
+    /// `1 − nodes / voxels`: Neyret 1995's "compression" (91–93 % at 128³ in the paper).
     pub compression: f64,
     /// Bytes of the node array (`nodes × 52`).
     pub bytes: usize,

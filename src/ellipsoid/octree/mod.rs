@@ -1,4 +1,4 @@
-//! The multiscale octree volume of the 1995 seed: leaves from a voxelised RGBA + density volume,
+//! The multiscale octree volume of Neyret 1995: leaves from a voxelised RGBA + density volume,
 //! coarser levels by filtering, uniform and empty regions pruned, level lookup by footprint.
 //!
 //! # Levels and coordinates
@@ -26,7 +26,10 @@
 //!
 //! # Pruning
 //!
-//! Eight leaf children that agree — densities within `tolerance`, colours within `tolerance`,
+//! Eight leaf children that agree — mean densities within `tolerance`, mean colours within
+//! `tolerance`, mean moment matrices within `tolerance` relative to the first child's largest
+//! entry — become one leaf, which stands for every finer level inside it. Empty and non-empty children
+//! never merge, so "no micro-primitive" stays exact.
 //!
 //! # Files
 //!

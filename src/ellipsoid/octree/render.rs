@@ -68,7 +68,7 @@ impl Octree {
 
     /// Renders the volume as seen at `level` (orthographic, looking down −z: image column `i` is
     /// `x = i + ½`, row `j` is `y = 2^depth − j − ½`, so `y` is up), one pixel per voxel of the
-    /// padded cube — the seed's volume rendering reduced to local illumination:
+    /// padded cube — Neyret 1995's volume rendering reduced to local illumination:
     ///
     /// - extinction `σ = τ ρ A(v)/π` per voxel length (density modulated by the micro-primitive's
     ///   projected area along the view, `π` being a normalised primitive's mean);
@@ -179,7 +179,7 @@ pub struct RenderParams {
     pub light: Vector3<f64>,
     /// Ambient share of the shading in `[0, 1]`.
     pub ambient: f64,
-    /// Optical depth per voxel length at density 1 (`τ` of the seed's `e^{−τρL}`).
+    /// Optical depth per voxel length at density 1 (`τ` of Neyret 1995's `e^{−τρL}`).
     pub tau: f64,
     /// Samples per voxel length along a ray (≥ 1).
     pub steps_per_voxel: usize,

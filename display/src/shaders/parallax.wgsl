@@ -627,44 +627,49 @@ fn fs_main(@builtin(position) pos: vec4<f32>) -> FsOut {
     var z_e = -P[MARCH_R];
     var s1 = 0u;
     var s2 = 0u;
-    if U[7] == 0u {
-        // RenderParams::view_row: the nearest view row.
-        let j = min(u32(floor((real(py) + 0.5) * real(ly) / real(sh))), ly - 1u);
-        let o = ray_row(j, x, px);
-        s1 = o.s1;
-        s2 = o.s2;
-        if o.col.ok {
-            acc = o.col.c;
-            hit = true;
-            z_e = o.col.z_e;
-        }
-    } else {
-        // RenderParams::row_weights (one sub-row): rows j0 and j0 + 1, linearly.
+    // The view rows read: RenderParams::view_row, the nearest row (weight 1), or
+    // RenderParams::row_weights (one sub-row), rows j0 and j0 + 1 linearly. One call site of
+    // `ray_row` for both: the shader compiler inlines every call, and a second copy of the
+    // whole march doubles the compile time on software adapters.
+    let linear = U[7] != 0u;
+    var j0 = 0;
+    var f = real(0.0);
+    var rows = 1;
+    if linear {
         let v = (real(py) + 0.5) * (real(ly) / real(sh)) - 0.5;
-        let j0 = floor(v);
-        let f = v - j0;
-        for (var q = 0; q < 2; q++) {
-            let j = i32(j0) + q;
-            var w = 1.0 - f;
-            if q == 1 {
-                w = f;
-            }
-            if j < 0 || j >= i32(ly) || w <= 0.0 {
-                continue;
-            }
-            let o = ray_row(u32(j), x, px);
-            s1 += o.s1;
-            s2 += o.s2;
-            if o.col.ok {
+        let fl = floor(v);
+        j0 = i32(fl);
+        f = v - fl;
+        rows = 2;
+    } else {
+        j0 = i32(min(u32(floor((real(py) + 0.5) * real(ly) / real(sh))), ly - 1u));
+    }
+    for (var q = 0; q < rows; q++) {
+        let j = j0 + q;
+        var w = 1.0 - f;
+        if q == 1 {
+            w = f;
+        }
+        if linear && (j < 0 || j >= i32(ly) || w <= 0.0) {
+            continue;
+        }
+        let o = ray_row(u32(j), x, px);
+        s1 += o.s1;
+        s2 += o.s2;
+        if o.col.ok {
+            hit = true;
+            if linear {
                 acc += o.col.c * f32(w);
-                hit = true;
                 z_e = max(z_e, o.col.z_e);
+            } else {
+                acc = o.col.c;
+                z_e = o.col.z_e;
             }
         }
     }
-    let f = 2u * (py * sw + px);
-    STEPS[f] = s1;
-    STEPS[f + 1u] = s2;
+    let frag = 2u * (py * sw + px);
+    STEPS[frag] = s1;
+    STEPS[frag + 1u] = s2;
     if !hit {
         discard;
     }

@@ -26,7 +26,7 @@ use approx::assert_abs_diff_eq;
 use glam::DVec3;
 
 mod common;
-use common::{failures_dir, gpu, gpu_f64};
+use common::{assert_floor, failures_dir, gpu, gpu_f64};
 
 /// Shapes checked (flat faces, thin branches, a seat over open space), with the view set and
 /// surface model each is stored with.
@@ -225,8 +225,37 @@ fn gpu_steps_and_flags_match_the_cpu_per_ray_in_f64_but_for_ties() {
     );
 }
 
+/// Measured PSNR (dB) of the GPU image (f32) against the ray-cast truth, per shape and direction
+/// ([`common::MEASURED_ON`]); the floors are these less [`common::FLOOR_MARGIN_DB`].
+const MEASURED_VS_TRUTH: [(&str, f64); 21] = [
+    ("truck [0.99, 0.10, 0.00]", 26.90),
+    ("truck [-0.70, 0.30, 0.64]", 24.91),
+    ("truck [0.08, 0.50, -0.86]", 23.38),
+    ("truck [0.43, 0.70, 0.57]", 23.91),
+    ("truck [-0.43, 0.90, -0.08]", 25.71),
+    ("truck [0.00, 1.00, 0.00]", 24.13),
+    ("truck [-0.45, 0.89, 0.00]", 26.11),
+    ("tree [0.99, 0.10, 0.00]", 27.91),
+    ("tree [-0.70, 0.30, 0.64]", 27.79),
+    ("tree [0.08, 0.50, -0.86]", 27.51),
+    ("tree [0.43, 0.70, 0.57]", 26.99),
+    ("tree [-0.43, 0.90, -0.08]", 26.35),
+    ("tree [0.00, 1.00, 0.00]", 26.26),
+    ("tree [-0.45, 0.89, 0.00]", 25.09),
+    ("chair [0.60, 0.80, 0.00]", 23.03),
+    ("chair [-0.68, 0.40, 0.62]", 21.19),
+    ("chair [0.09, 0.00, -1.00]", 22.83),
+    ("chair [0.56, -0.40, 0.73]", 22.70),
+    ("chair [-0.59, -0.80, -0.10]", 24.83),
+    ("chair [0.00, 1.00, 0.00]", 24.78),
+    ("chair [-0.58, 0.58, -0.58]", 21.99),
+];
+
+/// The GPU image against the ray-cast truth: within a twentieth of a decibel of the CPU
+/// renderer's PSNR (the same loaded frames) and, since a defect the two renderers share would
+/// pass that, above an absolute floor per case.
 #[test]
-fn gpu_psnr_against_ray_cast_truth_within_a_twentieth_of_a_db_of_the_cpu() {
+fn gpu_psnr_against_ray_cast_truth_within_a_twentieth_of_a_db_of_the_cpu_and_above_its_floor() {
     let Some(gpu) = gpu() else { return };
     let dir = tempfile::tempdir().unwrap();
     let light = Light::default();
@@ -241,11 +270,13 @@ fn gpu_psnr_against_ray_cast_truth_within_a_twentieth_of_a_db_of_the_cpu() {
                 psnr(&cpu(&images, d).image, truth).unwrap(),
                 psnr(&frame.image, truth).unwrap(),
             );
+            let name = format!("{shape} {d:.2}");
             eprintln!(
-                "{shape} {d:.2}: PSNR vs truth CPU {db_cpu:.2} dB, GPU {db_gpu:.2} dB, {:.1} fetches per ray",
+                "{name}: PSNR vs truth CPU {db_cpu:.2} dB, GPU {db_gpu:.2} dB, {:.1} fetches per ray",
                 frame.mean_steps()
             );
             assert_abs_diff_eq!(db_gpu, db_cpu, epsilon = 0.05);
+            assert_floor(&MEASURED_VS_TRUTH, &name, db_gpu);
         }
     }
 }
@@ -374,8 +405,15 @@ fn gpu_extra_frames_match_the_cpu() {
         eprintln!(
             "extra frames {extra}: worst {worst_db:.1} dB against the CPU; holes GPU {gpu_holes}, CPU {cpu_holes} of {rays} rays"
         );
+        // Measured 2026-12-04: equal counts (425 holes without extra frames, 77 with 8, of
+        // 67 788 rays). The tolerance is scaled to the holes it guards: one ray, plus 1 % of the
+        // CPU's holes, for rays on texel edges that `f32` may split otherwise.
         assert!(
-            gpu_holes.abs_diff(cpu_holes) * 100 <= rays,
+            cpu_holes > 0,
+            "extra frames {extra}: no hole, nothing to compare"
+        );
+        assert!(
+            gpu_holes.abs_diff(cpu_holes) <= 1 + cpu_holes / 100,
             "extra frames {extra}: holes GPU {gpu_holes} against CPU {cpu_holes} of {rays} rays"
         );
     }

@@ -356,7 +356,7 @@ fn bad_input_gives_typed_errors() {
 }
 
 proptest! {
-    #![proptest_config(ProptestConfig { cases: 64, ..ProptestConfig::default() })]
+    #![proptest_config(ProptestConfig { cases: 64, rng_seed: proptest::test_runner::RngSeed::Fixed(20261204), ..ProptestConfig::default() })]
 
     /// Random grids, masks and values: no panic, no NaN, and never worse than the constant
     /// (mean) fit, for every solver and λ.

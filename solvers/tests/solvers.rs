@@ -433,7 +433,7 @@ fn matrix_market_files_round_trip() {
 }
 
 proptest! {
-    #![proptest_config(ProptestConfig { cases: 48, ..ProptestConfig::default() })]
+    #![proptest_config(ProptestConfig { cases: 48, rng_seed: proptest::test_runner::RngSeed::Fixed(20261204), ..ProptestConfig::default() })]
 
     /// Random sparse PSD systems `BᵀB + shift·I` (possibly singular) with a consistent
     /// right-hand side: every method ends without NaN and the converged ones have a small
@@ -648,7 +648,7 @@ fn blocked_product_refuses_non_finite_matrices() {
 }
 
 proptest! {
-    #![proptest_config(ProptestConfig { cases: 64, ..ProptestConfig::default() })]
+    #![proptest_config(ProptestConfig { cases: 64, rng_seed: proptest::test_runner::RngSeed::Fixed(20261204), ..ProptestConfig::default() })]
     /// On random sparsity (scattered rows, bands, empty rows, rectangular, sizes not a
     /// multiple of the block), the blocked product is the CSR product bit for bit, serially and
     /// through the parallel path, and never reads outside `x`.

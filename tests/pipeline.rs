@@ -942,8 +942,11 @@ fn json_output_path_is_checked_before_any_work() {
     let _ = t0;
 }
 
-/// Spawns a precompute, kills it with `signal` once it is writing, and checks that every asset
-/// folder present is complete; then the rerun completes and equals a clean run's files.
+/// Spawns a precompute, kills it with `signal` while it is writing an asset's files (a file
+/// seen in a staging folder), and checks that every asset folder present is complete and that
+/// the kill left a half-written asset behind in `.staging`: the check saw an interrupted write,
+/// not a run killed before it wrote anything (tried up to five times, then a failure). Then the
+/// rerun completes and equals a clean run's files.
 fn kill_mid_run(signal: &str) {
     let dir = tempfile::tempdir().unwrap();
     let scene = dir.path().join("scene.toml");
@@ -955,31 +958,70 @@ fn kill_mid_run(signal: &str) {
         .replace("screen_px = [4, 16]", "screen_px = [4, 128]");
     std::fs::write(&scene, &big).unwrap();
     let out = dir.path().join("out");
-    let mut child = Command::new(BIN)
-        .arg("precompute")
-        .arg(&scene)
-        .arg("--out")
-        .arg(&out)
-        .spawn()
-        .unwrap();
-    let t0 = Instant::now();
-    while !out.join(".staging").exists() && t0.elapsed() < Duration::from_secs(60) {
-        std::thread::sleep(Duration::from_millis(5));
-    }
-    std::thread::sleep(Duration::from_millis(30));
-    Command::new("kill")
-        .arg(format!("-{signal}"))
-        .arg(child.id().to_string())
-        .status()
-        .unwrap();
-    let status = child.wait().unwrap();
-    assert!(!status.success(), "the run finished before the {signal}");
-    for asset in ["pear/parallax", "chair/octree"] {
-        let d = out.join(asset);
-        if d.exists() {
-            AssetReader::open(&d).unwrap_or_else(|e| panic!("half-written {asset}: {e}"));
+    let staging = out.join(".staging");
+    // Files of an asset being written: in a folder of `.staging` (ASSET.REPR.PID.N), or in an
+    // asset folder that has no asset.json yet.
+    let files_in = |d: &Path| std::fs::read_dir(d).map_or(0, |f| f.count());
+    let being_written = || -> usize {
+        let staged: usize = std::fs::read_dir(&staging).map_or(0, |d| {
+            d.filter_map(|e| e.ok()).map(|e| files_in(&e.path())).sum()
+        });
+        let unfinished: usize = ["pear/parallax", "chair/octree"]
+            .iter()
+            .map(|a| out.join(a))
+            .filter(|d| !d.join(DESCRIPTION_FILE).exists())
+            .map(|d| files_in(&d))
+            .sum();
+        staged + unfinished
+    };
+    let mut interrupted = Vec::new();
+    for attempt in 1..=5 {
+        let _ = std::fs::remove_dir_all(&out);
+        let mut child = Command::new(BIN)
+            .arg("precompute")
+            .arg(&scene)
+            .arg("--out")
+            .arg(&out)
+            .stdout(std::process::Stdio::null())
+            .stderr(std::process::Stdio::null())
+            .spawn()
+            .unwrap();
+        let t0 = Instant::now();
+        while being_written() == 0
+            && child.try_wait().unwrap().is_none()
+            && t0.elapsed() < Duration::from_secs(120)
+        {
+            std::thread::sleep(Duration::from_millis(1));
+        }
+        Command::new("kill")
+            .arg(format!("-{signal}"))
+            .arg(child.id().to_string())
+            .status()
+            .unwrap();
+        let status = child.wait().unwrap();
+        assert!(!status.success(), "the run finished before the {signal}");
+        for asset in ["pear/parallax", "chair/octree"] {
+            let d = out.join(asset);
+            if d.exists() {
+                AssetReader::open(&d).unwrap_or_else(|e| panic!("half-written {asset}: {e}"));
+            }
+        }
+        // What the kill interrupted: staging folders holding files (a write in progress).
+        interrupted = std::fs::read_dir(&staging).map_or(Vec::new(), |d| {
+            d.filter_map(|e| e.ok())
+                .filter(|e| std::fs::read_dir(e.path()).is_ok_and(|mut f| f.next().is_some()))
+                .map(|e| e.file_name().to_string_lossy().into_owned())
+                .collect()
+        });
+        if !interrupted.is_empty() {
+            eprintln!("{signal}, attempt {attempt}: interrupted {interrupted:?}");
+            break;
         }
     }
+    assert!(
+        !interrupted.is_empty(),
+        "no {signal} in five attempts landed while an asset was being written"
+    );
     let rerun = Command::new(BIN)
         .arg("precompute")
         .arg(&scene)
@@ -992,11 +1034,7 @@ fn kill_mid_run(signal: &str) {
         "{}",
         String::from_utf8_lossy(&rerun.stderr)
     );
-    assert!(
-        !out.join(".staging")
-            .read_dir()
-            .is_ok_and(|mut d| d.next().is_some())
-    );
+    assert!(!staging.read_dir().is_ok_and(|mut d| d.next().is_some()));
     let clean = dir.path().join("clean");
     let o = Command::new(BIN)
         .arg("precompute")
@@ -1051,22 +1089,63 @@ proptest! {
 proptest! {
     #![proptest_config(ProptestConfig { cases: 48, rng_seed: proptest::test_runner::RngSeed::Fixed(20261204), ..ProptestConfig::default() })]
 
+    /// One byte of a written folder's asset.json or PNGs changed or the file cut short: a
+    /// changed PNG is refused as altered (named), an unchanged folder loads as written, and an
+    /// edited asset.json that still opens gives a typed error or a representation that keeps to
+    /// its own metadata and draws finite pixels.
     #[test]
     fn loader_never_panics_on_mutated_asset_files(
         file in 0usize..4, at in any::<prop::sample::Index>(), byte in any::<u8>(), cut in any::<bool>()
     ) {
         let dir = tempfile::tempdir().unwrap();
         let asset = written_asset(dir.path());
+        let original = Parallax::read(&AssetReader::open(&asset).unwrap()).unwrap();
         let names = ["asset.json", "view0-albedo.png", "view1-bounds-best_c-v.png", "view2-depth.png"];
         let p = asset.join(names[file]);
-        let mut bytes = std::fs::read(&p).unwrap();
+        let before = std::fs::read(&p).unwrap();
+        let mut bytes = before.clone();
         let i = at.index(bytes.len());
         if cut { bytes.truncate(i); } else { bytes[i] = byte; }
+        let changed = bytes != before;
         std::fs::write(&p, &bytes).unwrap();
-        // asset.json edited without a hash change is accepted by open() and must still decode
-        // to a typed error or a consistent representation.
-        if let Ok(r) = AssetReader::open(&asset) {
-            let _ = Parallax::read(&r);
+        match AssetReader::open(&asset) {
+            Err(e) => {
+                prop_assert!(changed, "the unchanged folder was refused: {}", e);
+                if file > 0 {
+                    prop_assert!(
+                        matches!(&e, AssetError::Altered { path, .. } if *path == p),
+                        "{} damaged: {}", names[file], e
+                    );
+                }
+            }
+            Ok(r) => {
+                prop_assert!(file == 0 || !changed, "{} changed, yet it opened", names[file]);
+                // asset.json edited without a hash change is accepted by open() and must still
+                // decode to a typed error or a consistent representation.
+                match Parallax::read(&r) {
+                    Err(e) => prop_assert!(changed, "the unchanged folder did not decode: {}", e),
+                    Ok(data) => {
+                        if !changed {
+                            prop_assert!(data.images.codes() == original.images.codes());
+                            prop_assert_eq!(data.bounds.len(), original.bounds.len());
+                        }
+                        let m = &r.description().metadata;
+                        let p = &data.images.params;
+                        prop_assert_eq!(
+                            [p.views, p.width, p.height, p.depth_bits as usize].map(|v| Some(v as u64)),
+                            ["views", "width", "height", "depth_bits"].map(|k| m[k].as_u64()),
+                            "the loaded sizes are not those of asset.json"
+                        );
+                        prop_assert_eq!(data.images.views.len(), p.views);
+                        let screen = altrep::parallax::RenderParams::native(&data.images);
+                        if let Ok(img) = altrep::parallax::render(
+                            &data.images, 0.7, altrep::parallax::WarpMethod::Inverse, &screen,
+                        ) {
+                            prop_assert!(img.pixels.iter().flatten().all(|c| c.is_finite()));
+                        }
+                    }
+                }
+            }
         }
     }
 }

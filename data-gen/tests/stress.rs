@@ -31,25 +31,48 @@ fn primitive() -> impl Strategy<Value = Primitive> {
     ]
 }
 
+/// A point strictly inside `p`: the centre of a sphere or box, the middle of a capsule's or
+/// cylinder's axis, a point of a torus's core circle.
+fn inside(p: &Primitive) -> DVec3 {
+    match p {
+        Primitive::Sphere { center, .. } | Primitive::Box { center, .. } => *center,
+        Primitive::Capsule { a, b, .. } | Primitive::Cylinder { a, b, .. } => 0.5 * (*a + *b),
+        Primitive::Torus {
+            center,
+            axis,
+            major,
+            ..
+        } => *center + *major * axis.normalize().any_orthonormal_vector(),
+    }
+}
+
 proptest! {
     #![proptest_config(ProptestConfig { cases: 400, rng_seed: proptest::test_runner::RngSeed::Fixed(20261204), ..ProptestConfig::default() })]
 
     /// A ray from outside (distance 10) toward a random point: a miss, or a hit whose point lies
-    /// on the surface (|sdf| small), with a finite unit normal facing the ray.
+    /// on the surface (|sdf| small), with a finite unit normal facing the ray. A ray toward a
+    /// point inside the primitive ([`inside`]) must hit, before reaching that point.
     #[test]
     fn hits_lie_on_the_surface(p in primitive(), from in vec3(-1.0..1.0), to in vec3(-1.0..1.0)) {
         let Ok(shape) = Csg::new("p", vec![Part { primitive: p.clone(), albedo: Albedo::Solid(Vec3::ONE) }]) else {
             // Degenerate draws (coincident ends) are typed errors; nothing else to check.
             return Ok(());
         };
-        let dir = (to - from).normalize_or(DVec3::X);
-        let ray = Ray::new(to - 10.0 * dir, dir);
-        if let Some(hit) = shape.intersect(&ray, 0.0, 100.0) {
-            prop_assert!(hit.t.is_finite() && hit.t > 0.0);
-            prop_assert!((hit.normal.length() - 1.0).abs() < 1e-6, "normal {:?}", hit.normal);
-            prop_assert!(hit.normal.dot(dir) <= 1e-12);
-            let sdf = shape.sdf(ray.at(hit.t)).unwrap();
-            prop_assert!(sdf.abs() < 1e-6, "sdf at hit {sdf} for {p:?}");
+        let target = inside(&p);
+        prop_assert!(shape.sdf(target).unwrap() < 0.0, "{target} is not inside {p:?}");
+        for (to, must_hit) in [(to, false), (target, true)] {
+            let dir = (to - from).normalize_or(DVec3::X);
+            let ray = Ray::new(to - 10.0 * dir, dir);
+            let hit = shape.intersect(&ray, 0.0, 100.0);
+            prop_assert!(hit.is_some() || !must_hit, "the ray toward {to}, inside {p:?}, missed");
+            if let Some(hit) = hit {
+                prop_assert!(hit.t.is_finite() && hit.t > 0.0);
+                prop_assert!(!must_hit || hit.t < 10.0, "hit at t = {} past the inner point", hit.t);
+                prop_assert!((hit.normal.length() - 1.0).abs() < 1e-6, "normal {:?}", hit.normal);
+                prop_assert!(hit.normal.dot(dir) <= 1e-12);
+                let sdf = shape.sdf(ray.at(hit.t)).unwrap();
+                prop_assert!(sdf.abs() < 1e-6, "sdf at hit {sdf} for {p:?}");
+            }
         }
     }
 

@@ -297,21 +297,27 @@ fn cup() -> altrep::data_gen::Csg {
     .unwrap()
 }
 
+/// Where a view set fails: looking (almost) straight down into a concave object, the cup, at 8
+/// directions 84–89° up, 64² with 2 × 2 rays, truth 3 × 3, frames of 50². Even grids have no
+/// frame at the zenith; the enclosing frames there are tilted (G = 4: 26.6°, G = 8: 9.5°), so
+/// the floor along the walls is hidden from all of them. The extra frames (the default, 8) see
+/// most of it: holes (points no frame asked sees) fall to at most 0.13 % on every grid (without
+/// them: 0.94 %, 0.17 %, 0.82 %, 0.33 %).
+///
+/// Known loss, not diagnosed: the even grids still score below the odd ones, G = 8 by about
+/// 3 dB below G = 9 (21.28 against 24.26 dB, measured 2026-12-04), and the hole share no longer
+/// explains it (0.0000 at G = 8). An odd grid puts a frame at the zenith, for (G + 1)²/G² of
+/// the memory. The test asserts each grid's floor against the ray-cast truth and does not
+/// require the loss to persist: a fix of the 8 × 8 case passes it.
+///
+/// Measured 2026-12-04 (ours against the truth, hole share, engine blend of the same frames):
+///   G = 4: 23.75 dB, holes 0.0013, blend 18.25 dB | G = 5: 24.14 dB, holes 0.0000, blend 19.02 dB
+///   G = 8: 21.28 dB, holes 0.0000, blend 19.92 dB | G = 9: 24.26 dB, holes 0.0006, blend 20.38 dB
+/// (without extra frames, with the default hole depth: 21.93, 24.06, 21.26, 24.19 dB). Floors:
+/// the measured PSNR less 0.5 dB; holes below 0.2 % on every grid; ours at least 1 dB above the
+/// blend (measured: 5.50, 5.12, 1.36, 3.88 dB).
 #[test]
 fn straight_down_into_a_cup_needs_a_frame_at_the_zenith() {
-    // Where a view set fails: looking (almost) straight down into a concave object. Even grids
-    // have no frame at the zenith; the enclosing frames there are tilted (G = 4: 26.6°, G = 8:
-    // 9.5°), so the floor along the walls is hidden from all of them. The extra frames (the
-    // default, 8) see most of it: holes (points no frame asked sees) fall to at most 0.13 % on
-    // every grid (without them: 0.94 %, 0.17 %, 0.82 %, 0.33 %), yet the even grids still lose
-    // to the odd ones, G = 8 by 3 dB, a loss the hole share no longer explains (not
-    // diagnosed). Measured at 8 directions 84–89° up, 64² with 2 × 2 rays, truth 3 × 3,
-    // frames of 50²:
-    //   G = 4: 23.75 dB, holes 0.0013 | G = 5: 24.14 dB, holes 0.0000
-    //   G = 8: 21.28 dB, holes 0.0000 | G = 9: 24.26 dB, holes 0.0006
-    // (engine blend 18.25, 19.02, 19.92, 20.38 dB; without extra frames, with the default hole
-    // depth: 21.93, 24.06, 21.26, 24.19 dB). An odd grid puts a frame at the zenith, for
-    // (G + 1)²/G² of the memory.
     let shape = cup();
     let dirs: Vec<DVec3> = (0..8)
         .map(|k| {
@@ -329,24 +335,33 @@ fn straight_down_into_a_cup_needs_a_frame_at_the_zenith() {
         truth_supersample: 3,
     };
     let truths = truth_images(&shape, &dirs, 64, 3, &params.render.light).unwrap();
-    let mut m = Vec::new();
-    for g in [4, 5, 8, 9] {
+    let mut holes = Vec::new();
+    for (g, floor) in [(4, 23.25), (5, 23.64), (8, 20.78), (9, 23.76)] {
         let img = SphereImages::capture(&shape, &SphereParams::hemisphere(g, 50).unwrap()).unwrap();
         let r = measure(&img, &dirs, &truths, &params).unwrap();
         println!(
             "cup from 84–89° elevation, {g}×{g} frames of 50²: ours {:.2} dB (holes {:.4}), baseline {:.2} dB",
             r.ours.psnr_mean, r.ours.hole_share, r.baseline.psnr_mean
         );
+        assert!(
+            r.ours.psnr_mean >= floor,
+            "G = {g}: {:.2} dB against the truth, below the floor {floor}",
+            r.ours.psnr_mean
+        );
         assert!(r.ours.psnr_mean > r.baseline.psnr_mean + 1.0, "G = {g}");
-        m.push((r.ours.psnr_mean, r.ours.hole_share));
+        assert!(
+            r.ours.hole_share < 0.002,
+            "G = {g}: holes {} with the extra frames",
+            r.ours.hole_share
+        );
+        holes.push(r.ours.hole_share);
     }
-    let [(p4, h4), (p5, h5), (p8, h8), (p9, h9)] = [m[0], m[1], m[2], m[3]];
-    assert!(h5 <= h4, "G = 5 holes {h5} vs G = 4 {h4}");
-    for (g, h) in [(4, h4), (5, h5), (8, h8), (9, h9)] {
-        assert!(h < 0.002, "G = {g}: holes {h} with the extra frames");
-    }
-    assert!(p5 >= p4 - 0.1, "G = 5 {p5} vs G = 4 {p4}");
-    assert!(p9 >= p8 + 2.0, "G = 9 {p9} vs G = 8 {p8}");
+    assert!(
+        holes[1] <= holes[0],
+        "G = 5 holes {} vs G = 4 {}",
+        holes[1],
+        holes[0]
+    );
 }
 
 #[test]

@@ -1,7 +1,8 @@
 //! Images with parallax from any direction (docs/design.md §7b): a frame warped at its own
 //! direction reproduces it; a new direction against a fresh capture there; the cone bounds on a
 //! sweep ten times finer than the evaluation; the engine baseline measured, not assumed. Procedural
-//! shapes only, so the tests run without `../shared`.
+//! shapes only, so the tests run without `../shared`. Each floor derived from a measurement has
+//! the measured value and its date written beside it.
 
 use altrep::data_gen::{Light, OrthoFrame, capture_frame, scene_shape};
 use altrep::metrics::{psnr, silhouette_iou};
@@ -69,18 +70,33 @@ fn frame_colour(img: &SphereImages, k: usize, p: usize, light: &Light) -> [f32; 
     light.shade(albedo, normal).to_array()
 }
 
+/// Per shape and direction: measured colour PSNR (dB) and IoU against the 1-ray capture along
+/// the direction, 2026-12-04; the floors are the measured values less 0.5 dB and 0.01, never
+/// below the 24 dB and 0.95 asserted before. Depth errors measured at the same time: medians
+/// 0.004, 0.005, 0.007, 0.004 texel pitches (ceiling 0.25), p90 1.115, 0.928, 0.263, 0.250
+/// (ceiling 1.5).
+const NEW_DIRECTION_MEASURED: [(&str, usize, f64, f64); 4] = [
+    ("truck", 0, 24.88, 0.978),
+    ("truck", 1, 27.27, 0.981),
+    ("pear", 0, 29.73, 0.985),
+    ("pear", 1, 34.26, 0.996),
+];
+
 #[test]
 fn a_new_direction_matches_a_fresh_capture_there() {
     // Directions between frames: depth and colour of the warp against a capture along the
-    // direction itself (tolerances stated below, measured with margin).
+    // direction itself (an independent ray cast; floors in `NEW_DIRECTION_MEASURED`).
     let light = Light::default();
     for name in ["truck", "pear"] {
         let img = images(name, 6, 64);
         let shape = scene_shape(name).unwrap();
-        for d in [
+        for (which, d) in [
             DVec3::new(0.5, 0.6, 0.3).normalize(),
             DVec3::new(-0.8, 0.25, 0.4).normalize(),
-        ] {
+        ]
+        .into_iter()
+        .enumerate()
+        {
             let params = RenderParams {
                 size: 64,
                 samples: 1,
@@ -114,8 +130,16 @@ fn a_new_direction_matches_a_fresh_capture_there() {
             let p = psnr(&out.image, &truth).unwrap();
             let iou = silhouette_iou(&out.image, &truth, 0.5).unwrap();
             println!("{name}: colour PSNR {p:.2} dB, IoU {iou:.3} against a 1-ray capture");
-            assert!(iou >= 0.95, "{name}: IoU {iou}");
-            assert!(p >= 24.0, "{name}: PSNR {p}");
+            let &(_, _, p_measured, iou_measured) = NEW_DIRECTION_MEASURED
+                .iter()
+                .find(|m| m.0 == name && m.1 == which)
+                .unwrap();
+            let (p_floor, iou_floor) = (
+                (p_measured - 0.5).max(24.0),
+                (iou_measured - 0.01).max(0.95),
+            );
+            assert!(iou >= iou_floor, "{name} {d}: IoU {iou} below {iou_floor}");
+            assert!(p >= p_floor, "{name} {d}: PSNR {p} below {p_floor}");
         }
     }
 }
@@ -148,6 +172,8 @@ fn cone_bounds_hold_on_a_sweep_ten_times_finer_than_the_evaluation() {
         let dirs = fibonacci_directions(300, Coverage::Hemisphere);
         let c = check_bounds(&img, &dirs, 32).unwrap();
         println!("{name} {model:?}: {c:?}");
+        // Measured 2026-12-04: 629 436, 629 550, 629 362 marches; the floor only guards that
+        // the sweep ran.
         assert!(c.marches > 50_000, "{name}: only {} marches", c.marches);
         assert_eq!(c.violations, 0, "{name}: {c:?}");
     }
@@ -168,6 +194,7 @@ fn the_bounds_change_the_cost_not_the_picture() {
     )
     .unwrap();
     assert_eq!(with.image, without.image);
+    // Measured 2026-12-04: 16.51 steps with the bounds, 17.26 without.
     println!(
         "mean steps with bounds {:.2}, without {:.2}",
         with.mean_steps(),
@@ -179,8 +206,11 @@ fn the_bounds_change_the_cost_not_the_picture() {
 #[test]
 fn the_exact_warp_beats_the_engine_baseline_built_from_the_same_frames() {
     // Both measured against the ray-cast truth over 24 directions of the hemisphere, 4 × 4 frames
-    // of 48² (the budgets where engine impostors ghost). Floors measured with margin.
-    for name in ["truck", "building"] {
+    // of 48² (the budgets where engine impostors ghost). Measured 2026-12-04: truck ours
+    // 28.05 dB (IoU 0.953), baseline 16.66 dB (IoU 0.682); building ours 27.87 dB (IoU 0.954),
+    // baseline 16.76 dB (IoU 0.753). Floors against the truth: ours at the measured value less
+    // 0.5 dB and 0.01; ours at least 2 dB above the baseline (measured: 11.39 and 11.11 dB).
+    for (name, psnr_floor, iou_floor) in [("truck", 27.55, 0.943), ("building", 27.37, 0.944)] {
         let shape = scene_shape(name).unwrap();
         let img = SphereImages::capture(&shape, &SphereParams::hemisphere(4, 48).unwrap()).unwrap();
         let params = MeasureParams {
@@ -204,6 +234,12 @@ fn the_exact_warp_beats_the_engine_baseline_built_from_the_same_frames() {
             m.baseline.iou_mean
         );
         assert!(m.baseline.psnr_mean.is_finite() && m.baseline.psnr_mean > 10.0);
+        assert!(
+            m.ours.psnr_mean >= psnr_floor && m.ours.iou_mean >= iou_floor,
+            "{name}: ours {} dB, IoU {} below the floors {psnr_floor} dB, {iou_floor}",
+            m.ours.psnr_mean,
+            m.ours.iou_mean
+        );
         assert!(
             m.ours.psnr_mean >= m.baseline.psnr_mean + 2.0,
             "{name}: ours {} vs baseline {}",
@@ -261,6 +297,7 @@ fn the_engine_baseline_at_a_frames_own_direction_shows_that_frame() {
         }
         let p = psnr(&out.image, &stored).unwrap();
         println!("frame {k}: baseline vs stored frame {p:.2} dB");
+        // Measured 2026-12-04: frames 0, 5, 6 at ∞, 184.37 and 192.15 dB (f32 rounding only).
         assert!(p >= 60.0, "frame {k}: {p}");
     }
 }
@@ -431,7 +468,8 @@ fn extra_frames_change_only_rays_no_enclosing_frame_sees_and_gain_against_the_tr
     // The truck seen low over the horizon and the chair from below the seat on 4 × 4 frames:
     // some rays reach points none of the three enclosing frames sees (holes). Asking more
     // frames changes those rays only (one ray per pixel: a pixel changes only if its ray was a
-    // hole without them), leaves fewer holes, and draws closer to the ray-cast truth.
+    // hole without them), leaves fewer holes, and draws closer to the ray-cast truth. Measured
+    // 2026-12-04: truck 23.15 → 23.55 dB (74 → 0 holes), chair 22.70 → 24.05 dB (389 → 119).
     let light = Light::default();
     for (shape, coverage) in [("truck", Coverage::Hemisphere), ("chair", Coverage::Sphere)] {
         let s = scene_shape(shape).unwrap();

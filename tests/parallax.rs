@@ -695,18 +695,24 @@ fn the_error_split_adds_up_to_the_mse() {
 /// The default reconstruction (docs/design.md §7.6: tangent brims, row filter, fallback views with
 /// doubtful hits at half coverage, soft edges, hole filling, brim carving) against the original,
 /// 64², 3×3-ray truth, 16 angles.
+///
+/// Sixteen views beat eight on the truck, the chair and the tree. On the smooth shapes they lose
+/// a little, a known loss not yet diagnosed: at these 16 angles, measured 2026-12-04, torus
+/// 33.74 against 33.78 dB (−0.04), capsule 37.47 against 37.21 (+0.26), and over denser angle
+/// sets (the same day, 64 angles) torus −0.21, capsule −0.09 dB, so the loss is not an
+/// accident of the sampling. It is bounded here at 0.1 dB at the test's 16 angles.
 #[test]
-fn the_improved_reconstruction_beats_the_original_and_more_views_never_look_worse() {
+fn the_improved_reconstruction_beats_the_original_and_16_views_lose_at_most_0_1_db() {
     // Floors: the measured PSNR less 0.5 dB (see the constants). Torus and capsule scored 0.6
     // and 0.2 dB lower at N = 16 than at N = 8 before brim carving (bench/RESULTS.md).
     let floors = [
-        ("truck", FLOOR_TRUCK),
-        ("chair", FLOOR_CHAIR),
-        ("tree", FLOOR_TREE),
-        ("torus", FLOOR_TORUS),
-        ("capsule", FLOOR_CAPSULE),
+        ("truck", FLOOR_TRUCK, MoreViews::Gain),
+        ("chair", FLOOR_CHAIR, MoreViews::Gain),
+        ("tree", FLOOR_TREE, MoreViews::Gain),
+        ("torus", FLOOR_TORUS, MoreViews::KnownLoss),
+        ("capsule", FLOOR_CAPSULE, MoreViews::KnownLoss),
     ];
-    for (name, floor) in floors {
+    for (name, floor, more_views) in floors {
         let shape = scene_shape(name).unwrap();
         let qp = QualityParams {
             views: vec![8, 16],
@@ -733,18 +739,42 @@ fn the_improved_reconstruction_beats_the_original_and_more_views_never_look_wors
             best8 >= orig8 + 0.5,
             "{name}: improved {best8:.2} dB does not beat the original {orig8:.2} by 0.5 dB"
         );
-        assert!(
-            best16 >= best8 - 0.1,
-            "{name}: N = 16 ({best16:.2} dB) looks worse than N = 8 ({best8:.2} dB)"
-        );
+        more_views.check(name, best8, best16);
     }
 }
 
-/// The fandisk, the last of the 15 evaluation shapes whose N = 16 scored below N = 8
-/// (31.43 against 31.76 dB before doubtful fallback hits counted at half coverage; now 31.69
-/// against 31.78), with a floor 0.5 dB under its measured N = 8. Needs `../shared`.
+/// What 16 views do against 8 on a shape (measured 2026-12-04, default reconstruction, 64²).
+#[derive(Clone, Copy)]
+enum MoreViews {
+    /// At least as good: truck +1.52, chair +1.65, tree +0.29 dB at the 16 angles.
+    Gain,
+    /// The known loss on smooth shapes (see the tests that use it): at most 0.1 dB.
+    KnownLoss,
+}
+
+impl MoreViews {
+    fn check(self, name: &str, n8: f64, n16: f64) {
+        match self {
+            Self::Gain => assert!(
+                n16 >= n8,
+                "{name}: N = 16 ({n16:.3} dB) looks worse than N = 8 ({n8:.3} dB)"
+            ),
+            Self::KnownLoss => assert!(
+                n16 >= n8 - 0.1,
+                "{name}: N = 16 ({n16:.3} dB) loses more than 0.1 dB to N = 8 ({n8:.3} dB)"
+            ),
+        }
+    }
+}
+
+/// The fandisk, the last of the 15 evaluation shapes whose N = 16 scored below N = 8 by more
+/// than 0.1 dB (31.43 against 31.76 dB before doubtful fallback hits counted at half coverage).
+/// It still scores below: 31.686 against 31.778 dB (−0.092) at these 16 angles, measured
+/// 2026-12-04, and −0.29 dB over 64 angles the same day; the loss is known, not yet diagnosed,
+/// and bounded here at 0.1 dB. Floor 0.5 dB under its measured N = 8. Needs `../shared`
+/// (skipped without it, a failure under `CI=true`).
 #[test]
-fn the_fandisk_does_not_look_worse_with_16_views() {
+fn the_fandisk_loses_at_most_0_1_db_with_16_views() {
     let Some(fandisk) = mesh("fandisk") else {
         return;
     };
@@ -767,13 +797,11 @@ fn the_fandisk_does_not_look_worse_with_16_views() {
         best8 >= FLOOR_FANDISK,
         "fandisk: N = 8 {best8:.2} dB below the floor {FLOOR_FANDISK}"
     );
-    assert!(
-        best16 >= best8 - 0.1,
-        "fandisk: N = 16 ({best16:.3} dB) looks worse than N = 8 ({best8:.3} dB)"
-    );
+    MoreViews::KnownLoss.check("fandisk", best8, best16);
 }
 
-/// The fandisk's default reconstruction at N = 8, 64², 16 angles (31.78 dB measured) less 0.5.
+/// The fandisk's default reconstruction at N = 8, 64², 16 angles (31.78 dB measured, again on
+/// 2026-12-04) less 0.5.
 const FLOOR_FANDISK: f64 = 31.2;
 
 // The default reconstruction (with hole filling and brim carving), N = 8, 64², 16 angles
@@ -782,7 +810,8 @@ const FLOOR_FANDISK: f64 = 31.2;
 // views 33.29), 33.78 (torus; N = 16 33.72), 37.20 (capsule; N = 16 37.46); before brim
 // carving 30.82, 27.65, 33.28, 33.76, 37.22; the original path: 25.87, 21.09, 26.27, 27.83,
 // 30.16. With doubtful fallback hits at half coverage (`Reconstruction::soft_fallback`): 31.07,
-// 28.89, 33.40, 33.78, 37.21 (N = 16: 32.59, 30.54, 33.69, 33.74, 37.47).
+// 28.89, 33.40, 33.78, 37.21 (N = 16: 32.59, 30.54, 33.69, 33.74, 37.47), remeasured unchanged
+// on 2026-12-04.
 const FLOOR_TRUCK: f64 = 30.5;
 const FLOOR_CHAIR: f64 = 28.4;
 const FLOOR_TREE: f64 = 32.9;

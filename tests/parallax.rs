@@ -1,7 +1,9 @@
 //! Images with parallax (docs/design.md §7): warping against the capture and the ground truth,
 //! direct against inverse warping, conservativeness of every bound type, and the best-c family
-//! against the report's pair. Meshes from `../shared/data/meshes/` are used when present, skipped
-//! with a message otherwise.
+//! against the report's pair. Meshes from `../shared/data/meshes/` are used when present; without
+//! them their checks are skipped with a visible message, and fail under `CI=true`
+//! (`altrep_data_gen::skip`). Each floor derived from a measurement has the measured value and
+//! its date written beside it.
 
 use altrep::data_gen::{
     BoundingCylinder, Light, Mesh, RgbaImage, Shape, TruthParams, ViewParams, capture_view,
@@ -126,6 +128,9 @@ fn warped_depths_follow_data_gen_conventions() {
 
 #[test]
 fn inverse_warping_equals_direct_warping_within_one_texel() {
+    // Images of both methods within 40 dB of each other at every angle (measured 2026-12-04:
+    // identical, ∞ dB, at every angle and supersampling).
+    let mut worst = f64::INFINITY;
     for name in ["truck", "tree", "building", "sphere"] {
         let shape = scene_shape(name).unwrap();
         let p = small(8, 32);
@@ -168,6 +173,7 @@ fn inverse_warping_equals_direct_warping_within_one_texel() {
                         }
                     }
                     let e = compare(&img_i, &img_d, &CompareOptions::default()).unwrap();
+                    worst = worst.min(e.psnr_db);
                     assert!(
                         e.psnr_db > 40.0,
                         "{name} view {k} θ {theta:.3}: images differ ({:.1} dB)",
@@ -177,6 +183,7 @@ fn inverse_warping_equals_direct_warping_within_one_texel() {
             }
         }
     }
+    eprintln!("inverse against direct warping: worst {worst:.2} dB");
 }
 
 fn all_bounds(images: &ParallaxImages, params: &BoundParams) -> Vec<Bounds> {
@@ -306,6 +313,11 @@ fn best_c_saves_at_least_15_percent_of_the_pairs_steps_on_the_teapot() {
     let best = build_bounds(&images, BoundKind::BestC, &params).unwrap();
     let report = measure_steps(&images, &[pair, best], 360, 0).unwrap();
     let (p, b) = (report.stats[0].mean_steps, report.stats[1].mean_steps);
+    // Measured 2026-12-04: pair 0.751, best c 0.592 steps per fragment, 21.1 % saved.
+    eprintln!(
+        "teapot: pair {p:.3}, best c {b:.3} steps per fragment ({:.1} % saved)",
+        100.0 * (1.0 - b / p)
+    );
     assert!(
         b <= 0.85 * p,
         "teapot: best c {b:.3} steps vs pair {p:.3}: less than 15 % saved"
@@ -314,8 +326,9 @@ fn best_c_saves_at_least_15_percent_of_the_pairs_steps_on_the_teapot() {
 
 #[test]
 fn inverse_warping_matches_the_ground_truth_between_views() {
-    // Measured: truck 64², N = 8, α = α_1 + 0.45 Δθ, 3×3 rays: 24.42 dB, IoU 0.969. Thresholds:
-    // 0.5 dB and 0.02 below.
+    // Measured: truck 64², N = 8, α = α_1 + 0.45 Δθ, 3×3 rays, default reconstruction:
+    // 28.59 dB, IoU 0.9873 (2026-12-04; 24.42 dB and 0.969 when the floors were first set).
+    // Floors: 0.5 dB and 0.02 below.
     let shape = scene_shape("truck").unwrap();
     let p = small(8, 64);
     let images = ParallaxImages::capture(&shape, &p).unwrap();
@@ -344,8 +357,8 @@ fn inverse_warping_matches_the_ground_truth_between_views() {
     let db = psnr(&img, &truth).unwrap();
     let iou = silhouette_iou(&img, &truth, 0.5).unwrap();
     eprintln!("truck inverse warp at α = {alpha:.3}: {db:.2} dB, IoU {iou:.4}");
-    assert!(db >= 23.9, "PSNR {db:.2} dB below threshold");
-    assert!(iou >= 0.949, "IoU {iou:.4} below threshold");
+    assert!(db >= 28.09, "PSNR {db:.2} dB below threshold");
+    assert!(iou >= 0.9673, "IoU {iou:.4} below threshold");
 }
 
 #[test]
@@ -466,12 +479,13 @@ fn bad_input_gets_typed_errors() {
 fn minified_impostors_warp_a_mip_level_and_alias_less() {
     // 128² views drawn on a 32² screen: the mip path warps level 2 (32² filtered texels); point
     // sampling level 0 aliases. Both against a 4×4-supersampled truth. Measured on the tree (fine
-    // detail): +0.63 dB on average. (On coarse-detail shapes — truck, building, pear — the mip
+    // detail): +0.63 dB on average (2026-12-04: +1.25, +0.71 and −0.06 dB at the three angles,
+    // mean +0.633; floor 0.3 dB). (On coarse-detail shapes — truck, building, pear — the mip
     // path loses 1–3 dB instead: box-filtered depth mixes front and back surfaces and the warp's
     // linear interpolation blurs once more; see `RenderParams::mip`.) The gain is asserted for
     // the original reconstruction (flat brims, nearest row) it was measured with; the default
     // reconstruction's row filter already averages the rows the point-sampled path skips, and
-    // there the mip level loses 0.90 dB on the tree (printed, not asserted).
+    // there the mip level loses 0.95 dB on the tree (2026-12-04; printed, not asserted).
     let shape = scene_shape("tree").unwrap();
     let default_images = ParallaxImages::capture(&shape, &small(8, 128)).unwrap();
     let images = default_images.with_brim(Brim::Flat).unwrap();

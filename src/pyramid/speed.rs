@@ -25,7 +25,7 @@
 
 use std::time::Instant;
 
-use fast_image_resize as fir;
+use altrep_compare::{ChainFilter, fir_mip_chain, level_sizes};
 use rayon::prelude::*;
 
 use super::fast::{Rgba8Level, mip_chain_rgba8};
@@ -96,55 +96,23 @@ pub fn test_image(n: usize) -> Vec<u8> {
     v
 }
 
-fn level_sizes(n: usize) -> Vec<(usize, usize)> {
-    let (mut w, mut h) = (n, n);
-    let mut s = Vec::new();
-    while w > 1 || h > 1 {
-        (w, h) = ((w / 2).max(1), (h / 2).max(1));
-        s.push((w, h));
-    }
-    s
-}
-
 fn kaiser_kernel(x: f64) -> f64 {
     kernel(Filter::Kaiser, x)
 }
 
-/// The chain by `fast_image_resize` (levels 1…, see the module docs).
+/// The chain by `fast_image_resize` (levels 1…, see the module docs), through
+/// [`altrep_compare::fir_mip_chain`].
 pub fn fir_chain(src: &[u8], n: usize, filter: Filter) -> Result<Vec<Vec<u8>>, String> {
-    let alg = match filter {
-        Filter::Box => fir::FilterType::Box,
-        Filter::Kaiser => fir::FilterType::Custom(
-            fir::Filter::new("Kaiser", kaiser_kernel, 3.0).map_err(|e| e.to_string())?,
-        ),
-        Filter::Triangle => fir::FilterType::Bilinear,
-        _ => fir::FilterType::Lanczos3,
+    let f = match filter {
+        Filter::Box => ChainFilter::Box,
+        Filter::Kaiser => ChainFilter::Custom {
+            kernel: kaiser_kernel,
+            support: 3.0,
+        },
+        Filter::Triangle => ChainFilter::Bilinear,
+        _ => ChainFilter::Lanczos3,
     };
-    let mapper = fir::create_srgb_mapper();
-    let side = u32::try_from(n).map_err(|e| e.to_string())?;
-    let src = fir::images::ImageRef::new(side, side, src, fir::PixelType::U8x4)
-        .map_err(|e| e.to_string())?;
-    let mut lin = fir::images::Image::new(side, side, fir::PixelType::U16x4);
-    mapper
-        .forward_map(&src, &mut lin)
-        .map_err(|e| e.to_string())?;
-    let opts = fir::ResizeOptions::new().resize_alg(fir::ResizeAlg::Convolution(alg));
-    level_sizes(n)
-        .into_par_iter()
-        .map(|(w, h)| {
-            let (w, h) = (w as u32, h as u32);
-            let mut resizer = fir::Resizer::new();
-            let mut dst = fir::images::Image::new(w, h, fir::PixelType::U16x4);
-            resizer
-                .resize(&lin, &mut dst, &opts)
-                .map_err(|e| e.to_string())?;
-            let mut dst8 = fir::images::Image::new(w, h, fir::PixelType::U8x4);
-            mapper
-                .backward_map(&dst, &mut dst8)
-                .map_err(|e| e.to_string())?;
-            Ok(dst8.into_vec())
-        })
-        .collect()
+    fir_mip_chain(src, n, f)
 }
 
 /// What `image::imageops::thumbnail` adds to every `f32` channel of a block average: its

@@ -10,8 +10,8 @@
 //!   the beetle mesh when `../shared/data/meshes/` is present).
 
 use altrep::cylinder::{
-    CylindricalTexture, DrawOrder, ExactMethod, OffsetMode, OffsetParams, OffsetTexture,
-    RadiusModel, RenderParams, SWEEP_GRIDS, render_exact, sample_offsets,
+    CylinderRenderParams, CylindricalTexture, DrawOrder, ExactMethod, OffsetMode, OffsetParams,
+    OffsetTexture, RadiusModel, SWEEP_GRIDS, render_exact, sample_offsets,
 };
 use altrep::data_gen::{
     CylinderParams, Light, Shape, TruthParams, render_truth, scene_shape, shared_mesh,
@@ -19,8 +19,8 @@ use altrep::data_gen::{
 use altrep::metrics::psnr;
 use criterion::{Criterion, criterion_group, criterion_main};
 
-fn params() -> RenderParams {
-    RenderParams {
+fn params() -> CylinderRenderParams {
+    CylinderRenderParams {
         angle: 0.9,
         width: 64,
         height: 64,

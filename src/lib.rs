@@ -26,6 +26,7 @@ pub mod pyramid;
 /// The mip pyramid, kept at its old path (`crate::mip::…`); it lives in [`pyramid::mip`].
 pub use pyramid::mip;
 pub mod report;
+pub mod representation;
 pub mod slices;
 pub mod sphere;
 pub mod stats;

@@ -1,7 +1,7 @@
 //! Cylindrical textures against the ray-cast ground truth (docs/design.md §6).
 
 use altrep::cylinder::{
-    CylinderRender, CylindricalTexture, DrawOrder, ExactMethod, RadiusModel, RenderParams,
+    CylinderRender, CylinderRenderParams, CylindricalTexture, DrawOrder, ExactMethod, RadiusModel,
     render_exact,
 };
 use altrep::data_gen::{
@@ -16,7 +16,7 @@ fn texture(shape: &dyn Shape) -> CylindricalTexture {
     CylindricalTexture::capture(shape, &CylinderParams::default(), PREFILTER).unwrap()
 }
 
-fn truth(shape: &dyn Shape, p: &RenderParams) -> RgbaImage {
+fn truth(shape: &dyn Shape, p: &CylinderRenderParams) -> RgbaImage {
     render_truth(
         shape,
         &TruthParams {
@@ -31,8 +31,8 @@ fn truth(shape: &dyn Shape, p: &RenderParams) -> RgbaImage {
     .unwrap()
 }
 
-fn params(angle: f64, size: usize, supersample: usize) -> RenderParams {
-    RenderParams {
+fn params(angle: f64, size: usize, supersample: usize) -> CylinderRenderParams {
+    CylinderRenderParams {
         angle,
         width: size,
         height: size,

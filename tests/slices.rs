@@ -3,10 +3,10 @@
 
 use altrep::metrics::psnr;
 use altrep::slices::{
-    Axis, HeightField, HeightFieldParams, ImplicitParams, MergeRule, Reconstruction, RenderParams,
-    Side, SliceError, SliceParams, TestTile, TexelVolume, TruthParams, View, build_slices, choose,
-    choose_direction, from_height_field, from_implicit, level_for_slices, render_slices,
-    render_truth, slices_needed, test_tile, view_errors,
+    Axis, HeightField, HeightFieldParams, ImplicitParams, MergeRule, Side, SliceError, SliceParams,
+    SliceReconstruction, SliceRenderParams, StackView, TestTile, TexelVolume, VolumeTruthParams,
+    build_slices, choose, choose_direction, from_height_field, from_implicit, level_for_slices,
+    render_slices, render_truth, slices_needed, test_tile, view_errors,
 };
 use altrep::slices::{
     CurvedParams, ShapeParams, from_shape, render_curved_slices, render_curved_truth,
@@ -42,11 +42,11 @@ fn random_volume(dims: [usize; 3], seed: u64) -> TexelVolume {
     TexelVolume::new(dims, 1.0 / dims[1] as f64, rgba).unwrap()
 }
 
-fn small_render(width: usize) -> RenderParams {
-    RenderParams {
+fn small_render(width: usize) -> SliceRenderParams {
+    SliceRenderParams {
         width,
         height: width,
-        ..RenderParams::default()
+        ..SliceRenderParams::default()
     }
 }
 
@@ -158,10 +158,10 @@ fn uniform_slab_matches_the_closed_form_at_every_level_and_angle() {
         )
         .unwrap();
         for polar in [0.0, 30.0, 60.0, 80.0, 150.0] {
-            let view = View::degrees(polar, 30.0);
+            let view = StackView::degrees(polar, 30.0);
             let cos = view.vector().y.abs();
             let opacity = 1.0 - (1.0 - f64::from(a)).powf(n as f64 / cos);
-            let truth = render_truth(&vol, &view, &rp, &TruthParams::default()).unwrap();
+            let truth = render_truth(&vol, &view, &rp, &VolumeTruthParams::default()).unwrap();
             for level in 0..5 {
                 let img = render_slices(&data, Axis::Y, level, &view, &rp).unwrap();
                 for (p, q) in img.pixels.iter().zip(&truth.pixels) {
@@ -209,15 +209,15 @@ fn ball_of_constant_density_matches_the_closed_form_through_its_centre() {
         })
         .count();
     let expect = 1.0 - (1.0 - f64::from(a)).powi(m as i32);
-    let rp = RenderParams {
+    let rp = SliceRenderParams {
         width: 1,
         height: 1,
         supersample: 1,
         pixel_voxels: 0.01,
-        ..RenderParams::default()
+        ..SliceRenderParams::default()
     };
-    let view = View::degrees(0.0, 0.0);
-    let truth = render_truth(&vol, &view, &rp, &TruthParams::default()).unwrap();
+    let view = StackView::degrees(0.0, 0.0);
+    let truth = render_truth(&vol, &view, &rp, &VolumeTruthParams::default()).unwrap();
     assert_abs_diff_eq!(f64::from(truth.pixels[0][3]), expect, epsilon = 0.01);
     let (data, _) = build_slices(&vol, &SliceParams::default()).unwrap();
     let img = render_slices(&data, Axis::Y, 0, &view, &rp).unwrap();
@@ -232,14 +232,14 @@ fn truth_has_converged_at_eight_steps_per_voxel() {
     let vol = test_tile(TestTile::Grass, 16, 3).unwrap();
     let rp = small_render(24);
     for polar in [0.0, 60.0] {
-        let view = View::degrees(polar, 30.0);
+        let view = StackView::degrees(polar, 30.0);
         let t8 = render_truth(
             &vol,
             &view,
             &rp,
-            &TruthParams {
+            &VolumeTruthParams {
                 steps_per_voxel: 8,
-                ..TruthParams::default()
+                ..VolumeTruthParams::default()
             },
         )
         .unwrap();
@@ -247,9 +247,9 @@ fn truth_has_converged_at_eight_steps_per_voxel() {
             &vol,
             &view,
             &rp,
-            &TruthParams {
+            &VolumeTruthParams {
                 steps_per_voxel: 32,
-                ..TruthParams::default()
+                ..VolumeTruthParams::default()
             },
         )
         .unwrap();
@@ -273,8 +273,8 @@ fn slice_error_against_truth_follows_level_and_angle() {
     )
     .unwrap();
     let db = |data, axis, level, polar: f64| {
-        let view = View::degrees(polar, 30.0);
-        let truth = render_truth(&vol, &view, &rp, &TruthParams::default()).unwrap();
+        let view = StackView::degrees(polar, 30.0);
+        let truth = render_truth(&vol, &view, &rp, &VolumeTruthParams::default()).unwrap();
         psnr(
             &render_slices(data, axis, level, &view, &rp).unwrap(),
             &truth,
@@ -296,7 +296,7 @@ fn slice_error_against_truth_follows_level_and_angle() {
     // At the level the criterion picks (d = one voxel), merged beats dropped by at least 3 dB,
     // from above and from below.
     for polar in [0.0, 10.0, 20.0, 160.0, 170.0] {
-        let v = View::degrees(polar, 30.0).vector();
+        let v = StackView::degrees(polar, 30.0).vector();
         let c = choose(&vol, v, vol.voxel_size(), [false, true, false]).unwrap();
         assert!(c.level > 0, "{polar}°: {c:?}");
         let (m, d) = (
@@ -310,7 +310,7 @@ fn slice_error_against_truth_follows_level_and_angle() {
         );
     }
     // Three directions beat one at a grazing angle by at least 3 dB.
-    let view = View::degrees(80.0, 30.0);
+    let view = StackView::degrees(80.0, 30.0);
     let c = choose(&vol, view.vector(), vol.voxel_size(), [true; 3]).unwrap();
     assert_eq!(c.axis, Axis::X);
     let (one, three) = (db(&data, Axis::Y, 0, 80.0), db(&data, c.axis, 0, 80.0));
@@ -324,12 +324,12 @@ fn slice_error_against_truth_follows_level_and_angle() {
 fn merged_levels_are_exact_at_texel_centres_seen_straight_on() {
     let vol = test_tile(TestTile::Fur, 16, 5).unwrap();
     let (data, _) = build_slices(&vol, &SliceParams::default()).unwrap();
-    let rp = RenderParams {
+    let rp = SliceRenderParams {
         supersample: 1,
         ..small_render(16)
     };
     for polar in [0.0, 180.0] {
-        let view = View::degrees(polar, 0.0);
+        let view = StackView::degrees(polar, 0.0);
         let all = render_slices(&data, Axis::Y, 0, &view, &rp).unwrap();
         for level in 1..5 {
             let img = render_slices(&data, Axis::Y, level, &view, &rp).unwrap();
@@ -349,17 +349,17 @@ fn merged_levels_are_exact_at_texel_centres_seen_straight_on() {
 fn nearest_reconstruction_makes_merges_exact_straight_on() {
     let vol = test_tile(TestTile::Grass, 16, 6).unwrap();
     let (data, _) = build_slices(&vol, &SliceParams::default()).unwrap();
-    let rp = RenderParams {
-        filter: Reconstruction::Nearest,
+    let rp = SliceRenderParams {
+        filter: SliceReconstruction::Nearest,
         supersample: 3,
         ..small_render(16)
     };
-    let truth_params = TruthParams {
-        filter: Reconstruction::Nearest,
-        ..TruthParams::default()
+    let truth_params = VolumeTruthParams {
+        filter: SliceReconstruction::Nearest,
+        ..VolumeTruthParams::default()
     };
     for polar in [0.0, 180.0] {
-        let view = View::degrees(polar, 17.0);
+        let view = StackView::degrees(polar, 17.0);
         let truth = render_truth(&vol, &view, &rp, &truth_params).unwrap();
         for level in 0..5 {
             let img = render_slices(&data, Axis::Y, level, &view, &rp).unwrap();
@@ -378,16 +378,16 @@ fn nearest_reconstruction_makes_merges_exact_straight_on() {
 fn slice_mipmaps_reduce_aliasing_at_a_distance() {
     let vol = test_tile(TestTile::Fur, 32, 5).unwrap();
     let (data, _) = build_slices(&vol, &SliceParams::default()).unwrap();
-    let far = RenderParams {
+    let far = SliceRenderParams {
         width: 16,
         height: 16,
         pixel_voxels: 4.0,
         supersample: 8,
-        ..RenderParams::default()
+        ..SliceRenderParams::default()
     };
-    let view = View::degrees(30.0, 30.0);
-    let truth = render_truth(&vol, &view, &far, &TruthParams::default()).unwrap();
-    let one = |mip_2d| RenderParams {
+    let view = StackView::degrees(30.0, 30.0);
+    let truth = render_truth(&vol, &view, &far, &VolumeTruthParams::default()).unwrap();
+    let one = |mip_2d| SliceRenderParams {
         supersample: 1,
         mip_2d,
         ..far.clone()
@@ -412,7 +412,10 @@ fn slice_mipmaps_reduce_aliasing_at_a_distance() {
 fn view_errors_pick_the_criterion_level_and_measure_it() {
     let vol = test_tile(TestTile::Perlin, 16, 4).unwrap();
     let (data, _) = build_slices(&vol, &SliceParams::default()).unwrap();
-    let views = [View::degrees(0.0, 30.0), View::degrees(75.0, 30.0)];
+    let views = [
+        StackView::degrees(0.0, 30.0),
+        StackView::degrees(75.0, 30.0),
+    ];
     let rp = small_render(16);
     let rows = view_errors(
         &vol,
@@ -420,7 +423,7 @@ fn view_errors_pick_the_criterion_level_and_measure_it() {
         &views,
         vol.voxel_size(),
         &rp,
-        &TruthParams::default(),
+        &VolumeTruthParams::default(),
     )
     .unwrap();
     assert_eq!(rows[0].choice.axis, Axis::Y);
@@ -434,7 +437,7 @@ fn view_errors_pick_the_criterion_level_and_measure_it() {
         let allowed = Axis::ALL.map(|a| data.stack(a, 0).is_ok());
         let choice = choose(&vol, view.vector(), vol.voxel_size(), allowed).unwrap();
         assert_eq!(r.choice, choice, "{view:?}");
-        let truth = render_truth(&vol, view, &rp, &TruthParams::default()).unwrap();
+        let truth = render_truth(&vol, view, &rp, &VolumeTruthParams::default()).unwrap();
         let drawn = render_slices(&data, choice.axis, choice.level, view, &rp).unwrap();
         let want = psnr(&drawn, &truth).unwrap();
         assert_relative_eq!(r.psnr_db, want.min(99.0), max_relative = 1e-9);
@@ -445,7 +448,17 @@ fn view_errors_pick_the_criterion_level_and_measure_it() {
         );
     }
     let other = uniform(8, [0.0; 4]);
-    assert!(view_errors(&other, &data, &views, 0.1, &rp, &TruthParams::default()).is_err());
+    assert!(
+        view_errors(
+            &other,
+            &data,
+            &views,
+            0.1,
+            &rp,
+            &VolumeTruthParams::default()
+        )
+        .is_err()
+    );
 }
 
 #[test]
@@ -469,7 +482,7 @@ fn per_side_reads_the_composite_of_the_viewers_side() {
     );
     let rp = small_render(8);
     for (polar, other) in [(20.0, &fob), (160.0, &bof)] {
-        let view = View::degrees(polar, 10.0);
+        let view = StackView::degrees(polar, 10.0);
         let a = render_slices(&per, Axis::Y, 2, &view, &rp).unwrap();
         let b = render_slices(other, Axis::Y, 2, &view, &rp).unwrap();
         assert_eq!(a, b);
@@ -508,7 +521,7 @@ fn criterion_counts_slices() {
     for polar in [5.0f64, 10.0, 20.0, 40.0] {
         let c = choose(
             &vol,
-            View::degrees(polar, 0.0).vector(),
+            StackView::degrees(polar, 0.0).vector(),
             d,
             [false, true, false],
         )
@@ -577,8 +590,8 @@ fn tiles_without_a_seam() {
     }
     let (dc, _) = build_slices(&corner, &SliceParams::default()).unwrap();
     let (dm, _) = build_slices(&centred, &SliceParams::default()).unwrap();
-    let view = View::degrees(40.0, 20.0);
-    let shifted = RenderParams {
+    let view = StackView::degrees(40.0, 20.0);
+    let shifted = SliceRenderParams {
         offset: [0.5, 0.5],
         ..small_render(24)
     };
@@ -727,7 +740,7 @@ fn bad_input_gives_typed_errors() {
             &data,
             Axis::Y,
             9,
-            &View::degrees(0.0, 0.0),
+            &StackView::degrees(0.0, 0.0),
             &small_render(4)
         )
         .is_err()
@@ -735,9 +748,9 @@ fn bad_input_gives_typed_errors() {
     assert!(
         render_truth(
             &vol,
-            &View::degrees(89.9, 0.0),
+            &StackView::degrees(89.9, 0.0),
             &small_render(4),
-            &TruthParams::default()
+            &VolumeTruthParams::default()
         )
         .is_err()
     );
@@ -749,7 +762,7 @@ fn bad_input_gives_typed_errors() {
 #[test]
 fn for_views_builds_only_the_selected_axes_and_levels() {
     let vol = uniform(16, [0.1, 0.1, 0.1, 0.2]);
-    let views = [View::degrees(0.0, 0.0), View::degrees(80.0, 0.0)];
+    let views = [StackView::degrees(0.0, 0.0), StackView::degrees(80.0, 0.0)];
     let params =
         SliceParams::for_views(&vol, &views, vol.voxel_size(), &SliceParams::default()).unwrap();
     assert_eq!(params.axes, [true, true, false]);
@@ -811,11 +824,11 @@ proptest! {
         let params = SliceParams { rule: MergeRule::ALL[rule], ..SliceParams::default() };
         let (data, report) = build_slices(&vol, &params).unwrap();
         prop_assert!(report.opacity_error_max.is_finite());
-        let view = View::degrees(polar, azimuth);
-        let rp = RenderParams { width: 4, height: 4, supersample: 1, ..RenderParams::default() };
+        let view = StackView::degrees(polar, azimuth);
+        let rp = SliceRenderParams { width: 4, height: 4, supersample: 1, ..SliceRenderParams::default() };
         let images = [
             render_slices(&data, Axis::ALL[axis], level, &view, &rp),
-            render_truth(&vol, &view, &rp, &TruthParams { steps_per_voxel: 2, ..TruthParams::default() }),
+            render_truth(&vol, &view, &rp, &VolumeTruthParams { steps_per_voxel: 2, ..VolumeTruthParams::default() }),
         ];
         for img in images {
             match img {

@@ -7,9 +7,9 @@
 use altrep::data_gen::{Light, OrthoFrame, capture_frame, scene_shape};
 use altrep::metrics::{psnr, silhouette_iou};
 use altrep::sphere::{
-    Coverage, MeasureParams, RenderParams, SphereError, SphereImages, SphereParams, SurfaceModel,
-    ViewSet, check_bounds, fibonacci_directions, measure, render, render_engine_baseline,
-    truth_images,
+    Coverage, SphereError, SphereImages, SphereMeasureParams, SphereParams, SphereRenderParams,
+    SurfaceModel, ViewSet, check_bounds, fibonacci_directions, measure, render,
+    render_engine_baseline, truth_images,
 };
 use approx::assert_abs_diff_eq;
 use glam::DVec3;
@@ -24,10 +24,10 @@ fn a_frame_warped_at_its_own_direction_reproduces_it() {
     let light = Light::default();
     for name in ["truck", "tree"] {
         let img = images(name, 4, 32);
-        let params = RenderParams {
+        let params = SphereRenderParams {
             size: 32,
             samples: 1,
-            ..RenderParams::default()
+            ..SphereRenderParams::default()
         };
         for k in [0, 5, 6, 15] {
             let frame = &img.frames[k];
@@ -97,10 +97,10 @@ fn a_new_direction_matches_a_fresh_capture_there() {
         .into_iter()
         .enumerate()
         {
-            let params = RenderParams {
+            let params = SphereRenderParams {
                 size: 64,
                 samples: 1,
-                ..RenderParams::default()
+                ..SphereRenderParams::default()
             };
             let out = render(&img, d, &params).unwrap();
             let display =
@@ -183,13 +183,13 @@ fn cone_bounds_hold_on_a_sweep_ten_times_finer_than_the_evaluation() {
 fn the_bounds_change_the_cost_not_the_picture() {
     let img = images("chair", 4, 32);
     let d = DVec3::new(0.3, 0.7, -0.5).normalize();
-    let with = render(&img, d, &RenderParams::default()).unwrap();
+    let with = render(&img, d, &SphereRenderParams::default()).unwrap();
     let without = render(
         &img,
         d,
-        &RenderParams {
+        &SphereRenderParams {
             use_bounds: false,
-            ..RenderParams::default()
+            ..SphereRenderParams::default()
         },
     )
     .unwrap();
@@ -213,12 +213,12 @@ fn the_exact_warp_beats_the_engine_baseline_built_from_the_same_frames() {
     for (name, psnr_floor, iou_floor) in [("truck", 27.55, 0.943), ("building", 27.37, 0.944)] {
         let shape = scene_shape(name).unwrap();
         let img = SphereImages::capture(&shape, &SphereParams::hemisphere(4, 48).unwrap()).unwrap();
-        let params = MeasureParams {
+        let params = SphereMeasureParams {
             directions: 24,
-            render: RenderParams {
+            render: SphereRenderParams {
                 size: 64,
                 samples: 2,
-                ..RenderParams::default()
+                ..SphereRenderParams::default()
             },
             truth_supersample: 3,
         };
@@ -254,19 +254,19 @@ fn bad_input_gets_typed_errors() {
     let img = images("pear", 3, 16);
     let below = DVec3::new(0.2, -0.5, 0.1);
     assert!(matches!(
-        render(&img, below, &RenderParams::default()),
+        render(&img, below, &SphereRenderParams::default()),
         Err(SphereError::InvalidParameter { .. })
     ));
-    assert!(render_engine_baseline(&img, DVec3::ZERO, &RenderParams::default()).is_err());
-    let zero = RenderParams {
+    assert!(render_engine_baseline(&img, DVec3::ZERO, &SphereRenderParams::default()).is_err());
+    let zero = SphereRenderParams {
         size: 0,
-        ..RenderParams::default()
+        ..SphereRenderParams::default()
     };
     assert!(render(&img, DVec3::Y, &zero).is_err());
     assert!(SphereParams::hemisphere(4, 1).is_err());
     assert!(SphereParams::hemisphere(1, 32).is_err());
     // Output is finite everywhere, also straight down from the zenith.
-    let out = render(&img, DVec3::Y, &RenderParams::default()).unwrap();
+    let out = render(&img, DVec3::Y, &SphereRenderParams::default()).unwrap();
     assert!(out.image.pixels.iter().flatten().all(|c| c.is_finite()));
 }
 
@@ -276,10 +276,10 @@ fn the_engine_baseline_at_a_frames_own_direction_shows_that_frame() {
     // blend has one frame, so it must show the stored frame (alpha-tested, bilinear at centres).
     let light = Light::default();
     let img = images("truck", 4, 32);
-    let params = RenderParams {
+    let params = SphereRenderParams {
         size: 32,
         samples: 1,
-        ..RenderParams::default()
+        ..SphereRenderParams::default()
     };
     for k in [0, 5, 6] {
         let out = render_engine_baseline(&img, img.params.set.direction(k), &params).unwrap();
@@ -362,12 +362,12 @@ fn straight_down_into_a_cup_needs_a_frame_at_the_zenith() {
             DVec3::new(e.cos() * a.cos(), e.sin(), e.cos() * a.sin())
         })
         .collect();
-    let params = MeasureParams {
+    let params = SphereMeasureParams {
         directions: dirs.len(),
-        render: RenderParams {
+        render: SphereRenderParams {
             size: 64,
             samples: 2,
-            ..RenderParams::default()
+            ..SphereRenderParams::default()
         },
         truth_supersample: 3,
     };
@@ -409,17 +409,17 @@ fn a_hole_depth_empties_only_holes_deeper_than_it() {
     // nothing else changes.
     let img = SphereImages::capture(&cup(), &SphereParams::hemisphere(4, 50).unwrap()).unwrap();
     let d = DVec3::new(0.05, 1.0, 0.03).normalize();
-    let rp = RenderParams {
+    let rp = SphereRenderParams {
         size: 64,
         hole_depth: None,
-        ..RenderParams::default()
+        ..SphereRenderParams::default()
     };
     let base = render(&img, d, &rp).unwrap();
     assert!(base.holes > 0, "the view must have holes");
     let wide = render(
         &img,
         d,
-        &RenderParams {
+        &SphereRenderParams {
             hole_depth: Some(2.5),
             ..rp
         },
@@ -429,7 +429,7 @@ fn a_hole_depth_empties_only_holes_deeper_than_it() {
     let tiny = render(
         &img,
         d,
-        &RenderParams {
+        &SphereRenderParams {
             hole_depth: Some(1e-12),
             ..rp
         },
@@ -452,7 +452,7 @@ fn a_hole_depth_empties_only_holes_deeper_than_it() {
             render(
                 &img,
                 d,
-                &RenderParams {
+                &SphereRenderParams {
                     hole_depth: Some(bad),
                     ..rp
                 }
@@ -489,16 +489,16 @@ fn extra_frames_change_only_rays_no_enclosing_frame_sees_and_gain_against_the_tr
         let truths = truth_images(&s, &dirs, 64, 1, &light).unwrap();
         let (mut db0, mut db8, mut holes0, mut holes8) = (0.0, 0.0, 0, 0);
         for (d, truth) in dirs.iter().zip(&truths) {
-            let rp = RenderParams {
+            let rp = SphereRenderParams {
                 size: 64,
                 extra_frames: 0,
-                ..RenderParams::default()
+                ..SphereRenderParams::default()
             };
             let without = render(&img, *d, &rp).unwrap();
             let with = render(
                 &img,
                 *d,
-                &RenderParams {
+                &SphereRenderParams {
                     extra_frames: altrep::sphere::MAX_EXTRA_FRAMES,
                     ..rp
                 },

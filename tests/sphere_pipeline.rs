@@ -6,10 +6,10 @@ use std::path::Path;
 
 use altrep::asset::{AssetReader, AssetWriter, Conventions, DESCRIPTION_FILE};
 use altrep::data_gen::{Light, scene_shape};
-use altrep::pipeline::sphere::{SphereRepr, SphereSpec};
 use altrep::pipeline::{Manifest, Needs, Outcome, Representation, RunOptions, Source, run_scene};
+use altrep::sphere::asset::{SphereRepr, SphereSpec};
 use altrep::sphere::{
-    Coverage, RenderParams, SphereImages, SphereParams, SurfaceModel, ViewSet,
+    Coverage, SphereImages, SphereParams, SphereRenderParams, SurfaceModel, ViewSet,
     fibonacci_directions, render, render_engine_baseline,
 };
 
@@ -48,9 +48,9 @@ fn sphere_files_read_back_bit_for_bit_and_draw_the_same() {
         assert_eq!(back.codes, img.codes, "{shape}: frame codes");
         assert_eq!(back.bounds, img.bounds, "{shape}: cone bounds");
         assert_eq!(back.cones, img.cones, "{shape}: cones");
-        let rp = RenderParams {
+        let rp = SphereRenderParams {
             size: 32,
-            ..RenderParams::default()
+            ..SphereRenderParams::default()
         };
         for d in fibonacci_directions(6, coverage) {
             let (a, b) = (

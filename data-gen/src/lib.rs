@@ -36,6 +36,7 @@
 //! [`Shape::radial_tracer`], which a [`Mesh`] bins by height and angle in the same way (the
 //! `radial` module; `cargo bench --bench foundation -- cylinder_rays`).
 
+mod albedo;
 mod analytic;
 pub mod binned;
 mod capture;
@@ -54,6 +55,7 @@ mod test_meshes;
 mod truth;
 mod volume;
 
+pub use albedo::Albedo;
 pub use analytic::{AnalyticShape, AnalyticVolume};
 pub use capture::{
     CylinderParams, Projection, Sample, SampleGrid, ViewParams, capture_cylinder, capture_view,
@@ -66,9 +68,7 @@ pub use geometry::{
 pub use image_io::{RgbaImage, linear_to_srgb, srgb_to_linear};
 pub use mesh::{Mesh, MeshLoadOptions};
 pub use rng::SplitMix64;
-pub use shape::{
-    Albedo, Csg, ParallelTracer, Part, Primitive, RayByRay, Shape, intersect_parallel,
-};
+pub use shape::{Csg, ParallelTracer, Part, Primitive, RayByRay, Shape, intersect_parallel};
 pub use shapes::{SCENE_SHAPES, scene_shape};
 #[doc(hidden)]
 pub use shared::{shared_mesh, shared_mesh_paths, shared_meshes, skip, under_ci};

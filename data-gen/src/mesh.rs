@@ -34,11 +34,12 @@ use obvhs::{
 };
 use rayon::prelude::*;
 
+use crate::albedo::Albedo;
 use crate::binned::MeshTracer;
 use crate::error::DataGenError;
 use crate::geometry::{BoundingCylinder, Hit, ParallelRays, RadialRays, Ray};
 use crate::radial::RadialTracer;
-use crate::shape::{Albedo, OneByOne, ParallelTracer, RadialOneByOne, Shape};
+use crate::shape::{OneByOne, ParallelTracer, RadialOneByOne, Shape};
 
 /// How to load and normalise a mesh.
 #[derive(Clone, Debug)]

@@ -3,9 +3,10 @@
 
 use glam::{DVec3, Vec3};
 
+use crate::albedo::Albedo;
 use crate::error::DataGenError;
 use crate::rng::SplitMix64;
-use crate::shape::{Albedo, Csg, Part, Primitive};
+use crate::shape::{Csg, Part, Primitive};
 
 /// Names accepted by [`scene_shape`].
 pub const SCENE_SHAPES: &[&str] = &[

@@ -16,7 +16,7 @@
 //! sectors, each screen row's slice weights, mask interval and fetch weights) are computed here
 //! in `f64` as the CPU computes them. It runs in `f32` ([`Precision::F32`]) or, with
 //! `SHADER_F64`, in `f64` ([`Precision::F64`]), where it is the CPU's computation operation for
-//! operation. Per-fragment sector tests go to a storage buffer ([`Frame::steps`], first slot;
+//! operation. Per-fragment sector tests go to a storage buffer ([`DrawnFrame::steps`], first slot;
 //! the second slot is 0: one march per fragment).
 
 use std::f64::consts::TAU;
@@ -24,17 +24,19 @@ use std::path::Path;
 use std::time::Instant;
 
 use altrep::asset::AssetReader;
+use altrep::cylinder::asset::{Cylinder, CylinderData};
 use altrep::cylinder::frame::{angular_pitch, ray_sectors, row_coordinate};
-use altrep::cylinder::{CylindricalTexture, MarchBounds, OffsetMode, OffsetTexture, RenderParams};
+use altrep::cylinder::{
+    CylinderRenderParams, CylindricalTexture, MarchBounds, OffsetMode, OffsetTexture,
+};
 use altrep::fit::axis_weight;
-use altrep::pipeline::Representation;
-use altrep::pipeline::cylinder::{Cylinder, CylinderData};
+use altrep::representation::Representation;
 use altrep_data_gen::{Light, PixelGrid};
 
 use crate::offscreen::{self, Pipeline, storage};
 use crate::parallax::reals;
 use crate::shader::{Precision, Shader};
-use crate::{DisplayError, Frame, Gpu, invalid};
+use crate::{DisplayError, DrawnFrame, Gpu, invalid};
 
 /// Loads a cylindrical-texture asset folder (e.g. `out/pear/cylinder`) through the library's
 /// loader: `AssetReader::open` (checks the description and every file's hash) then
@@ -125,11 +127,11 @@ impl CylinderDisplay {
         if let Some(o) = offsets {
             // The library's own size check (a one-pixel render refuses a texture of another
             // size than the one the offsets were fitted on).
-            let one = RenderParams {
+            let one = CylinderRenderParams {
                 width: 1,
                 height: 1,
                 supersample: 1,
-                ..RenderParams::default()
+                ..CylinderRenderParams::default()
             };
             o.render(t, OffsetMode::Plain, 1.0, &one).map_err(|e| {
                 DisplayError::InvalidParameter {
@@ -171,12 +173,12 @@ impl CylinderDisplay {
     }
 
     /// Draws one frame and reads back the image, the depth and the per-fragment sector tests
-    /// (first slot of [`Frame::steps`]). Cost: the host tables (`O(L + W + H)`), one draw of
+    /// (first slot of [`DrawnFrame::steps`]). Cost: the host tables (`O(L + W + H)`), one draw of
     /// `width × height` fragments, the read-back.
     ///
     /// Errors: a non-finite angle or light, a zero or huge screen, a fitted mode without
     /// offsets, `m` outside `1..=64`, a negative or NaN tolerance, a GPU error.
-    pub fn render(&self, gpu: &Gpu, d: &CylinderDraw) -> Result<Frame, DisplayError> {
+    pub fn render(&self, gpu: &Gpu, d: &CylinderDraw) -> Result<DrawnFrame, DisplayError> {
         if !d.alpha.is_finite() {
             return Err(invalid("alpha", d.alpha, "must be finite"));
         }
@@ -371,7 +373,7 @@ impl CylinderDisplay {
             (d.width, d.height),
             t0,
         )?;
-        Ok(Frame {
+        Ok(DrawnFrame {
             image: drawn.image,
             steps: drawn.steps.into_iter().map(|s| [s, 0]).collect(),
             depth: drawn.depth,

@@ -45,8 +45,8 @@ use std::path::Path;
 use std::sync::{Arc, Mutex};
 
 use altrep::asset::AssetReader;
-use altrep::pipeline::Representation;
-use altrep::pipeline::parallax::{Parallax, ParallaxData};
+use altrep::parallax::asset::{Parallax, ParallaxData};
+use altrep::representation::Representation;
 pub use altrep_data_gen::RgbaImage;
 pub use shader::Precision;
 pub use wgpu;
@@ -249,7 +249,7 @@ pub fn load_parallax(dir: &Path) -> Result<ParallaxData, DisplayError> {
 
 /// One drawn frame read back from the GPU.
 #[derive(Clone, Debug)]
-pub struct Frame {
+pub struct DrawnFrame {
     /// The image (premultiplied linear RGBA, alpha 1 where drawn, 0 elsewhere).
     pub image: RgbaImage,
     /// Per fragment (row-major), the march steps of the two warped views (0 where a view's

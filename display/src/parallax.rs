@@ -13,17 +13,17 @@
 //! ([`Precision::F32`], what an engine ships) or, where the adapter has `SHADER_F64`, in `f64`
 //! ([`Precision::F64`]), in which it is the CPU's computation operation for operation (per-draw
 //! constants `cos θ`, `sin θ` and the blend weights come from the host, in `f64`, as the CPU
-//! computes them). Per-fragment march steps go to a storage buffer that [`Frame::steps`] returns.
+//! computes them). Per-fragment march steps go to a storage buffer that [`DrawnFrame::steps`] returns.
 
 use std::time::Instant;
 
+use altrep::parallax::asset::ParallaxData;
 use altrep::parallax::{BoundKind, Brim, ParallaxImages, Reconstruction, RowFilter};
-use altrep::pipeline::parallax::ParallaxData;
 use altrep_data_gen::Light;
 
 use crate::offscreen::{self, Pipeline, storage};
 use crate::shader::{Precision, Shader};
-use crate::{DisplayError, Frame, Gpu, invalid};
+use crate::{DisplayError, DrawnFrame, Gpu, invalid};
 
 /// What to draw.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -183,7 +183,7 @@ impl ParallaxDisplay {
     ///
     /// Errors: a non-finite angle, a zero or huge screen, a kind not stored in the asset, stored
     /// bounds at a screen size other than the views', a GPU error.
-    pub fn render(&self, gpu: &Gpu, d: &DrawParams) -> Result<Frame, DisplayError> {
+    pub fn render(&self, gpu: &Gpu, d: &DrawParams) -> Result<DrawnFrame, DisplayError> {
         if !d.alpha.is_finite() {
             return Err(invalid("alpha", d.alpha, "must be finite"));
         }
@@ -292,7 +292,7 @@ impl ParallaxDisplay {
             (d.width, d.height),
             t0,
         )?;
-        Ok(Frame {
+        Ok(DrawnFrame {
             image: drawn.image,
             steps: drawn.steps.chunks_exact(2).map(|c| [c[0], c[1]]).collect(),
             depth: drawn.depth,

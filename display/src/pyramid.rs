@@ -21,12 +21,12 @@ use std::path::Path;
 use std::time::Instant;
 
 use altrep::asset::AssetReader;
-use altrep::pipeline::Representation;
-use altrep::pipeline::pyramid::{PyramidAsset, PyramidRepr};
+use altrep::pyramid::asset::{PyramidAsset, PyramidRepr};
 use altrep::pyramid::truth::{PIXEL_ANGLE, PlaneView};
 use altrep::pyramid::{
     FipMap, Pyramid, PyramidData, PyramidParams, RipMap, Scheme, ShearAxis, WrapMode,
 };
+use altrep::representation::Representation;
 use altrep_data_gen::RgbaImage;
 use glam::DVec3;
 

@@ -1,5 +1,5 @@
 //! Images with parallax from any direction on the GPU: the fragment-shader twin of
-//! `altrep::sphere::render` at one ray per pixel (`RenderParams::samples = 1`).
+//! `altrep::sphere::render` at one ray per pixel (`SphereRenderParams::samples = 1`).
 //!
 //! Per fragment, the shader (`sphere.wgsl`) takes the display ray through the pixel centre,
 //! marches it through each enclosing frame's depth map between the frame's stored cone bounds
@@ -25,8 +25,8 @@ use std::path::Path;
 use std::time::Instant;
 
 use altrep::asset::AssetReader;
-use altrep::pipeline::Representation;
-use altrep::pipeline::sphere::SphereRepr;
+use altrep::representation::Representation;
+use altrep::sphere::asset::SphereRepr;
 use altrep::sphere::{MAX_EXTRA_FRAMES, SphereImages, enclosing_frames, extra_frames};
 use altrep_data_gen::{Light, RgbaImage};
 use glam::DVec3;
@@ -57,15 +57,15 @@ pub struct SphereDraw {
     /// Screen width and height in pixels; the square covers the bounding sphere.
     pub size: usize,
     /// A frame sees a surface point when its own surface lies within this many texel pitches
-    /// above it (`altrep::sphere::RenderParams::visibility`).
+    /// above it (`altrep::sphere::SphereRenderParams::visibility`).
     pub visibility: f64,
     /// March between the stored cone bounds (`false`: the whole chord of the sphere).
     pub use_bounds: bool,
     /// Holes farther than this from the nearest frame surface are drawn empty
-    /// (`altrep::sphere::RenderParams::hole_depth`; `None`: every hole is coloured).
+    /// (`altrep::sphere::SphereRenderParams::hole_depth`; `None`: every hole is coloured).
     pub hole_depth: Option<f64>,
     /// Where no enclosing frame sees the point found, ask up to this many more frames
-    /// (`altrep::sphere::RenderParams::extra_frames`, at most
+    /// (`altrep::sphere::SphereRenderParams::extra_frames`, at most
     /// `altrep::sphere::MAX_EXTRA_FRAMES`).
     pub extra_frames: usize,
     /// The light.
@@ -75,7 +75,7 @@ pub struct SphereDraw {
 impl SphereDraw {
     /// Along `dir` at `size²`, with the CPU's defaults: visibility 2, bounds on, default light.
     pub fn new(dir: DVec3, size: usize) -> Self {
-        let d = altrep::sphere::RenderParams::default();
+        let d = altrep::sphere::SphereRenderParams::default();
         Self {
             dir,
             size,

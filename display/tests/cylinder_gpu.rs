@@ -12,12 +12,12 @@ use std::f64::consts::TAU;
 use std::path::Path;
 
 use altrep::asset::{AssetWriter, Conventions};
+use altrep::cylinder::asset::{Cylinder, CylinderData, CylinderSpec};
 use altrep::cylinder::frame::row_coordinate;
 use altrep::cylinder::{
-    OffsetMode, OffsetParams, OffsetTexture, RadiusModel, RenderParams, SliceView,
+    CylinderRenderParams, OffsetMode, OffsetParams, OffsetTexture, RadiusModel, SliceView,
 };
 use altrep::metrics::psnr;
-use altrep::pipeline::cylinder::{Cylinder, CylinderData, CylinderSpec};
 use altrep::pipeline::{Needs, Representation, Source};
 use altrep_data_gen::{
     BoundingCylinder, Light, PixelGrid, RgbaImage, TruthParams, render_truth, scene_shape,
@@ -98,8 +98,8 @@ fn draw(mode: CylinderMode, alpha: f64) -> CylinderDraw {
     }
 }
 
-fn params(alpha: f64) -> RenderParams {
-    RenderParams {
+fn params(alpha: f64) -> CylinderRenderParams {
+    CylinderRenderParams {
         angle: alpha,
         width: SIZE,
         height: SIZE,

@@ -11,11 +11,11 @@ use std::path::Path;
 
 use altrep::asset::{AssetWriter, Conventions};
 use altrep::metrics::psnr;
+use altrep::parallax::asset::{Parallax, ParallaxData, ParallaxSpec};
 use altrep::parallax::{
     BoundKind, Reconstruction, RenderParams, WarpMethod, march, render, render_bounded,
     render_bounded_with, render_with,
 };
-use altrep::pipeline::parallax::{Parallax, ParallaxData, ParallaxSpec};
 use altrep::pipeline::{Needs, Representation, Source};
 use altrep_data_gen::{BoundingCylinder, Light, TruthParams, render_truth, scene_shape};
 use altrep_display::Precision;

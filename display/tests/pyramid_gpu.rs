@@ -12,8 +12,8 @@
 use std::path::Path;
 
 use altrep::asset::{AssetWriter, Conventions};
-use altrep::pipeline::pyramid::{PyramidAsset, PyramidRepr};
 use altrep::pipeline::{Needs, Representation, Source};
+use altrep::pyramid::asset::{PyramidAsset, PyramidRepr};
 use altrep::pyramid::truth::{PlaneView, footprints, supersampled_truth, test_texture};
 use altrep::pyramid::{FipMap, PyramidData, PyramidParams, Scheme, Texture, WrapMode};
 use altrep_data_gen::{Light, RgbaImage};

@@ -12,9 +12,9 @@ use std::path::Path;
 use altrep::asset::{AssetWriter, Conventions};
 use altrep::metrics::psnr;
 use altrep::pipeline::Representation;
-use altrep::pipeline::sphere::SphereRepr;
+use altrep::sphere::asset::SphereRepr;
 use altrep::sphere::{
-    Coverage, RenderOutput, RenderParams, SphereImages, SphereParams, SurfaceModel, ViewSet,
+    Coverage, RenderOutput, SphereImages, SphereParams, SphereRenderParams, SurfaceModel, ViewSet,
     fibonacci_directions, render, truth_images,
 };
 use altrep_data_gen::{Light, RgbaImage, scene_shape};
@@ -78,9 +78,9 @@ fn cpu(images: &SphereImages, dir: DVec3) -> RenderOutput {
     render(
         images,
         dir,
-        &RenderParams {
+        &SphereRenderParams {
             size: SIZE,
-            ..RenderParams::default()
+            ..SphereRenderParams::default()
         },
     )
     .unwrap()
@@ -348,10 +348,10 @@ fn gpu_hole_depth_matches_the_cpu() {
                 ..SphereDraw::new(d, SIZE)
             };
             let frame = disp.render(gpu, &draw).unwrap();
-            let rp = RenderParams {
+            let rp = SphereRenderParams {
                 size: SIZE,
                 hole_depth: Some(0.05),
-                ..RenderParams::default()
+                ..SphereRenderParams::default()
             };
             let want = render(&images, d, &rp).unwrap();
             let name = format!("sphere-holes-{shape}-{:.2}-{:.2}-{:.2}", d.x, d.y, d.z);
@@ -386,10 +386,10 @@ fn gpu_extra_frames_match_the_cpu() {
                     ..SphereDraw::new(d, SIZE)
                 };
                 let frame = disp.render(gpu, &draw).unwrap();
-                let rp = RenderParams {
+                let rp = SphereRenderParams {
                     size: SIZE,
                     extra_frames: extra,
-                    ..RenderParams::default()
+                    ..SphereRenderParams::default()
                 };
                 let want = render(&images, d, &rp).unwrap();
                 let name = format!(

@@ -12,8 +12,8 @@ use super::capture::load_shape;
 use super::demo::{DemoContext, DemoSection, truth_image};
 use super::{CliResult, parse_sizes_upto};
 use crate::cylinder::{
-    BoundsParams, CylinderError, CylindricalTexture, EvalParams, EvalReport, ExactMethod,
-    LambdaRule, OffsetMode, OffsetParams, OffsetTexture, RadiusModel, RenderParams, SWEEP_GRIDS,
+    BoundsParams, CylinderError, CylinderRenderParams, CylindricalTexture, EvalParams, EvalReport,
+    ExactMethod, LambdaRule, OffsetMode, OffsetParams, OffsetTexture, RadiusModel, SWEEP_GRIDS,
     evaluate, render_exact, sweep, sweep_markdown,
 };
 
@@ -279,7 +279,7 @@ pub fn demo_section(
     );
     let size = params.size;
     for (n, angle) in [0.4, 2.0, 4.4].into_iter().enumerate() {
-        let p = RenderParams {
+        let p = CylinderRenderParams {
             angle,
             width: size,
             height: size,

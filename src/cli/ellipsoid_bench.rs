@@ -276,7 +276,7 @@ fn print_octree(
 pub fn demo_section(
     ctx: &super::demo::DemoContext,
 ) -> Result<super::demo::DemoSection, Box<dyn std::error::Error + Send + Sync>> {
-    use crate::ellipsoid::octree::{Octree, RenderParams};
+    use crate::ellipsoid::octree::{Octree, OctreeRenderParams};
     use altrep_data_gen::{VoxelParams, scene_shape, voxelize};
 
     let (n, supersample) = if ctx.quick { (32, 1) } else { (64, 2) };
@@ -293,7 +293,7 @@ pub fn demo_section(
     )?;
     let dir = ctx.out.join("ellipsoid");
     let d = ctx.light.direction;
-    let render = RenderParams {
+    let render = OctreeRenderParams {
         light: nalgebra::Vector3::new(f64::from(d.x), f64::from(d.y), f64::from(d.z)),
         ambient: f64::from(ctx.light.ambient),
         ..Default::default()

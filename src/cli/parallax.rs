@@ -27,7 +27,8 @@ pub struct ParallaxArgs {
     #[arg(long)]
     pub shape: Option<String>,
     /// Number of views N of the steps table, at angles 2πk/N.
-    #[arg(long, default_value_t = 8, value_parser = clap::value_parser!(u32).range(3..=1024))]
+    #[arg(long, default_value_t = 8, value_parser = clap::value_parser!(u32).range(
+        *ParallaxParams::VIEW_COUNTS.start() as i64..=*ParallaxParams::VIEW_COUNTS.end() as i64))]
     pub views: u32,
     /// Width and height of each view of the steps table, in pixels.
     #[arg(long, default_value_t = 64, value_parser = clap::value_parser!(u32).range(2..=1024))]

@@ -248,7 +248,7 @@ pub fn demo_section(
 ) -> Result<super::demo::DemoSection, Box<dyn std::error::Error + Send + Sync>> {
     use crate::pyramid::FipMap;
     use crate::pyramid::truth::{
-        Method, PlaneView, footprints, lookup_all, rms, supersampled_truth,
+        LookupMethod, PlaneView, footprints, lookup_all, rms, supersampled_truth,
     };
     let dir = ctx.out.join("pyramids");
     std::fs::create_dir_all(&dir)?;
@@ -288,7 +288,7 @@ pub fn demo_section(
         let fps = footprints(&view, &tex, pixels);
         let mut errs = Vec::new();
         let mut images = vec![grey(&truth)];
-        for m in [Method::Mip, Method::Rip, Method::Fip] {
+        for m in [LookupMethod::Mip, LookupMethod::Rip, LookupMethod::Fip] {
             let (vals, _) = lookup_all(&fip, m, &fps, 1);
             errs.push(rms(&vals, &truth));
             images.push(grey(&vals));

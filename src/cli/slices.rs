@@ -7,7 +7,9 @@
 
 use std::path::PathBuf;
 
-use crate::slices::{MeasureParams, MeasureReport, MergeRule, Reconstruction, TestTile, measure};
+use crate::slices::{
+    MeasureReport, MergeRule, SliceMeasureParams, SliceReconstruction, TestTile, measure,
+};
 
 use super::CliResult;
 
@@ -47,7 +49,7 @@ pub struct SlicesArgs {
     /// Only views from above (skip the opposite side).
     #[arg(long)]
     pub one_side: bool,
-    /// Reconstruction of voxels (truth) and texels (slices): linear (GPU linear filtering) or
+    /// SliceReconstruction of voxels (truth) and texels (slices): linear (GPU linear filtering) or
     /// nearest (box voxels, which compositing commutes with).
     #[arg(long, value_enum, default_value_t = FilterArg::Linear)]
     pub filter: FilterArg,
@@ -66,7 +68,7 @@ pub struct SlicesArgs {
     pub images: Option<PathBuf>,
 }
 
-/// Reconstruction on the command line.
+/// SliceReconstruction on the command line.
 #[derive(clap::ValueEnum, Clone, Copy, Debug)]
 pub enum FilterArg {
     /// Trilinear volume, bilinear slices.
@@ -219,10 +221,10 @@ fn print_report(r: &MeasureReport, all_rows: bool) {
 }
 
 /// Writes the comparison images (on a grey background, sRGB PNG).
-fn write_images(dir: &std::path::Path, params: &MeasureParams) -> CliResult {
+fn write_images(dir: &std::path::Path, params: &SliceMeasureParams) -> CliResult {
     use crate::slices::{
-        CurvedParams, RenderParams, SliceParams, TruthParams, View, build_slices, choose,
-        render_curved_slices, render_curved_truth, render_slices, render_truth, test_tile,
+        CurvedParams, SliceParams, SliceRenderParams, StackView, VolumeTruthParams, build_slices,
+        choose, render_curved_slices, render_curved_truth, render_slices, render_truth, test_tile,
     };
     use altrep_data_gen::RgbaImage;
     std::fs::create_dir_all(dir).map_err(|e| format!("cannot create {}: {e}", dir.display()))?;
@@ -238,18 +240,18 @@ fn write_images(dir: &std::path::Path, params: &MeasureParams) -> CliResult {
     for &tile in &params.tiles {
         let volume = test_tile(tile, params.size, params.seed)?;
         let (data, _) = build_slices(&volume, &SliceParams::default())?;
-        let rp = RenderParams {
+        let rp = SliceRenderParams {
             width: 96,
             height: 96,
             filter: params.filter,
-            ..RenderParams::default()
+            ..SliceRenderParams::default()
         };
-        let truth_params = TruthParams {
+        let truth_params = VolumeTruthParams {
             filter: params.filter,
-            ..TruthParams::default()
+            ..VolumeTruthParams::default()
         };
         for polar in [0.0, 60.0, 85.0] {
-            let view = View::degrees(polar, params.azimuth_deg);
+            let view = StackView::degrees(polar, params.azimuth_deg);
             let c = choose(
                 &volume,
                 view.vector(),
@@ -290,7 +292,7 @@ pub fn run(args: SlicesArgs) -> CliResult {
     if let Some(path) = &args.json {
         super::precompute::check_writable(path)?;
     }
-    let params = MeasureParams {
+    let params = SliceMeasureParams {
         size: args.size,
         tiles: args.tiles.iter().map(|t| TestTile::from(*t)).collect(),
         angles_deg: args.angles.clone(),
@@ -300,11 +302,11 @@ pub fn run(args: SlicesArgs) -> CliResult {
         both_sides: !args.one_side,
         truth_steps: args.truth_steps,
         filter: match args.filter {
-            FilterArg::Linear => Reconstruction::Linear,
-            FilterArg::Nearest => Reconstruction::Nearest,
+            FilterArg::Linear => SliceReconstruction::Linear,
+            FilterArg::Nearest => SliceReconstruction::Nearest,
         },
         seed: args.seed,
-        ..MeasureParams::default()
+        ..SliceMeasureParams::default()
     };
     let report = measure(&params)?;
     print_report(&report, args.all_rows);

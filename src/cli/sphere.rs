@@ -8,8 +8,9 @@ use serde_json::json;
 use super::CliResult;
 use super::capture::load_shape;
 use crate::sphere::{
-    Coverage, MeasureParams, RenderParams, SphereImages, SphereMeasurement, SphereParams,
-    SurfaceModel, ViewSet, budget_table, check_bounds, fibonacci_directions, measure, truth_images,
+    Coverage, SphereImages, SphereMeasureParams, SphereMeasurement, SphereParams,
+    SphereRenderParams, SurfaceModel, ViewSet, budget_table, check_bounds, fibonacci_directions,
+    measure, truth_images,
 };
 
 /// Arguments of `altrep sphere`.
@@ -103,15 +104,15 @@ pub fn run(args: SphereArgs) -> CliResult {
     } else {
         Coverage::Hemisphere
     };
-    let params = MeasureParams {
+    let params = SphereMeasureParams {
         directions: args.directions as usize,
-        render: RenderParams {
+        render: SphereRenderParams {
             size: args.out_size as usize,
             samples: args.samples as usize,
             use_bounds: !args.no_bounds,
             hole_depth: (args.hole_depth != 0.0).then_some(args.hole_depth),
             extra_frames: args.extra_frames,
-            ..RenderParams::default()
+            ..SphereRenderParams::default()
         },
         truth_supersample: args.truth_samples as usize,
     };

@@ -55,7 +55,7 @@ use serde::{Deserialize, Serialize};
 
 use super::CylinderError;
 use super::frame::{angular_pitch, ray_sectors, row_coordinate};
-use super::render::{CylinderRender, RenderParams, render_rows};
+use super::render::{CylinderRender, CylinderRenderParams, render_rows};
 use super::texture::CylindricalTexture;
 use super::warp::{Fragment, RadiusModel, SliceView};
 
@@ -335,7 +335,7 @@ impl MarchBounds {
     pub fn render(
         &self,
         texture: &CylindricalTexture,
-        params: &RenderParams,
+        params: &CylinderRenderParams,
     ) -> Result<CylinderRender, CylinderError> {
         if (texture.columns(), texture.rows()) != (self.columns, self.rows) {
             return Err(CylinderError::InvalidParameter {

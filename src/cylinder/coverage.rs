@@ -1,4 +1,4 @@
-//! Coverage check: can a cylindrical texture hold this object at all?
+//! CoverageReport check: can a cylindrical texture hold this object at all?
 //!
 //! A capture ray is horizontal and radial (it travels from the bounding cylinder toward the axis),
 //! so it sees a slice only where the slice is star-shaped around the axis. A flat cut-out whose
@@ -30,7 +30,7 @@ use altrep_data_gen::{Light, RgbaImage, Shape, TruthParams, render_silhouette};
 use serde::{Deserialize, Serialize};
 
 use super::CylinderError;
-use super::render::{ExactMethod, RenderParams, render_exact};
+use super::render::{CylinderRenderParams, ExactMethod, render_exact};
 use super::texture::CylindricalTexture;
 use super::warp::{DrawOrder, RadiusModel};
 
@@ -104,17 +104,19 @@ pub struct AngleCoverage {
 
 /// What [`coverage`] measured.
 #[derive(Clone, Debug, PartialEq, Serialize)]
-pub struct Coverage {
+pub struct CoverageReport {
     /// Reproduced share of the true silhouette over all angles, in `[0, 1]`.
     pub share: f64,
     /// One entry per angle.
     pub per_angle: Vec<AngleCoverage>,
 }
 
-impl Coverage {
+impl CoverageReport {
     /// Measures the reproduced share from pairs of (texture reconstruction, truth) images.
     /// Errors: sizes differ; [`CylinderError::NothingVisible`] when every truth is empty.
-    pub fn from_images(pairs: &[(f64, &RgbaImage, &RgbaImage)]) -> Result<Coverage, CylinderError> {
+    pub fn from_images(
+        pairs: &[(f64, &RgbaImage, &RgbaImage)],
+    ) -> Result<CoverageReport, CylinderError> {
         for &(_, image, reference) in pairs {
             if (image.width, image.height) != (reference.width, reference.height) {
                 return Err(crate::metrics::MetricsError::SizeMismatch {
@@ -138,11 +140,11 @@ impl Coverage {
         Self::from_alphas(&pairs)
     }
 
-    /// [`Coverage::from_images`] from the alpha channels alone: per angle, the
+    /// [`CoverageReport::from_images`] from the alpha channels alone: per angle, the
     /// reconstruction's alpha and the truth's, one per pixel in the same order. Errors: the two
     /// differ in length ([`crate::metrics::MetricsError::SizeMismatch`], lengths as widths of
     /// one-row images); [`CylinderError::NothingVisible`] when every truth is empty.
-    pub fn from_alphas(pairs: &[(f64, &[f32], &[f32])]) -> Result<Coverage, CylinderError> {
+    pub fn from_alphas(pairs: &[(f64, &[f32], &[f32])]) -> Result<CoverageReport, CylinderError> {
         let mut per_angle = Vec::with_capacity(pairs.len());
         let (mut truth, mut reproduced) = (0.0, 0.0);
         for &(angle, image, reference) in pairs {
@@ -175,7 +177,7 @@ impl Coverage {
                 angles: pairs.len(),
             });
         }
-        Ok(Coverage {
+        Ok(CoverageReport {
             share: reproduced / truth,
             per_angle,
         })
@@ -201,7 +203,7 @@ pub fn coverage(
     shape: &dyn Shape,
     texture: &CylindricalTexture,
     params: &CoverageParams,
-) -> Result<Coverage, CylinderError> {
+) -> Result<CoverageReport, CylinderError> {
     params.validate()?;
     let light = Light::default();
     let mut images = Vec::with_capacity(params.angles);
@@ -222,7 +224,7 @@ pub fn coverage(
         let render = render_exact(
             texture,
             method,
-            &RenderParams {
+            &CylinderRenderParams {
                 angle,
                 width: params.size,
                 height: params.size,
@@ -237,7 +239,7 @@ pub fn coverage(
         .iter()
         .map(|(a, i, t)| (*a, &i[..], &t[..]))
         .collect();
-    Coverage::from_alphas(&pairs)
+    CoverageReport::from_alphas(&pairs)
 }
 
 /// [`coverage`], then refuses a share below `params.min_share` with
@@ -246,7 +248,7 @@ pub fn check_coverage(
     shape: &dyn Shape,
     texture: &CylindricalTexture,
     params: &CoverageParams,
-) -> Result<Coverage, CylinderError> {
+) -> Result<CoverageReport, CylinderError> {
     let c = coverage(shape, texture, params)?;
     c.check(params.min_share)?;
     Ok(c)
@@ -271,26 +273,26 @@ mod tests {
     fn images_and_their_alpha_channels_measure_the_same_share() {
         let (texture, truth) = ([1.0, 0.5, 0.0, 0.25], [1.0, 1.0, 0.75, 0.0]);
         let (a, b) = (image(2, &texture), image(2, &truth));
-        let from_images = Coverage::from_images(&[(0.1, &a, &b)]).unwrap();
-        let from_alphas = Coverage::from_alphas(&[(0.1, &texture[..], &truth[..])]).unwrap();
+        let from_images = CoverageReport::from_images(&[(0.1, &a, &b)]).unwrap();
+        let from_alphas = CoverageReport::from_alphas(&[(0.1, &texture[..], &truth[..])]).unwrap();
         assert_eq!(from_images, from_alphas);
         // min(1, 1) + min(0.5, 1) + min(0, 0.75) + min(0.25, 0) over 1 + 1 + 0.75.
         approx::assert_relative_eq!(from_alphas.share, 1.5 / 2.75, max_relative = 1e-15);
         let c = image(4, &truth);
         assert!(matches!(
-            Coverage::from_images(&[(0.1, &a, &c)]),
+            CoverageReport::from_images(&[(0.1, &a, &c)]),
             Err(CylinderError::Metrics(
                 crate::metrics::MetricsError::SizeMismatch { .. }
             ))
         ));
         assert!(matches!(
-            Coverage::from_alphas(&[(0.1, &texture[..], &truth[..3])]),
+            CoverageReport::from_alphas(&[(0.1, &texture[..], &truth[..3])]),
             Err(CylinderError::Metrics(
                 crate::metrics::MetricsError::SizeMismatch { .. }
             ))
         ));
         assert!(matches!(
-            Coverage::from_alphas(&[(0.1, &texture[..], &[0.0; 4][..])]),
+            CoverageReport::from_alphas(&[(0.1, &texture[..], &[0.0; 4][..])]),
             Err(CylinderError::NothingVisible { angles: 1 })
         ));
     }

@@ -20,11 +20,11 @@ use serde::Serialize;
 
 use super::CylinderError;
 use super::bounds::{BoundsParams, BoundsReport, MarchBounds};
-use super::coverage::{Coverage, CoverageParams, coverage};
+use super::coverage::{CoverageParams, CoverageReport, coverage};
 use super::offset::{
     OffsetMode, OffsetParams, OffsetReport, OffsetSamples, OffsetTexture, sample_offsets,
 };
-use super::render::{CylinderRender, ExactMethod, RenderParams, render_exact};
+use super::render::{CylinderRender, CylinderRenderParams, ExactMethod, render_exact};
 use super::texture::{CylindricalTexture, RowPyramid};
 use super::warp::{DrawOrder, RadiusModel};
 use crate::metrics::{CompareOptions, compare, psnr_from_mse, silhouette_iou};
@@ -191,7 +191,7 @@ pub struct EvalReport {
     /// Capture time (ms).
     pub capture_ms: f64,
     /// Share of the true silhouette the texture reproduces ([`coverage`]).
-    pub silhouette: Coverage,
+    pub silhouette: CoverageReport,
     /// The march bounds of the `bounded` row.
     pub bounds: BoundsReport,
     /// Texture bytes (two RGBA8 textures).
@@ -248,7 +248,7 @@ pub fn minification(
                         cylinder: texture.cylinder(),
                     },
                 )?;
-                let p = RenderParams {
+                let p = CylinderRenderParams {
                     angle,
                     width: size,
                     height: size,
@@ -369,7 +369,7 @@ impl EvalReport {
 
 /// The references every renderer is compared with, per angle.
 struct References {
-    params: Vec<RenderParams>,
+    params: Vec<CylinderRenderParams>,
     truth: Vec<RgbaImage>,
     inverse: Vec<CylinderRender>,
     /// Per sub-sample: `Some(near)` where the exact offset is defined.
@@ -388,8 +388,8 @@ impl References {
                 what: "evaluation angles",
             });
         }
-        let params: Vec<RenderParams> = (0..p.angles)
-            .map(|n| RenderParams {
+        let params: Vec<CylinderRenderParams> = (0..p.angles)
+            .map(|n| CylinderRenderParams {
                 angle: (n as f64 + 0.37) * TAU / p.angles as f64,
                 width: p.size,
                 height: p.size,
@@ -439,7 +439,7 @@ impl References {
         columns: usize,
         precompute_ms: f64,
         bytes: usize,
-        render: impl Fn(&RenderParams) -> Result<CylinderRender, CylinderError>,
+        render: impl Fn(&CylinderRenderParams) -> Result<CylinderRender, CylinderError>,
     ) -> Result<MethodRow, CylinderError> {
         let (mut mse, mut mse_inv, mut iou) = (0.0, 0.0, 0.0);
         let (mut all, mut away, mut near) = (Vec::new(), Vec::new(), Vec::new());
@@ -634,7 +634,7 @@ pub fn evaluate(shape: &dyn Shape, params: &EvalParams) -> Result<EvalReport, Cy
 
 /// One grid of the sweep.
 #[derive(Clone, Debug, Serialize)]
-pub struct SweepRow {
+pub struct CylinderSweepRow {
     /// `[Ax, Ay, Aα]`.
     pub cells: [usize; 3],
     /// Coefficients.
@@ -675,7 +675,7 @@ pub fn sweep(
     shape: &dyn Shape,
     params: &EvalParams,
     grids: &[[usize; 3]],
-) -> Result<Vec<SweepRow>, CylinderError> {
+) -> Result<Vec<CylinderSweepRow>, CylinderError> {
     let texture = CylindricalTexture::capture(shape, &params.texture, params.prefilter)?;
     let samples: OffsetSamples =
         sample_offsets(&texture, params.offset.samples, params.offset.mask)?;
@@ -696,7 +696,7 @@ pub fn sweep(
                     off.render(&texture, mode, params.tolerance_px, p)
                 })
             };
-            Ok(SweepRow {
+            Ok(CylinderSweepRow {
                 cells,
                 nodes: off.report.nodes,
                 bytes,
@@ -714,7 +714,7 @@ pub fn sweep(
 }
 
 /// A Markdown table of a sweep.
-pub fn sweep_markdown(shape: &str, rows: &[SweepRow]) -> String {
+pub fn sweep_markdown(shape: &str, rows: &[CylinderSweepRow]) -> String {
     let mut s = format!(
         "**{shape}** — offset grid sweep (sampling {:.0} ms shared)\n\n| grid | coefficients | bytes | assembly ms | solve ms | quantisation ms | iterations | fit RMS | offset RMS / p99 | away RMS | near RMS | PSNR plain | PSNR hybrid m=2 | vs inverse (plain / m=2) |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n",
         rows.first().map_or(0.0, |r| r.sampling_ms)

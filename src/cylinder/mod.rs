@@ -64,6 +64,7 @@
 //! `L/2 + 1` sector tests per pixel. Offset texture: `Ax·(Ay + 1)·Aα` coefficients (α periodic),
 //! 2 bytes each at 16 bits.
 
+pub mod asset;
 mod bounds;
 mod coverage;
 mod eval;
@@ -74,16 +75,16 @@ mod texture;
 mod warp;
 
 pub use bounds::{BoundsParams, BoundsReport, MarchBounds};
-pub use coverage::{AngleCoverage, Coverage, CoverageParams, check_coverage, coverage};
+pub use coverage::{AngleCoverage, CoverageParams, CoverageReport, check_coverage, coverage};
 pub use eval::{
-    EvalParams, EvalReport, MethodRow, MinificationRow, OffsetError, SWEEP_GRIDS, SweepRow,
+    CylinderSweepRow, EvalParams, EvalReport, MethodRow, MinificationRow, OffsetError, SWEEP_GRIDS,
     evaluate, minification, sweep, sweep_markdown,
 };
 pub use offset::{
     FitSupport, LambdaRule, LambdaTrial, OffsetMode, OffsetParams, OffsetReport, OffsetSamples,
     OffsetTexture, SilhouetteMask, sample_offsets,
 };
-pub use render::{CylinderRender, ExactMethod, RenderParams, render_exact};
+pub use render::{CylinderRender, CylinderRenderParams, ExactMethod, render_exact};
 pub use texture::{CylindricalTexture, RowPyramid, Slice, Texel};
 pub use warp::{DrawOrder, Edge, Fragment, RadiusModel, SliceView};
 

@@ -49,7 +49,7 @@ use serde::Serialize;
 
 use super::CylinderError;
 use super::frame::{column_offset, offset_column, ray_sectors, row_coordinate, sector_index};
-use super::render::{CylinderRender, RenderParams, render_rows};
+use super::render::{CylinderRender, CylinderRenderParams, render_rows};
 use super::texture::CylindricalTexture;
 use super::warp::{Fragment, RadiusModel, SliceView};
 use crate::fit::{self, FitParams, FitReport, TrilinearGrid};
@@ -588,7 +588,7 @@ impl OffsetTexture {
         texture: &CylindricalTexture,
         mode: OffsetMode,
         tolerance_px: f64,
-        params: &RenderParams,
+        params: &CylinderRenderParams,
     ) -> Result<CylinderRender, CylinderError> {
         if (texture.columns(), texture.rows()) != (self.columns, self.rows) {
             return Err(CylinderError::InvalidParameter {

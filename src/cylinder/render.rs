@@ -18,7 +18,7 @@ use super::warp::{DrawOrder, Fragment, RadiusModel, SliceView};
 
 /// Camera and image of a render.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct RenderParams {
+pub struct CylinderRenderParams {
     /// Camera angle `α` (radians): the view looks along `−d(α)`.
     pub angle: f64,
     /// Image width in pixels (spans `[−R, R]`).
@@ -31,7 +31,7 @@ pub struct RenderParams {
     pub light: Light,
 }
 
-impl Default for RenderParams {
+impl Default for CylinderRenderParams {
     /// 64 × 64 pixels, 3 × 3 sub-samples, angle 0, the default light.
     fn default() -> Self {
         Self {
@@ -44,7 +44,7 @@ impl Default for RenderParams {
     }
 }
 
-impl RenderParams {
+impl CylinderRenderParams {
     /// Errors on a zero size or a non-finite angle.
     pub fn validate(&self) -> Result<(), CylinderError> {
         for (n, what) in [
@@ -131,7 +131,7 @@ impl ExactMethod {
 pub fn render_exact(
     texture: &CylindricalTexture,
     method: ExactMethod,
-    params: &RenderParams,
+    params: &CylinderRenderParams,
 ) -> Result<CylinderRender, CylinderError> {
     match method {
         ExactMethod::Mesh => render_mesh(texture, params),
@@ -167,7 +167,7 @@ pub(crate) struct SubRow<'a> {
 /// slice) and returns `(steps, writes)`.
 pub(crate) fn render_rows(
     texture: &CylindricalTexture,
-    params: &RenderParams,
+    params: &CylinderRenderParams,
     track_named: bool,
     per_row: impl Fn(&SubRow, &mut [Option<Fragment>], &mut [Option<f64>]) -> (u64, u64) + Sync,
 ) -> Result<CylinderRender, CylinderError> {
@@ -214,7 +214,11 @@ pub(crate) fn render_rows(
 }
 
 /// Shades each fragment and averages `k × k` blocks into premultiplied RGBA.
-fn shade_and_average(frags: &[Option<Fragment>], sub_width: usize, p: &RenderParams) -> RgbaImage {
+fn shade_and_average(
+    frags: &[Option<Fragment>],
+    sub_width: usize,
+    p: &CylinderRenderParams,
+) -> RgbaImage {
     let k = p.supersample;
     let inv = 1.0 / (k * k) as f32;
     let mut pixels = vec![[0.0f32; 4]; p.width * p.height];
@@ -260,7 +264,7 @@ struct Vertex {
 /// The reference: a scanline rasteriser of the sample mesh (see [`ExactMethod::Mesh`]).
 fn render_mesh(
     texture: &CylindricalTexture,
-    params: &RenderParams,
+    params: &CylinderRenderParams,
 ) -> Result<CylinderRender, CylinderError> {
     let (l, rows) = (texture.columns(), texture.rows());
     let cyl = texture.cylinder();

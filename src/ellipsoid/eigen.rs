@@ -45,8 +45,28 @@
 
 use nalgebra::{Matrix3, RealField, Vector3};
 
-use super::error::EigenError;
 use super::rng::{RandomGeometry, SplitMix64};
+
+/// Why a 3×3 symmetric eigen-decomposition was refused.
+#[derive(Debug, Clone, Copy, PartialEq, thiserror::Error)]
+pub enum EigenError {
+    /// An entry of the upper triangle is NaN or infinite.
+    #[error("matrix entry ({row}, {col}) is not finite: {value}")]
+    NonFinite {
+        /// Row of the entry (0-based).
+        row: usize,
+        /// Column of the entry (0-based).
+        col: usize,
+        /// The offending value, as f64.
+        value: f64,
+    },
+    /// An eigenvalue overflowed when the matrix was scaled back (entries near the largest float).
+    #[error("an eigenvalue overflows the scalar type (largest entry {max_abs:e})")]
+    Overflow {
+        /// Largest absolute entry of the input, as f64.
+        max_abs: f64,
+    },
+}
 
 /// Scalar types the solver runs in (`f32`, `f64`): a real field plus exact power-of-two scaling.
 pub trait EigenScalar: RealField + Copy {

@@ -1,27 +1,9 @@
-//! Typed errors of the ellipsoid module: what was wrong, and where.
+//! Typed errors of the ellipsoid module: what was wrong, and where. The eigen-solver's own
+//! error ([`EigenError`], in `eigen.rs`) converts into [`EllipsoidError::Eigen`].
 
 use thiserror::Error;
 
-/// Why a 3×3 symmetric eigen-decomposition was refused.
-#[derive(Debug, Clone, Copy, PartialEq, Error)]
-pub enum EigenError {
-    /// An entry of the upper triangle is NaN or infinite.
-    #[error("matrix entry ({row}, {col}) is not finite: {value}")]
-    NonFinite {
-        /// Row of the entry (0-based).
-        row: usize,
-        /// Column of the entry (0-based).
-        col: usize,
-        /// The offending value, as f64.
-        value: f64,
-    },
-    /// An eigenvalue overflowed when the matrix was scaled back (entries near the largest float).
-    #[error("an eigenvalue overflows the scalar type (largest entry {max_abs:e})")]
-    Overflow {
-        /// Largest absolute entry of the input, as f64.
-        max_abs: f64,
-    },
-}
+use super::eigen::EigenError;
 
 /// Why an ellipsoid, a filter or a volume was refused.
 #[derive(Debug, Clone, PartialEq, Error)]

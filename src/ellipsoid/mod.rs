@@ -11,6 +11,7 @@
 //! - [`report`]: the measurements printed by `altrep ellipsoid-bench`.
 //! - [`rng`]: a seeded generator for reproducible cases.
 
+pub mod asset;
 pub mod eigen;
 pub mod error;
 pub mod filter;
@@ -20,8 +21,8 @@ pub mod quadrature;
 pub mod report;
 pub mod rng;
 
-pub use eigen::{SymEigen3, sym_eigen3};
-pub use error::{EigenError, EllipsoidError};
+pub use eigen::{EigenError, SymEigen3, sym_eigen3};
+pub use error::EllipsoidError;
 pub use filter::{FilterErrors, FilterRule, filter, filter_errors};
 pub use octree::{Octree, OctreeParams, OctreeReport, VoxelGrid, VoxelSource};
 pub use primitive::{Ellipsoid, MAX_LENGTH, MIN_ASPECT, MIN_LENGTH, Phong};

@@ -9,11 +9,12 @@ use std::time::Instant;
 use nalgebra::Matrix3;
 use serde::Serialize;
 
+use super::eigen::EigenError;
 use super::eigen::{
     EigenScalar, SymEigen3, adversarial_suite, adversarial_suite_f32, orthogonality_error,
     reconstruction_error, sym_eigen3, sym_eigen3_nalgebra,
 };
-use super::error::{EigenError, EllipsoidError};
+use super::error::EllipsoidError;
 use super::filter::{FilterCase, FilterRule, Sin2Fit, filter, filter_errors, fit_sin2_exponent};
 use super::octree::{AnalyticVolume, Octree, OctreeParams, OctreeReport, VoxelGrid};
 use super::quadrature::SphereQuadrature;

@@ -46,13 +46,17 @@ impl Default for ParallaxParams {
 }
 
 impl ParallaxParams {
+    /// The numbers of views accepted everywhere (library, manifest, command line): at least 3 so
+    /// that `Δθ = 2π/N < π`, at most 1024.
+    pub const VIEW_COUNTS: std::ops::RangeInclusive<usize> = 3..=1024;
+
     /// Checks every field; errors name the offending one.
     pub fn validate(&self) -> Result<(), ParallaxError> {
-        if self.views < 3 || self.views > 4096 {
+        if !Self::VIEW_COUNTS.contains(&self.views) {
             return Err(invalid(
                 "views",
                 self.views,
-                "must be in 3..=4096 (Δθ = 2π/N < π)",
+                "must be in 3..=1024 (Δθ = 2π/N < π)",
             ));
         }
         if self.width == 0 || self.height == 0 || self.width > 16384 || self.height > 16384 {

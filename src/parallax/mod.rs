@@ -84,6 +84,7 @@
 //! Geometry, warping and bounds run in `f64`; stored data are quantised (colour and normal 8 bits,
 //! depth 8 or 16 bits, bounds 8, 16 or 32 bits) and every warp uses the stored values.
 
+pub mod asset;
 mod baselines;
 mod bounds;
 mod images;

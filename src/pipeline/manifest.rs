@@ -43,11 +43,8 @@ use serde::{Deserialize, Serialize};
 use toml::Spanned;
 
 use super::PipelineError;
-use super::cylinder::CylinderSpec;
-use super::octree::OctreeSpec as OctreeParams;
-use super::parallax::ParallaxSpec as ParallaxParams;
-use super::sphere::SphereSpec;
-use crate::pyramid::PyramidParams;
+use crate::representation::registry::for_each_representation;
+use crate::representation::{Needs, Representation};
 
 /// Scene-wide settings.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -70,83 +67,83 @@ impl Default for SceneSettings {
     }
 }
 
-/// How the scene lights an asset.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
-#[serde(rename_all = "snake_case")]
-pub enum Lighting {
-    /// Lights move: store albedo and normals and relight in the shader.
-    Dynamic,
-    /// Lighting is fixed: store the shaded colour, no normals.
-    Baked,
-}
-
-/// What the scene needs of an asset. Angles in degrees, sizes in pixels.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(default, deny_unknown_fields)]
-pub struct Needs {
-    /// Range of view azimuths `α` (degrees, `d(α) = (cos α, 0, sin α)`); a span of 360 or more is
-    /// every direction. Default `[0, 360]`.
-    pub azimuth_deg: [f64; 2],
-    /// Range of view elevations above the horizontal (degrees, in `[−90, 90]`). Default `[0, 0]`.
-    pub elevation_deg: [f64; 2],
-    /// Smallest and largest on-screen size of the object (pixels, ≥ 1). Default `[1, 256]`.
-    pub screen_px: [f64; 2],
-    /// Lighting. Default dynamic.
-    pub lighting: Lighting,
-    /// Most grazing view angle from the surface normal of textured polygons (degrees, `[0, 90)`),
-    /// for pyramids and slices. Default 80.
-    pub grazing_deg: f64,
-    /// Quality target: the PSNR (dB) against the ray-cast ground truth below which the report
-    /// flags the asset. Default 20.
-    pub quality_db: f64,
-}
-
-impl Default for Needs {
-    fn default() -> Self {
-        Self {
-            azimuth_deg: [0.0, 360.0],
-            elevation_deg: [0.0, 0.0],
-            screen_px: [1.0, 256.0],
-            lighting: Lighting::Dynamic,
-            grazing_deg: 80.0,
-            quality_db: 20.0,
+/// The manifest's asset structures and their per-representation parts, generated from the one
+/// list of representations ([`crate::representation::registry`]).
+macro_rules! asset_structs {
+    ($(($key:ident, $variant:ident, $repr:ty, $doc:literal)),* $(,)?) => {
+        /// One asset of the manifest, as written.
+        #[derive(Clone, Debug, Deserialize)]
+        #[serde(deny_unknown_fields)]
+        struct RawAsset {
+            name: Spanned<String>,
+            #[serde(default)]
+            shape: Option<String>,
+            #[serde(default)]
+            mesh: Option<PathBuf>,
+            #[serde(default)]
+            texture: Option<PathBuf>,
+            #[serde(default)]
+            test_texture: Option<TestTexture>,
+            #[serde(default)]
+            needs: Option<Spanned<Needs>>,
+            $(
+                #[serde(default)]
+                $key: Option<Spanned<<$repr as Representation>::Spec>>,
+            )*
         }
-    }
-}
 
-impl Needs {
-    /// Whether the azimuth range covers every direction.
-    pub fn all_azimuths(&self) -> bool {
-        self.azimuth_deg[1] - self.azimuth_deg[0] >= 360.0
-    }
-}
+        /// One asset: its source, needs and the representations wanted.
+        #[derive(Clone, Debug, PartialEq)]
+        pub struct AssetSpec {
+            /// Name (also the folder name).
+            pub name: String,
+            /// Geometry.
+            pub source: SourceSpec,
+            /// What the scene needs.
+            pub needs: Needs,
+            $(
+                #[doc = $doc]
+                pub $key: Option<<$repr as Representation>::Spec>,
+            )*
+        }
 
-/// One asset of the manifest, as written.
-#[derive(Clone, Debug, Deserialize)]
-#[serde(deny_unknown_fields)]
-struct RawAsset {
-    name: Spanned<String>,
-    #[serde(default)]
-    shape: Option<String>,
-    #[serde(default)]
-    mesh: Option<PathBuf>,
-    #[serde(default)]
-    texture: Option<PathBuf>,
-    #[serde(default)]
-    test_texture: Option<TestTexture>,
-    #[serde(default)]
-    needs: Option<Spanned<Needs>>,
-    #[serde(default)]
-    parallax: Option<Spanned<ParallaxParams>>,
-    #[serde(default)]
-    cylinder: Option<Spanned<CylinderSpec>>,
-    #[serde(default)]
-    octree: Option<Spanned<OctreeParams>>,
-    #[serde(default)]
-    pyramid: Option<Spanned<PyramidParams>>,
-    #[serde(default)]
-    sphere: Option<Spanned<SphereSpec>>,
+        impl RawAsset {
+            /// The representations asked for, in the registry's order: the key, the span of
+            /// its table, and whether it is built from a texture.
+            fn asked(&self) -> Vec<(&'static str, Range<usize>, bool)> {
+                let mut v = Vec::new();
+                $(
+                    if let Some(s) = &self.$key {
+                        v.push((stringify!($key), s.span(), <$repr>::FROM_TEXTURE));
+                    }
+                )*
+                v
+            }
+
+            /// Checks every representation's parameters and moves them into the asset.
+            fn into_spec(
+                self,
+                name: String,
+                source: SourceSpec,
+                needs: Needs,
+            ) -> Result<AssetSpec, String> {
+                $(
+                    let $key = self.$key.map(Spanned::into_inner);
+                    if let Some(s) = &$key {
+                        <$repr>::validate(s)?;
+                    }
+                )*
+                Ok(AssetSpec { name, source, needs, $($key,)* })
+            }
+        }
+
+        /// The representations' keys, in the registry's order.
+        const KEYS: &[&str] = &[$(stringify!($key)),*];
+        /// Whether each of [`KEYS`] is built from a texture.
+        const FROM_TEXTURE: &[bool] = &[$(<$repr>::FROM_TEXTURE),*];
+    };
 }
+for_each_representation!(asset_structs);
 
 /// A procedural test texture ([`crate::pyramid::truth::test_texture`]): periodic grey
 /// checkerboard, sinusoid and noise, one channel.
@@ -188,27 +185,6 @@ impl SourceSpec {
     pub fn is_texture(&self) -> bool {
         matches!(self, Self::Texture(_) | Self::TestTexture(_))
     }
-}
-
-/// One asset: its source, needs and the representations wanted.
-#[derive(Clone, Debug, PartialEq)]
-pub struct AssetSpec {
-    /// Name (also the folder name).
-    pub name: String,
-    /// Geometry.
-    pub source: SourceSpec,
-    /// What the scene needs.
-    pub needs: Needs,
-    /// Images with parallax, if wanted.
-    pub parallax: Option<ParallaxParams>,
-    /// Cylindrical texture, if wanted.
-    pub cylinder: Option<CylinderSpec>,
-    /// Ellipsoid octree, if wanted.
-    pub octree: Option<OctreeParams>,
-    /// Texture pyramid, if wanted (texture assets only).
-    pub pyramid: Option<PyramidParams>,
-    /// Images with parallax from any direction, if wanted.
-    pub sphere: Option<SphereSpec>,
 }
 
 /// A parsed, checked manifest.
@@ -281,9 +257,9 @@ impl Manifest {
         }
         let base = path.parent().unwrap_or(Path::new("."));
         let mut assets: Vec<AssetSpec> = Vec::new();
-        for a in raw.asset {
+        for mut a in raw.asset {
             let name_span = a.name.span();
-            let name = a.name.into_inner();
+            let name = a.name.get_ref().clone();
             if !crate::asset::valid_name(&name) {
                 return Err(err(
                     path,
@@ -302,7 +278,12 @@ impl Manifest {
                     format!("duplicate asset name '{name}'"),
                 ));
             }
-            let source = match (a.shape, a.mesh, a.texture, a.test_texture) {
+            let source = match (
+                a.shape.take(),
+                a.mesh.take(),
+                a.texture.take(),
+                a.test_texture.take(),
+            ) {
                 (Some(s), None, None, None) => {
                     altrep_data_gen::scene_shape(&s).map_err(|e| {
                         err(path, text, name_span.clone(), format!("asset.shape: {e}"))
@@ -333,40 +314,35 @@ impl Manifest {
                     ));
                 }
             };
-            let (needs_span, needs) = match a.needs {
+            let (needs_span, needs) = match a.needs.take() {
                 Some(n) => (n.span(), n.into_inner()),
                 None => (name_span.clone(), Needs::default()),
             };
             check_needs(&needs).map_err(|m| err(path, text, needs_span, m))?;
-            let geometry_only = [
-                ("parallax", a.parallax.as_ref().map(|p| p.span())),
-                ("cylinder", a.cylinder.as_ref().map(|p| p.span())),
-                ("octree", a.octree.as_ref().map(|p| p.span())),
-                ("sphere", a.sphere.as_ref().map(|p| p.span())),
-            ];
-            if source.is_texture() {
-                if let Some((key, Some(span))) = geometry_only.iter().find(|(_, s)| s.is_some()) {
-                    return Err(err(
-                        path,
-                        text,
-                        span.clone(),
-                        format!(
-                            "asset '{name}' is a texture: it may only ask for [asset.pyramid]; \
-                             [asset.{key}] needs a `shape` or `mesh`"
-                        ),
-                    ));
-                }
-            } else if let Some(p) = &a.pyramid {
-                return Err(err(
-                    path,
-                    text,
-                    p.span(),
+            let asked = a.asked();
+            let texture_keys: Vec<String> = KEYS
+                .iter()
+                .zip(FROM_TEXTURE)
+                .filter(|(_, t)| **t)
+                .map(|(k, _)| format!("[asset.{k}]"))
+                .collect();
+            if let Some((key, span, from_texture)) =
+                asked.iter().find(|(_, _, t)| *t != source.is_texture())
+            {
+                let message = if *from_texture {
                     format!(
-                        "asset '{name}' is a shape or mesh: [asset.pyramid] needs a `texture` or `test_texture`"
-                    ),
-                ));
+                        "asset '{name}' is a shape or mesh: [asset.{key}] needs a `texture` or `test_texture`"
+                    )
+                } else {
+                    format!(
+                        "asset '{name}' is a texture: it may only ask for {}; \
+                         [asset.{key}] needs a `shape` or `mesh`",
+                        texture_keys.join(", ")
+                    )
+                };
+                return Err(err(path, text, span.clone(), message));
             }
-            if geometry_only.iter().all(|(_, s)| s.is_none()) && a.pyramid.is_none() {
+            if asked.is_empty() {
                 return Err(err(
                     path,
                     text,
@@ -374,36 +350,10 @@ impl Manifest {
                     format!("asset '{name}' asks for no representation"),
                 ));
             }
-            let parallax = a.parallax.map(Spanned::into_inner);
-            let cylinder = a.cylinder.map(Spanned::into_inner);
-            let octree = a.octree.map(Spanned::into_inner);
-            let pyramid = a.pyramid.map(Spanned::into_inner);
-            let sphere = a.sphere.map(Spanned::into_inner);
-            for check in [
-                parallax.as_ref().map(|p| p.validate()),
-                cylinder.as_ref().map(|p| p.validate()),
-                octree.as_ref().map(|p| p.validate()),
-                sphere.as_ref().map(|p| p.validate()),
-                // Channels are known once the texture is read; RGBA is checked here.
-                pyramid
-                    .as_ref()
-                    .map(|p| p.validate(4).map_err(|e| format!("pyramid: {e}"))),
-            ]
-            .into_iter()
-            .flatten()
-            {
-                check.map_err(|m| err(path, text, name_span.clone(), format!("{name}: {m}")))?;
-            }
-            assets.push(AssetSpec {
-                name,
-                source,
-                needs,
-                parallax,
-                cylinder,
-                octree,
-                pyramid,
-                sphere,
-            });
+            let spec = a
+                .into_spec(name.clone(), source, needs)
+                .map_err(|m| err(path, text, name_span.clone(), format!("{name}: {m}")))?;
+            assets.push(spec);
         }
         if assets.is_empty() {
             return Err(PipelineError::Manifest {

@@ -10,17 +10,14 @@ use rayon::prelude::*;
 use serde::Serialize;
 use serde_json::json;
 
-use super::cylinder::Cylinder;
-use super::manifest::{AssetSpec, Lighting, Manifest, Needs, SourceSpec};
-use super::octree::OctreeRepr;
-use super::parallax::Parallax;
-use super::pyramid::PyramidRepr;
-use super::repr::{Measurement, Representation, Source};
-use super::sphere::SphereRepr;
-use super::{PipelineError, Plan};
+use super::manifest::{AssetSpec, Manifest, SourceSpec};
 use crate::asset::{
     AssetReader, AssetWriter, Conventions, DESCRIPTION_FILE, FORMAT_MAJOR, STAGING_DIR,
     write_atomic,
+};
+use crate::representation::registry::for_each_representation;
+use crate::representation::{
+    Lighting, Measurement, Needs, PipelineError, Plan, Representation, Source,
 };
 
 /// Name of the lock file in an output folder.
@@ -349,41 +346,18 @@ pub fn plan_scene(
         let (loaded, _) = load_source(spec)?;
         let source = loaded.source(&spec.name, light);
         let needs = effective_needs(spec, options.everything);
-        if let Some(p) = &spec.parallax {
-            out.push((
-                spec.name.clone(),
-                Parallax::NAME.into(),
-                Parallax::plan(p, &needs, &source)?.0,
-            ));
+        macro_rules! plan_each {
+            ($(($key:ident, $variant:ident, $repr:ty, $doc:literal)),* $(,)?) => {$(
+                if let Some(p) = &spec.$key {
+                    out.push((
+                        spec.name.clone(),
+                        <$repr>::NAME.into(),
+                        <$repr>::plan(p, &needs, &source)?.0,
+                    ));
+                }
+            )*};
         }
-        if let Some(p) = &spec.cylinder {
-            out.push((
-                spec.name.clone(),
-                Cylinder::NAME.into(),
-                Cylinder::plan(p, &needs, &source)?.0,
-            ));
-        }
-        if let Some(p) = &spec.octree {
-            out.push((
-                spec.name.clone(),
-                OctreeRepr::NAME.into(),
-                OctreeRepr::plan(p, &needs, &source)?.0,
-            ));
-        }
-        if let Some(p) = &spec.pyramid {
-            out.push((
-                spec.name.clone(),
-                PyramidRepr::NAME.into(),
-                PyramidRepr::plan(p, &needs, &source)?.0,
-            ));
-        }
-        if let Some(p) = &spec.sphere {
-            out.push((
-                spec.name.clone(),
-                SphereRepr::NAME.into(),
-                SphereRepr::plan(p, &needs, &source)?.0,
-            ));
-        }
+        for_each_representation!(plan_each);
     }
     Ok(out)
 }
@@ -443,22 +417,18 @@ pub fn run_scene(manifest: &Manifest, options: &RunOptions) -> Result<RunSummary
         let (source, needs, hash) = (&source, &needs, input_hash.as_str());
         let mut builds: Vec<(&'static str, bool, BuildJob<'_>)> = Vec::new();
         // One job per representation the asset asks for, in manifest order.
-        macro_rules! job {
-            ($field:ident, $repr:ty) => {
-                if let Some(s) = &spec.$field {
+        macro_rules! jobs {
+            ($(($key:ident, $variant:ident, $repr:ty, $doc:literal)),* $(,)?) => {$(
+                if let Some(s) = &spec.$key {
                     builds.push((
                         <$repr>::NAME,
                         <$repr>::CASTS_RAYS,
                         Box::new(move || build_one::<$repr>(s, needs, source, hash, options, p)),
                     ));
                 }
-            };
+            )*};
         }
-        job!(parallax, Parallax);
-        job!(cylinder, Cylinder);
-        job!(octree, OctreeRepr);
-        job!(pyramid, PyramidRepr);
-        job!(sphere, SphereRepr);
+        for_each_representation!(jobs);
         if let Some(p) = p {
             for (repr, _, _) in &builds {
                 p.declare(&spec.name, repr);
@@ -511,21 +481,14 @@ pub fn run_scene(manifest: &Manifest, options: &RunOptions) -> Result<RunSummary
 /// The representations `spec` asks for, by name.
 fn wanted(spec: &AssetSpec) -> Vec<&'static str> {
     let mut v = Vec::new();
-    if spec.parallax.is_some() {
-        v.push(Parallax::NAME);
+    macro_rules! names {
+        ($(($key:ident, $variant:ident, $repr:ty, $doc:literal)),* $(,)?) => {$(
+            if spec.$key.is_some() {
+                v.push(<$repr>::NAME);
+            }
+        )*};
     }
-    if spec.cylinder.is_some() {
-        v.push(Cylinder::NAME);
-    }
-    if spec.octree.is_some() {
-        v.push(OctreeRepr::NAME);
-    }
-    if spec.pyramid.is_some() {
-        v.push(PyramidRepr::NAME);
-    }
-    if spec.sphere.is_some() {
-        v.push(SphereRepr::NAME);
-    }
+    for_each_representation!(names);
     v
 }
 

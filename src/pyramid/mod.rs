@@ -21,6 +21,7 @@
 //!   rip, fip and EWA over distances and tilts (the `altrep pyramid` table).
 //! * [`fusion::fuse`]: quad-tree fusion of registered views with median rejection.
 
+pub mod asset;
 pub mod atlas;
 pub mod ewa;
 pub mod fast;

@@ -202,7 +202,7 @@ pub fn supersampled_truth(
 
 /// Lookup methods compared by the sweep.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
-pub enum Method {
+pub enum LookupMethod {
     /// Trilinear mipmap with Heckbert's level.
     Mip,
     /// Ripmap, four bilinear levels.
@@ -214,12 +214,17 @@ pub enum Method {
 }
 
 /// All methods, in table order.
-pub const METHODS: [Method; 4] = [Method::Mip, Method::Rip, Method::Fip, Method::Ewa];
+pub const METHODS: [LookupMethod; 4] = [
+    LookupMethod::Mip,
+    LookupMethod::Rip,
+    LookupMethod::Fip,
+    LookupMethod::Ewa,
+];
 
 /// Values of `method` for every footprint (`pixels² × channels`), and ns per lookup.
 pub fn lookup_all(
     fip: &FipMap,
-    method: Method,
+    method: LookupMethod,
     fps: &[Option<PixelFootprint>],
     channels: usize,
 ) -> (Vec<f64>, f64) {
@@ -234,13 +239,17 @@ pub fn lookup_all(
             let [u, v] = fp.uv;
             let [ux, vx, uy, vy] = fp.derivs;
             match method {
-                Method::Mip => fip.sample_into(Scheme::Mip, u, v, ux, vx, uy, vy, None, &mut buf),
-                Method::Rip => fip.sample_into(Scheme::Rip, u, v, ux, vx, uy, vy, None, &mut buf),
-                Method::Fip => {
+                LookupMethod::Mip => {
+                    fip.sample_into(Scheme::Mip, u, v, ux, vx, uy, vy, None, &mut buf)
+                }
+                LookupMethod::Rip => {
+                    fip.sample_into(Scheme::Rip, u, v, ux, vx, uy, vy, None, &mut buf)
+                }
+                LookupMethod::Fip => {
                     let scheme = fip.decide(fp.dir);
                     fip.sample_into(scheme, u, v, ux, vx, uy, vy, None, &mut buf)
                 }
-                Method::Ewa => ewa_into(fip.mip(), u, v, ux, vx, uy, vy, max_aniso, &mut buf),
+                LookupMethod::Ewa => ewa_into(fip.mip(), u, v, ux, vx, uy, vy, max_aniso, &mut buf),
             }
             for (o, x) in out[k * channels..(k + 1) * channels].iter_mut().zip(&buf) {
                 *o = f64::from(*x);
@@ -326,7 +335,7 @@ impl SweepParams {
 
 /// One row of the sweep: a view, the truth's noise, and per method its RMS error and time.
 #[derive(Clone, Debug, PartialEq, serde::Serialize)]
-pub struct SweepRow {
+pub struct PyramidSweepRow {
     /// The view.
     pub view: PlaneView,
     /// What the decision picked at the image centre.
@@ -343,7 +352,7 @@ pub struct SweepRow {
 #[derive(Clone, Debug, PartialEq, serde::Serialize)]
 pub struct SweepReport {
     /// One row per (D₀, tilt, azimuth).
-    pub rows: Vec<SweepRow>,
+    pub rows: Vec<PyramidSweepRow>,
     /// Bytes of the fipmap database (which holds the mipmap and the ripmap) at 4 bytes/channel.
     pub fip_bytes: usize,
     /// Bytes of the mipmap alone and of the ripmap alone.
@@ -360,7 +369,7 @@ pub fn measure_view(
     tex: &Texture,
     view: &PlaneView,
     sweep: &SweepParams,
-) -> SweepRow {
+) -> PyramidSweepRow {
     let t1 = supersampled_truth(
         view,
         tex,
@@ -386,7 +395,7 @@ pub fn measure_view(
         rms_v[k] = rms(&vals, &truth);
         ns[k] = t;
     }
-    SweepRow {
+    PyramidSweepRow {
         view: *view,
         scheme,
         truth_noise: 0.5 * rms(&t1, &t2),

@@ -359,25 +359,25 @@ pub fn cylinder(quick: bool, mesh: Option<&Path>) -> Result<RepresentationReport
 /// averaged over the tiles, and the criterion's choice among three directions as the
 /// operating point (Meyer & Neyret's rule `h·tan a / d ≤ 1`).
 pub fn slices(quick: bool) -> Result<RepresentationReport, ReportError> {
-    use crate::slices::{MeasureParams, MergeRule, TestTile, measure};
+    use crate::slices::{MergeRule, SliceMeasureParams, TestTile, measure};
     const R: &str = "slices";
     let e = err::<crate::slices::SliceError>(R);
     let params = if quick {
-        MeasureParams {
+        SliceMeasureParams {
             size: 8,
             tiles: vec![TestTile::Perlin],
             angles_deg: vec![0.0, 60.0],
             pixel_voxels: vec![1.0],
             both_sides: false,
             truth_steps: 4,
-            ..MeasureParams::default()
+            ..SliceMeasureParams::default()
         }
     } else {
-        MeasureParams {
+        SliceMeasureParams {
             tiles: vec![TestTile::Grass, TestTile::Perlin, TestTile::Tree],
             angles_deg: vec![0.0, 20.0, 40.0, 60.0, 70.0, 80.0],
             pixel_voxels: vec![1.0],
-            ..MeasureParams::default()
+            ..SliceMeasureParams::default()
         }
     };
     let report = measure(&params).map_err(&e)?;
@@ -448,12 +448,12 @@ pub fn slices(quick: bool) -> Result<RepresentationReport, ReportError> {
 }
 
 /// The ellipsoid octree through the pipeline's own build and measurement
-/// ([`crate::pipeline::octree::OctreeRepr`]): leaf resolution per filter rule, of the `tree`
+/// ([`crate::ellipsoid::asset::OctreeRepr`]): leaf resolution per filter rule, of the `tree`
 /// shape. Cost: voxelisation + build, bytes of the node array; error: PSNR of level 0 against
 /// the ray-cast truth. Neyret 1995's claims (91–93 % compression at 128³, 8 s to build 256³) as
 /// lines.
 pub fn octree(quick: bool) -> Result<RepresentationReport, ReportError> {
-    use crate::pipeline::octree::{NODE_BYTES, OctreeRepr, OctreeSpec};
+    use crate::ellipsoid::asset::{NODE_BYTES, OctreeRepr, OctreeSpec};
     use crate::pipeline::{Needs, Representation, Source};
     const R: &str = "octree";
     let e = err::<crate::pipeline::PipelineError>(R);

@@ -18,14 +18,14 @@ use super::{SliceError, TexelVolume};
 /// Baked lighting shared by the builders.
 #[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 #[serde(default, deny_unknown_fields)]
-pub struct Lighting {
+pub struct SliceLighting {
     /// Direction toward the light (normalised on use).
     pub direction: [f32; 3],
     /// Ambient share in `[0, 1]`.
     pub ambient: f32,
 }
 
-impl Default for Lighting {
+impl Default for SliceLighting {
     /// data-gen's default light: from `(0.5, 0.8, 0.35)`, ambient 0.3.
     fn default() -> Self {
         let l = Light::default();
@@ -36,7 +36,7 @@ impl Default for Lighting {
     }
 }
 
-impl Lighting {
+impl SliceLighting {
     fn light(&self) -> Result<Light, SliceError> {
         let d = Vec3::from_array(self.direction);
         if !d.is_finite() || d.length_squared() < 1e-12 {
@@ -110,7 +110,7 @@ pub struct HeightFieldParams {
     /// Linear RGB albedo of the ground.
     pub albedo: [f32; 3],
     /// Baked light.
-    pub lighting: Lighting,
+    pub lighting: SliceLighting,
 }
 
 impl Default for HeightFieldParams {
@@ -120,7 +120,7 @@ impl Default for HeightFieldParams {
             dims: [32; 3],
             voxel: 1.0 / 32.0,
             albedo: [0.55, 0.45, 0.3],
-            lighting: Lighting::default(),
+            lighting: SliceLighting::default(),
         }
     }
 }
@@ -318,7 +318,7 @@ pub struct ImplicitParams {
     /// `x` and `z` already: nine times faster).
     pub periodic_images: bool,
     /// Baked light.
-    pub lighting: Lighting,
+    pub lighting: SliceLighting,
 }
 
 impl Default for ImplicitParams {
@@ -330,7 +330,7 @@ impl Default for ImplicitParams {
             supersample: 3,
             lipschitz: None,
             periodic_images: true,
-            lighting: Lighting::default(),
+            lighting: SliceLighting::default(),
         }
     }
 }
@@ -515,7 +515,7 @@ pub struct ShapeParams {
     /// Sub-samples per axis and voxel (data-gen's voxelisation).
     pub supersample: usize,
     /// Baked light.
-    pub lighting: Lighting,
+    pub lighting: SliceLighting,
 }
 
 impl Default for ShapeParams {
@@ -527,7 +527,7 @@ impl Default for ShapeParams {
             voxel: 1.0 / 16.0,
             min: [-1.0, 0.0, -1.0],
             supersample: 3,
-            lighting: Lighting::default(),
+            lighting: SliceLighting::default(),
         }
     }
 }

@@ -14,10 +14,10 @@ use std::time::Instant;
 use super::build::{TestTile, test_tile};
 use super::curved::{CurvedParams, render_curved_slices, render_curved_truth};
 use super::merge::{MergeRule, SliceData, SliceParams, build_slices};
-use super::render::{RenderParams, View, render_slices};
+use super::render::{SliceRenderParams, StackView, render_slices};
 use super::stack::{Axis, ViewChoice, choose};
-use super::truth::{TruthParams, render_truth};
-use super::volume::Reconstruction;
+use super::truth::{VolumeTruthParams, render_truth};
+use super::volume::SliceReconstruction;
 use super::{SliceError, TexelVolume};
 use crate::metrics::psnr;
 
@@ -27,7 +27,7 @@ const PSNR_CAP: f64 = 99.0;
 /// Parameters of [`measure`].
 #[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 #[serde(default, deny_unknown_fields)]
-pub struct MeasureParams {
+pub struct SliceMeasureParams {
     /// Voxels per side of the test tiles (a power of two).
     pub size: usize,
     /// Tiles measured.
@@ -47,13 +47,13 @@ pub struct MeasureParams {
     pub both_sides: bool,
     /// Truth march samples per voxel.
     pub truth_steps: usize,
-    /// Reconstruction of the voxels in the truth and of the texels in the slices.
-    pub filter: Reconstruction,
+    /// SliceReconstruction of the voxels in the truth and of the texels in the slices.
+    pub filter: SliceReconstruction,
     /// Seed of the tiles.
     pub seed: u64,
 }
 
-impl Default for MeasureParams {
+impl Default for SliceMeasureParams {
     /// 32³ tiles, all four; angles 0–80° by 10° and 85°; azimuth 30°; distances 1, 2, 4 voxels
     /// per pixel; `d` one pixel; 48-voxel images; both sides; 8 truth steps per voxel; linear
     /// reconstruction; seed 1.
@@ -68,13 +68,13 @@ impl Default for MeasureParams {
             image_voxels: 48.0,
             both_sides: true,
             truth_steps: 8,
-            filter: Reconstruction::Linear,
+            filter: SliceReconstruction::Linear,
             seed: 1,
         }
     }
 }
 
-impl MeasureParams {
+impl SliceMeasureParams {
     /// Errors: a size that is not a power of two ≥ 2, empty lists, angles outside `[0, 89]`,
     /// non-positive distances, `d` or image size, zero truth steps.
     pub fn validate(&self) -> Result<(), SliceError> {
@@ -116,7 +116,7 @@ impl MeasureParams {
 
 /// One view of one tile at one distance.
 #[derive(Clone, Debug, PartialEq, serde::Serialize)]
-pub struct SweepRow {
+pub struct SliceSweepRow {
     /// Tile.
     pub tile: TestTile,
     /// Pixel size in voxels.
@@ -161,7 +161,7 @@ pub struct LevelRow {
 pub struct CurvedRow {
     /// Tile.
     pub tile: TestTile,
-    /// View tilt toward the axis (degrees).
+    /// StackView tilt toward the axis (degrees).
     pub tilt_deg: f64,
     /// Level `k`.
     pub level: usize,
@@ -175,7 +175,7 @@ pub struct CurvedRow {
 #[derive(Clone, Debug, PartialEq, serde::Serialize)]
 pub struct ViewError {
     /// The view.
-    pub view: View,
+    pub view: StackView,
     /// Direction and level drawn.
     pub choice: ViewChoice,
     /// PSNR against the ray-marched truth (dB, capped at 99).
@@ -193,10 +193,10 @@ pub struct ViewError {
 pub fn view_errors(
     volume: &TexelVolume,
     data: &SliceData,
-    views: &[View],
+    views: &[StackView],
     depth: f64,
-    render: &RenderParams,
-    truth: &TruthParams,
+    render: &SliceRenderParams,
+    truth: &VolumeTruthParams,
 ) -> Result<Vec<ViewError>, SliceError> {
     if data.dims() != volume.dims() {
         return Err(SliceError::InvalidParameter {
@@ -267,11 +267,11 @@ pub struct RuleSummary {
 #[derive(Clone, Debug, PartialEq, serde::Serialize)]
 pub struct MeasureReport {
     /// Parameters used.
-    pub params: MeasureParams,
+    pub params: SliceMeasureParams,
     /// The default merge rule measured as "merged".
     pub default_rule: MergeRule,
     /// One row per tile, distance, side and angle.
-    pub sweep: Vec<SweepRow>,
+    pub sweep: Vec<SliceSweepRow>,
     /// Error against level.
     pub levels: Vec<LevelRow>,
     /// Shells over a cylindrical patch (8 tiles around), error against level and rule.
@@ -310,7 +310,7 @@ impl TileData {
 
 /// Measures every tile of `params` (see the module docs). Cost: per tile, distance, side and
 /// angle one truth march and about ten slice renders; levels: one render per level and rule.
-pub fn measure(params: &MeasureParams) -> Result<MeasureReport, SliceError> {
+pub fn measure(params: &SliceMeasureParams) -> Result<MeasureReport, SliceError> {
     params.validate()?;
     let start = Instant::now();
     let default_rule = SliceParams::default().rule;
@@ -411,15 +411,15 @@ pub fn measure(params: &MeasureParams) -> Result<MeasureReport, SliceError> {
 }
 
 /// The views of the sweep: `(side, polar angle on that side, view)`.
-fn views(params: &MeasureParams) -> Vec<(&'static str, f64, View)> {
+fn views(params: &SliceMeasureParams) -> Vec<(&'static str, f64, StackView)> {
     let mut out = Vec::new();
     for &a in &params.angles_deg {
-        out.push(("above", a, View::degrees(a, params.azimuth_deg)));
+        out.push(("above", a, StackView::degrees(a, params.azimuth_deg)));
         if params.both_sides {
             out.push((
                 "below",
                 a,
-                View::degrees(180.0 - a, params.azimuth_deg + 180.0),
+                StackView::degrees(180.0 - a, params.azimuth_deg + 180.0),
             ));
         }
     }
@@ -431,7 +431,7 @@ fn curved_rows(
     tile: TestTile,
     volume: &TexelVolume,
     td: &TileData,
-    params: &MeasureParams,
+    params: &SliceMeasureParams,
 ) -> Result<Vec<CurvedRow>, SliceError> {
     let n = volume.len(Axis::Y);
     let mut rows = Vec::new();
@@ -460,15 +460,15 @@ fn curved_rows(
     Ok(rows)
 }
 
-fn render_params(params: &MeasureParams, p: f64) -> RenderParams {
+fn render_params(params: &SliceMeasureParams, p: f64) -> SliceRenderParams {
     let px = (params.image_voxels / p).round().max(1.0) as usize;
-    RenderParams {
+    SliceRenderParams {
         width: px,
         height: px,
         pixel_voxels: p,
         supersample: (2.0 * p).ceil().max(1.0) as usize,
         filter: params.filter,
-        ..RenderParams::default()
+        ..SliceRenderParams::default()
     }
 }
 
@@ -478,10 +478,10 @@ fn sweep_tile(
     tile: TestTile,
     volume: &TexelVolume,
     td: &TileData,
-    params: &MeasureParams,
+    params: &SliceMeasureParams,
     default_rule: MergeRule,
-) -> Result<(Vec<SweepRow>, Vec<LevelRow>), SliceError> {
-    let truth = TruthParams {
+) -> Result<(Vec<SliceSweepRow>, Vec<LevelRow>), SliceError> {
+    let truth = VolumeTruthParams {
         steps_per_voxel: params.truth_steps,
         filter: params.filter,
     };
@@ -523,7 +523,7 @@ fn sweep_tile(
                     }
                 }
             }
-            rows.push(SweepRow {
+            rows.push(SliceSweepRow {
                 tile,
                 pixel_voxels: p,
                 side,
@@ -535,10 +535,10 @@ fn sweep_tile(
                 psnr_three: err(def, three.axis, three.level)?,
                 psnr_three_all: err(def, three.axis, 0)?,
                 psnr_three_gpu: {
-                    let gpu = RenderParams {
+                    let gpu = SliceRenderParams {
                         supersample: 1,
                         mip_2d: true,
-                        filter: Reconstruction::Linear,
+                        filter: SliceReconstruction::Linear,
                         ..rp.clone()
                     };
                     let img = render_slices(def, three.axis, three.level, &view, &gpu)?;

@@ -109,7 +109,7 @@ impl SliceParams {
     /// `base`. Errors: no view, invalid views or depth.
     pub fn for_views(
         volume: &TexelVolume,
-        views: &[super::View],
+        views: &[super::StackView],
         depth: f64,
         base: &SliceParams,
     ) -> Result<SliceParams, SliceError> {

@@ -69,19 +69,19 @@ pub mod truth;
 pub mod volume;
 
 pub use build::{
-    HeightField, HeightFieldParams, ImplicitParams, Lighting, ShapeParams, TestTile,
+    HeightField, HeightFieldParams, ImplicitParams, ShapeParams, SliceLighting, TestTile,
     from_height_field, from_implicit, from_shape, perlin_periodic, test_tile,
 };
 pub use curved::{CurvedParams, render_curved_slices, render_curved_truth};
 pub use measure::{
-    CurvedRow, LevelRow, MeasureParams, MeasureReport, RuleSummary, SweepRow, TileSummary,
-    ViewError, measure, view_errors,
+    CurvedRow, LevelRow, MeasureReport, RuleSummary, SliceMeasureParams, SliceSweepRow,
+    TileSummary, ViewError, measure, view_errors,
 };
 pub use merge::{MergeRule, Side, SliceData, SliceParams, SliceReport, Stack, build_slices};
-pub use render::{RenderParams, View, render_slices};
+pub use render::{SliceRenderParams, StackView, render_slices};
 pub use stack::{Axis, ViewChoice, choose, choose_direction, level_for_slices, slices_needed};
-pub use truth::{TruthParams, render_truth};
-pub use volume::{Reconstruction, TexelVolume};
+pub use truth::{VolumeTruthParams, render_truth};
+pub use volume::{SliceReconstruction, TexelVolume};
 
 use altrep_data_gen::DataGenError;
 

@@ -8,19 +8,19 @@ use glam::DVec3;
 use rayon::prelude::*;
 
 use super::merge::{Side, SliceData, Stack};
-use super::volume::{Reconstruction, rescale_thickness};
+use super::volume::{SliceReconstruction, rescale_thickness};
 use super::{Axis, SliceError};
 
 /// An orthographic view of the patch (see the module conventions).
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
-pub struct View {
+pub struct StackView {
     /// Angle from `+y` (radians); beyond `π/2` the view is from below.
     pub polar: f64,
     /// Angle about `y` from `+x` toward `+z` (radians).
     pub azimuth: f64,
 }
 
-impl View {
+impl StackView {
     /// A view from angles in degrees.
     pub fn degrees(polar: f64, azimuth: f64) -> Self {
         Self {
@@ -62,7 +62,7 @@ impl View {
 /// Parameters of an image of the patch (slices and ground truth alike).
 #[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 #[serde(default, deny_unknown_fields)]
-pub struct RenderParams {
+pub struct SliceRenderParams {
     /// Image width (pixels).
     pub width: usize,
     /// Image height (pixels).
@@ -76,14 +76,14 @@ pub struct RenderParams {
     pub mip_2d: bool,
     /// Raise each slice's opacity to the path length at the view's angle (module conventions).
     pub opacity_correction: bool,
-    /// Texel reconstruction within a slice: bilinear (with [`RenderParams::mip_2d`] trilinear)
+    /// Texel reconstruction within a slice: bilinear (with [`SliceRenderParams::mip_2d`] trilinear)
     /// or nearest (finest level only).
-    pub filter: Reconstruction,
+    pub filter: SliceReconstruction,
     /// Shift of the image centre from the tile centre, `(x, z)` world units.
     pub offset: [f64; 2],
 }
 
-impl Default for RenderParams {
+impl Default for SliceRenderParams {
     /// 64 × 64 pixels of one voxel, 2 × 2 sub-samples, 2D mip off, opacity correction on,
     /// bilinear texels, centred on the tile.
     fn default() -> Self {
@@ -94,13 +94,13 @@ impl Default for RenderParams {
             supersample: 2,
             mip_2d: false,
             opacity_correction: true,
-            filter: Reconstruction::Linear,
+            filter: SliceReconstruction::Linear,
             offset: [0.0; 2],
         }
     }
 }
 
-impl RenderParams {
+impl SliceRenderParams {
     /// Errors: zero sizes, more than 64 sub-samples per side, a pixel size outside
     /// `[1e-6, 1e6]` voxels, an offset that is not finite or beyond `1e9`.
     pub fn validate(&self) -> Result<(), SliceError> {
@@ -150,7 +150,7 @@ pub(crate) struct Camera {
 }
 
 impl Camera {
-    pub fn new(extent: DVec3, voxel: f64, view: &View, p: &RenderParams) -> Self {
+    pub fn new(extent: DVec3, voxel: f64, view: &StackView, p: &SliceRenderParams) -> Self {
         let (right, up) = view.basis();
         Self {
             v: view.vector(),
@@ -237,7 +237,7 @@ fn shade_stack(
     extent: DVec3,
     cam: &Camera,
     ray: &Ray,
-    p: &RenderParams,
+    p: &SliceRenderParams,
     out: &mut [f32; 4],
 ) -> [f64; 4] {
     let axis = stack.axis();
@@ -287,7 +287,7 @@ fn shade_stack(
         let hit = ray.o + t * ray.dir;
         let (u, v) = (hit[ua] / extent[ua], hit[va] / extent[va]);
         let pyr = &slices[m.rem_euclid(n) as usize];
-        if p.filter == Reconstruction::Nearest {
+        if p.filter == SliceReconstruction::Nearest {
             let t = &pyr.levels()[0];
             let index = |x: f64, len: usize, axis: usize| {
                 let i = (x * len as f64).floor() as i64;
@@ -340,8 +340,8 @@ pub fn render_slices(
     data: &SliceData,
     axis: Axis,
     level: usize,
-    view: &View,
-    params: &RenderParams,
+    view: &StackView,
+    params: &SliceRenderParams,
 ) -> Result<RgbaImage, SliceError> {
     view.validate()?;
     params.validate()?;

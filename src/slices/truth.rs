@@ -1,31 +1,31 @@
 //! Ray-marched ground truth of a texel volume: the emission–absorption integral through the
-//! continuous medium of the module conventions (trilinear, or box with [`Reconstruction::Nearest`]), by the midpoint rule with
+//! continuous medium of the module conventions (trilinear, or box with [`SliceReconstruction::Nearest`]), by the midpoint rule with
 //! `steps_per_voxel` samples per voxel edge of path, over the same pixels and sub-samples as
 //! [`super::render_slices`].
 
 use altrep_data_gen::RgbaImage;
 
-use super::render::{Camera, RenderParams, View, accumulate};
-use super::volume::{Reconstruction, alpha_for_thickness};
+use super::render::{Camera, SliceRenderParams, StackView, accumulate};
+use super::volume::{SliceReconstruction, alpha_for_thickness};
 use super::{SliceError, TexelVolume};
 
 /// Parameters of [`render_truth`].
 #[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 #[serde(default, deny_unknown_fields)]
-pub struct TruthParams {
+pub struct VolumeTruthParams {
     /// March samples per voxel edge of path length.
     pub steps_per_voxel: usize,
-    /// Reconstruction of the medium between voxel centres.
-    pub filter: Reconstruction,
+    /// SliceReconstruction of the medium between voxel centres.
+    pub filter: SliceReconstruction,
 }
 
-impl Default for TruthParams {
+impl Default for VolumeTruthParams {
     /// 8 samples per voxel edge (the midpoint rule's error is then far below the slices'),
     /// trilinear medium.
     fn default() -> Self {
         Self {
             steps_per_voxel: 8,
-            filter: Reconstruction::Linear,
+            filter: SliceReconstruction::Linear,
         }
     }
 }
@@ -36,9 +36,9 @@ impl Default for TruthParams {
 /// Errors: invalid view or parameters, zero or more than 4096 steps.
 pub fn render_truth(
     volume: &TexelVolume,
-    view: &View,
-    params: &RenderParams,
-    truth: &TruthParams,
+    view: &StackView,
+    params: &SliceRenderParams,
+    truth: &VolumeTruthParams,
 ) -> Result<RgbaImage, SliceError> {
     view.validate()?;
     params.validate()?;
@@ -65,8 +65,8 @@ pub fn render_truth(
         for k in 0..n {
             let p = ray.o + (ray.t0 + (k as f64 + 0.5) * dt) * ray.dir;
             let v = match truth.filter {
-                Reconstruction::Linear => volume.sample(p),
-                Reconstruction::Nearest => volume.sample_nearest(p),
+                SliceReconstruction::Linear => volume.sample(p),
+                SliceReconstruction::Nearest => volume.sample_nearest(p),
             };
             let a = v[3];
             if a <= 0.0 {

@@ -192,7 +192,7 @@ impl TexelVolume {
 
 /// How the voxels (and the slice texels) are reconstructed between their centres.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
-pub enum Reconstruction {
+pub enum SliceReconstruction {
     /// Trilinear in the volume, bilinear within a slice (as a GPU's linear filtering).
     #[default]
     Linear,

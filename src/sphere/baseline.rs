@@ -10,7 +10,9 @@
 use glam::{DVec2, Vec3};
 
 use super::frames::Frame;
-use super::warp::{RaySample, RenderOutput, RenderParams, display_frame, draw, enclosing_maps};
+use super::warp::{
+    RaySample, RenderOutput, SphereRenderParams, display_frame, draw, enclosing_maps,
+};
 use super::{SphereError, SphereImages};
 
 /// Bilinear depth (undefined texels read as 0) and coverage at frame position `P`.
@@ -42,7 +44,7 @@ fn depth_and_coverage(frame: &Frame, p: DVec2) -> (f64, f64) {
 pub fn render_engine_baseline(
     images: &SphereImages,
     dir: glam::DVec3,
-    params: &RenderParams,
+    params: &SphereRenderParams,
 ) -> Result<RenderOutput, SphereError> {
     params.validate()?;
     let display = display_frame(images, dir)?;

@@ -7,7 +7,7 @@ use altrep_data_gen::{OrthoFrame, RgbaImage, Shape, render_truth_frame};
 use glam::DVec3;
 
 use super::baseline::render_engine_baseline;
-use super::warp::{RenderOutput, RenderParams, render};
+use super::warp::{RenderOutput, SphereRenderParams, render};
 use super::{Coverage, SphereError, SphereImages, SphereParams, check};
 use crate::metrics::{ErrorSplit, error_split, psnr, silhouette_iou};
 
@@ -32,23 +32,23 @@ pub fn fibonacci_directions(n: usize, coverage: Coverage) -> Vec<DVec3> {
 
 /// What is measured and how.
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
-pub struct MeasureParams {
+pub struct SphereMeasureParams {
     /// Test directions (Fibonacci spiral over the view set's coverage).
     pub directions: usize,
     /// How both methods draw (size, samples per pixel, thresholds, light).
-    pub render: RenderParams,
+    pub render: SphereRenderParams,
     /// `k × k` rays per pixel of the ground truth.
     pub truth_supersample: usize,
 }
 
-impl Default for MeasureParams {
+impl Default for SphereMeasureParams {
     /// 100 directions, 128² with 2 × 2 rays per pixel, truth 4 × 4.
     fn default() -> Self {
         Self {
             directions: 100,
-            render: RenderParams {
+            render: SphereRenderParams {
                 samples: 2,
-                ..RenderParams::default()
+                ..SphereRenderParams::default()
             },
             truth_supersample: 4,
         }
@@ -176,7 +176,7 @@ pub fn measure(
     images: &SphereImages,
     directions: &[DVec3],
     truths: &[RgbaImage],
-    params: &MeasureParams,
+    params: &SphereMeasureParams,
 ) -> Result<SphereMeasurement, SphereError> {
     check(
         directions.len() == truths.len() && !directions.is_empty(),

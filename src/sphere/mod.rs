@@ -105,6 +105,7 @@
 //! attempt that marched the rest of the ray only where needed changed the picture and was
 //! withdrawn.
 
+pub mod asset;
 mod baseline;
 mod bounds;
 mod frames;
@@ -116,13 +117,13 @@ pub use baseline::render_engine_baseline;
 pub use bounds::{BoundsCheck, ConeBounds, check_bounds};
 pub use frames::{Frame, FrameCodes, SphereImages, SphereParams, SurfaceModel};
 pub use measure::{
-    BudgetRow, MeasureParams, MethodStats, SphereMeasurement, budget_table, fibonacci_directions,
-    measure, truth_images,
+    BudgetRow, MethodStats, SphereMeasureParams, SphereMeasurement, budget_table,
+    fibonacci_directions, measure, truth_images,
 };
 pub use viewset::{Coverage, ViewSet, azimuth_elevation};
 pub use warp::{
     DEFAULT_EXTRA_FRAMES, DEFAULT_HOLE_DEPTH, EnclosingFrame, MAX_CARVE_ROUNDS, MAX_EXTRA_FRAMES,
-    RenderOutput, RenderParams, enclosing_frames, extra_frames, render,
+    RenderOutput, SphereRenderParams, enclosing_frames, extra_frames, render,
 };
 
 use altrep_data_gen::DataGenError;

@@ -18,7 +18,7 @@ pub const MAX_CARVE_ROUNDS: usize = 8;
 /// be decided by rounding.
 const PROBE: f64 = 1e-9;
 
-/// The default [`RenderParams::hole_depth`]: half the bounding sphere's radius. Measured over
+/// The default [`SphereRenderParams::hole_depth`]: half the bounding sphere's radius. Measured over
 /// the ten subjects of the README's budget table (every budget of every subject gains, 0.01–2.7
 /// dB, against colouring every hole), it costs the worst single direction of some subjects
 /// (truck, 4 × 4 frames of 64²: 21.72 → 19.96 dB at 20° of elevation, where a real surface no
@@ -29,7 +29,7 @@ fn default_hole_depth() -> Option<f64> {
     Some(DEFAULT_HOLE_DEPTH)
 }
 
-/// The default [`RenderParams::extra_frames`]: the most the GPU twin holds. On the beetle (a
+/// The default [`SphereRenderParams::extra_frames`]: the most the GPU twin holds. On the beetle (a
 /// see-through shell, the subject with the most rays no enclosing frame sees) the budget
 /// table's gains over the engine blend at 0.5–32 MiB were +0.86 to −0.24 dB without extra
 /// frames, +0.56 to +1.67 with 3 and +1.35 to +2.29 with 8; the cost falls on those rays only
@@ -41,7 +41,7 @@ fn default_extra_frames() -> usize {
     DEFAULT_EXTRA_FRAMES
 }
 
-/// Largest [`RenderParams::extra_frames`] (the GPU twin holds this many frame slots beside the
+/// Largest [`SphereRenderParams::extra_frames`] (the GPU twin holds this many frame slots beside the
 /// three enclosing frames).
 pub const MAX_EXTRA_FRAMES: usize = 8;
 
@@ -55,7 +55,7 @@ const EXTRA_MIN_FACING: f64 = 0.1;
 /// Parameters of [`render`] (and of the engine baseline, which uses `size`, `samples` and
 /// `light`).
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
-pub struct RenderParams {
+pub struct SphereRenderParams {
     /// Output width and height in pixels; the image covers the bounding sphere's square.
     pub size: usize,
     /// `s × s` stratified rays per pixel (alpha is their coverage).
@@ -84,7 +84,7 @@ pub struct RenderParams {
     pub light: Light,
 }
 
-impl Default for RenderParams {
+impl Default for SphereRenderParams {
     /// 128², one ray per pixel, visibility 2, bounds on, hole depth 0.5, the default light.
     fn default() -> Self {
         Self {
@@ -99,7 +99,7 @@ impl Default for RenderParams {
     }
 }
 
-impl RenderParams {
+impl SphereRenderParams {
     /// Checks the parameters. Errors: a zero size or sample count, sizes above 8192 or 16
     /// samples, thresholds that are not finite and positive, more than [`MAX_EXTRA_FRAMES`]
     /// extra frames.
@@ -366,7 +366,7 @@ pub fn enclosing_frames(
 }
 
 /// The extra frames that [`render`] asks, in order, where no enclosing frame of direction
-/// `dir` sees the point found ([`RenderParams::extra_frames`]): up to `n` frames outside its
+/// `dir` sees the point found ([`SphereRenderParams::extra_frames`]): up to `n` frames outside its
 /// grid triangle that face it (`d·d_k ≥ 0.1`), the nearest to it first (the frame index breaks
 /// ties), each with the small colour weight `render` gives them (1e-3: they colour a point
 /// only where no enclosing frame sees it, or nearly so). Cost: `O(frames · log frames)`.
@@ -435,7 +435,7 @@ pub(crate) struct RaySample {
 /// rows in parallel. Alpha is the share of rays that found a surface; the depth of a pixel is
 /// that of its first ray.
 pub(crate) fn draw(
-    params: &RenderParams,
+    params: &SphereRenderParams,
     trace: impl Fn(f64, f64, f64) -> RaySample + Sync,
 ) -> RenderOutput {
     let (w, s) = (params.size, params.samples);
@@ -502,7 +502,7 @@ pub(crate) fn draw(
 pub fn render(
     images: &SphereImages,
     dir: DVec3,
-    params: &RenderParams,
+    params: &SphereRenderParams,
 ) -> Result<RenderOutput, SphereError> {
     params.validate()?;
     let display = display_frame(images, dir)?;
@@ -544,7 +544,7 @@ fn trace(
     x: f64,
     y: f64,
     r2: f64,
-    params: &RenderParams,
+    params: &SphereRenderParams,
 ) -> RaySample {
     let mut ray = RaySample::default();
     let zs = (1.0 - r2).sqrt();

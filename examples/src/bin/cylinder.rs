@@ -22,9 +22,9 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 
 use altrep::asset::{AssetWriter, Conventions};
+use altrep::cylinder::asset::{Cylinder, CylinderData, CylinderSpec};
 use altrep::cylinder::{OffsetParams, OffsetTexture};
-use altrep::pipeline::cylinder::{Cylinder, CylinderData, CylinderSpec};
-use altrep::pipeline::{Needs, Representation, Source};
+use altrep::representation::{Needs, Representation, Source};
 use altrep_data_gen::{BoundingCylinder, Light, RgbaImage, TruthParams, render_truth, scene_shape};
 use altrep_display::Precision;
 use altrep_display::cylinder::{CylinderDisplay, CylinderDraw, CylinderMode, load_cylinder};

@@ -20,10 +20,10 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 
 use altrep::asset::{AssetReader, AssetWriter, Conventions};
-use altrep::ellipsoid::octree::RenderParams;
+use altrep::ellipsoid::asset::{OctreeRepr, OctreeSpec};
+use altrep::ellipsoid::octree::OctreeRenderParams;
 use altrep::metrics::{psnr, silhouette_iou};
-use altrep::pipeline::octree::{OctreeRepr, OctreeSpec};
-use altrep::pipeline::{Needs, Representation, Source};
+use altrep::representation::{Needs, Representation, Source};
 use altrep_data_gen::{BoundingCylinder, Light, RgbaImage, TruthParams, render_truth, scene_shape};
 use altrep_display::to_srgb8;
 use clap::Parser;
@@ -107,9 +107,9 @@ fn run(args: &Args) -> Result<(), String> {
         },
     )
     .map_err(|x| e(&x))?;
-    let mut params = RenderParams {
+    let mut params = OctreeRenderParams {
         ambient: f64::from(light.ambient),
-        ..RenderParams::default()
+        ..OctreeRenderParams::default()
     };
     params.light.x = f64::from(light.direction.x);
     params.light.y = f64::from(light.direction.y);

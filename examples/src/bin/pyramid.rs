@@ -19,10 +19,10 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 
 use altrep::asset::{AssetWriter, Conventions};
-use altrep::pipeline::pyramid::{PyramidAsset, PyramidRepr};
-use altrep::pipeline::{Needs, Representation, Source};
+use altrep::pyramid::asset::{PyramidAsset, PyramidRepr};
 use altrep::pyramid::truth::{PlaneView, footprints, supersampled_truth};
 use altrep::pyramid::{FipMap, PyramidData, PyramidParams, Texture, WrapMode};
+use altrep::representation::{Needs, Representation, Source};
 use altrep_data_gen::{Light, RgbaImage};
 use altrep_display::pyramid::{PyramidDisplay, Sampler, load_pyramid, value_psnr, values_to_image};
 use altrep_display::{Gpu, to_srgb8};

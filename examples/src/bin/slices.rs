@@ -19,8 +19,8 @@ use std::process::ExitCode;
 
 use altrep::metrics::psnr;
 use altrep::slices::{
-    RenderParams, SliceParams, TestTile, TruthParams, View, build_slices, choose, render_slices,
-    render_truth, test_tile,
+    SliceParams, SliceRenderParams, StackView, TestTile, VolumeTruthParams, build_slices, choose,
+    render_slices, render_truth, test_tile,
 };
 use altrep_data_gen::RgbaImage;
 use altrep_display::to_srgb8;
@@ -69,10 +69,10 @@ struct Args {
 fn run(args: &Args) -> Result<(), String> {
     let e = |e: &dyn std::fmt::Display| e.to_string();
     std::fs::create_dir_all(&args.out).map_err(|x| e(&x))?;
-    let rp = RenderParams {
+    let rp = SliceRenderParams {
         width: args.pixels,
         height: args.pixels,
-        ..RenderParams::default()
+        ..SliceRenderParams::default()
     };
     let bg = [0.5; 3];
     println!(
@@ -88,18 +88,18 @@ fn run(args: &Args) -> Result<(), String> {
         let (data, _) = build_slices(&volume, &SliceParams::default()).map_err(|x| e(&x))?;
         // The criterion of `altrep slices`: visible depth of one pixel.
         let depth = volume.voxel_size();
-        let pair = |view: &View| -> Result<(RgbaImage, f64, String), String> {
+        let pair = |view: &StackView| -> Result<(RgbaImage, f64, String), String> {
             let c = choose(&volume, view.vector(), depth, [true; 3]).map_err(|x| e(&x))?;
             let slices = render_slices(&data, c.axis, c.level, view, &rp).map_err(|x| e(&x))?;
-            let truth =
-                render_truth(&volume, view, &rp, &TruthParams::default()).map_err(|x| e(&x))?;
+            let truth = render_truth(&volume, view, &rp, &VolumeTruthParams::default())
+                .map_err(|x| e(&x))?;
             let db = psnr(&slices, &truth).map_err(|x| e(&x))?;
             let what = format!("{}:{}", c.axis.name(), c.slices);
             Ok((RgbaImage::side_by_side(&[&slices, &truth]), db, what))
         };
         let mut line = format!("  {:<7}", tile.name());
         for &polar in &args.polars {
-            let (img, db, what) = pair(&View::degrees(polar, args.azimuth))?;
+            let (img, db, what) = pair(&StackView::degrees(polar, args.azimuth))?;
             line += &format!("  {polar}° {db:.1} ({what})");
             let path = args.out.join(format!("{}-{polar}deg.png", tile.name()));
             to_srgb8(&img, bg, args.scale)
@@ -116,7 +116,7 @@ fn run(args: &Args) -> Result<(), String> {
             let mut worst = f64::INFINITY;
             for f in 0..n {
                 let az = 360.0 * f as f64 / n as f64;
-                let (img, db, _) = pair(&View::degrees(args.turntable_polar, az))?;
+                let (img, db, _) = pair(&StackView::degrees(args.turntable_polar, az))?;
                 worst = worst.min(db);
                 enc.encode_frame(Frame::from_parts(
                     to_srgb8(&img, bg, args.scale),

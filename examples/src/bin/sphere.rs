@@ -24,10 +24,10 @@ use std::process::ExitCode;
 
 use altrep::asset::{AssetWriter, Conventions};
 use altrep::metrics::psnr;
-use altrep::pipeline::sphere::{SphereRepr, SphereSpec};
-use altrep::pipeline::{Needs, Representation, Source};
+use altrep::representation::{Needs, Representation, Source};
+use altrep::sphere::asset::{SphereRepr, SphereSpec};
 use altrep::sphere::{
-    RenderParams, SphereImages, azimuth_elevation, render_engine_baseline, truth_images,
+    SphereImages, SphereRenderParams, azimuth_elevation, render_engine_baseline, truth_images,
 };
 use altrep_data_gen::{Light, RgbaImage, scene_shape};
 use altrep_display::Precision;
@@ -58,7 +58,7 @@ struct Args {
     #[arg(long, default_value_t = 8)]
     grid: usize,
     /// Frames asked beyond the three enclosing ones where none of those sees the point found
-    /// (0 to 8; `altrep::sphere::RenderParams::extra_frames`).
+    /// (0 to 8; `altrep::sphere::SphereRenderParams::extra_frames`).
     #[arg(long, default_value_t = altrep::sphere::DEFAULT_EXTRA_FRAMES)]
     extra_frames: usize,
     /// Texels per frame side when precomputing.
@@ -157,9 +157,9 @@ fn run(args: &Args) -> Result<(), String> {
     let disp = SphereDisplay::new(&gpu, &images, Precision::F32).map_err(|e| e.to_string())?;
     let shape = scene_shape(&args.shape).map_err(|e| e.to_string())?;
     let light = Light::default();
-    let cpu = RenderParams {
+    let cpu = SphereRenderParams {
         size: screen,
-        ..RenderParams::default()
+        ..SphereRenderParams::default()
     };
     // (impostor | engine | original, ms, fetches per ray, PSNR ours, PSNR engine)
     let triple = |d: DVec3| -> Result<(RgbaImage, f64, f64, f64, f64), String> {

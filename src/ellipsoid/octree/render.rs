@@ -82,7 +82,7 @@ impl Octree {
     pub fn render_level(
         &self,
         level: u32,
-        params: &RenderParams,
+        params: &OctreeRenderParams,
     ) -> Result<altrep_data_gen::RgbaImage, EllipsoidError> {
         let light = params.light;
         let ln = light.norm();
@@ -174,7 +174,7 @@ impl Octree {
 
 /// Parameters of [`Octree::render_level`].
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct RenderParams {
+pub struct OctreeRenderParams {
     /// Direction toward the light (object frame, any length).
     pub light: Vector3<f64>,
     /// Ambient share of the shading in `[0, 1]`.
@@ -185,7 +185,7 @@ pub struct RenderParams {
     pub steps_per_voxel: usize,
 }
 
-impl Default for RenderParams {
+impl Default for OctreeRenderParams {
     /// Light from the upper right front `(0.5, 0.8, 0.35)`, ambient 0.3 (as `altrep_data_gen`'s
     /// default light), `τ = 4`, two samples per voxel.
     fn default() -> Self {

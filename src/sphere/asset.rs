@@ -16,14 +16,14 @@ use glam::DVec3;
 use serde::{Deserialize, Serialize};
 use serde_json::json;
 
-use super::manifest::Needs;
-use super::repr::{Measurement, Picture, Representation, Source};
-use super::{PipelineError, Plan};
 use crate::asset::{AssetReader, AssetWriter, Channel, CodeImage, Encoding};
+use crate::representation::{
+    Measurement, Needs, Picture, PipelineError, Plan, Representation, Source,
+};
 use crate::sphere::{
-    ConeBounds, Coverage, FrameCodes, MeasureParams, RenderParams, SphereError, SphereImages,
-    SphereParams, SurfaceModel, ViewSet, azimuth_elevation, fibonacci_directions, measure, render,
-    render_engine_baseline, truth_images,
+    ConeBounds, Coverage, FrameCodes, SphereError, SphereImages, SphereMeasureParams, SphereParams,
+    SphereRenderParams, SurfaceModel, ViewSet, azimuth_elevation, fibonacci_directions, measure,
+    render, render_engine_baseline, truth_images,
 };
 
 /// Manifest parameters of images with parallax from any direction (`[asset.sphere]`).
@@ -151,6 +151,10 @@ impl Representation for SphereRepr {
     type Spec = SphereSpec;
     type Data = SphereImages;
     type Decisions = SphereDecisions;
+
+    fn validate(spec: &Self::Spec) -> Result<(), String> {
+        spec.validate()
+    }
 
     fn relevant_needs(needs: &Needs) -> serde_json::Value {
         // The azimuths decide nothing that is built, but the measured directions.
@@ -407,13 +411,13 @@ impl Representation for SphereRepr {
         let shape = source.shape()?;
         let dirs = measure_directions(needs, data.params.set.coverage, 8);
         let size = data.params.size.clamp(32, 256);
-        let params = MeasureParams {
+        let params = SphereMeasureParams {
             directions: dirs.len(),
-            render: RenderParams {
+            render: SphereRenderParams {
                 size,
                 samples: 1,
                 light: source.light,
-                ..RenderParams::default()
+                ..SphereRenderParams::default()
             },
             truth_supersample: 3,
         };

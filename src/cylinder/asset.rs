@@ -18,13 +18,14 @@ use altrep_data_gen::{BoundingCylinder, CylinderParams};
 use serde::{Deserialize, Serialize};
 use serde_json::json;
 
-use super::manifest::{Lighting, Needs};
-use super::repr::{Measurement, Picture, Representation, Source, fold, score, secs, truth};
-use super::{PipelineError, Plan};
 use crate::asset::{AssetReader, AssetWriter, Channel, CodeImage, Encoding};
 use crate::cylinder::{
-    BoundsParams, CoverageParams, CylinderError, CylindricalTexture, MarchBounds, RenderParams,
-    coverage,
+    BoundsParams, CoverageParams, CylinderError, CylinderRenderParams, CylindricalTexture,
+    MarchBounds, coverage,
+};
+use crate::representation::{
+    Lighting, Measurement, Needs, Picture, PipelineError, Plan, Representation, Source, fold,
+    score, secs, truth,
 };
 
 /// Manifest parameters of the cylindrical texture (`[asset.cylinder]`).
@@ -127,6 +128,10 @@ impl Representation for Cylinder {
     type Spec = CylinderSpec;
     type Data = CylinderData;
     type Decisions = CylinderDecisions;
+
+    fn validate(spec: &Self::Spec) -> Result<(), String> {
+        spec.validate()
+    }
 
     fn relevant_needs(needs: &Needs) -> serde_json::Value {
         json!({ "screen_px_max": needs.screen_px[1], "lighting": needs.lighting })
@@ -338,11 +343,14 @@ impl Representation for Cylinder {
         let mut scores = Vec::new();
         let mut pictures = Vec::new();
         let (mut steps, mut samples) = (0u64, 0u64);
-        for (i, &angle) in super::repr::measure_angles(needs, 4).iter().enumerate() {
+        for (i, &angle) in crate::representation::measure_angles(needs, 4)
+            .iter()
+            .enumerate()
+        {
             let reference = truth(source, angle, size, 3)?;
             let render = data.bounds.render(
                 &data.texture,
-                &RenderParams {
+                &CylinderRenderParams {
                     angle,
                     width: size,
                     height: size,

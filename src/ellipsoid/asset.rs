@@ -15,12 +15,13 @@ use glam::DVec3;
 use serde::{Deserialize, Serialize};
 use serde_json::json;
 
-use super::manifest::Needs;
-use super::repr::{Measurement, Picture, Representation, Source, fold, score, secs, truth};
-use super::{PipelineError, Plan};
 use crate::asset::{AssetReader, AssetWriter, Channel, Encoding};
-use crate::ellipsoid::octree::{OctreeNode, PackedEllipsoid, RenderParams};
+use crate::ellipsoid::octree::{OctreeNode, OctreeRenderParams, PackedEllipsoid};
 use crate::ellipsoid::{FilterRule, Octree, OctreeParams as BuildParams};
+use crate::representation::{
+    Measurement, Needs, Picture, PipelineError, Plan, Representation, Source, fold, score, secs,
+    truth,
+};
 
 /// Bytes per stored node.
 pub const NODE_BYTES: usize = 52;
@@ -93,6 +94,10 @@ impl Representation for OctreeRepr {
     type Spec = OctreeSpec;
     type Data = Octree;
     type Decisions = OctreeDecisions;
+
+    fn validate(spec: &Self::Spec) -> Result<(), String> {
+        spec.validate()
+    }
 
     fn relevant_needs(needs: &Needs) -> serde_json::Value {
         json!({ "screen_px_max": needs.screen_px[1] })
@@ -264,10 +269,10 @@ impl Representation for OctreeRepr {
         let side = 1usize << tree.depth();
         let reference = truth(source, std::f64::consts::FRAC_PI_2, side, 3)?;
         let d = source.light.direction;
-        let params = RenderParams {
+        let params = OctreeRenderParams {
             light: nalgebra::Vector3::new(f64::from(d.x), f64::from(d.y), f64::from(d.z)),
             ambient: f64::from(source.light.ambient),
-            ..RenderParams::default()
+            ..OctreeRenderParams::default()
         };
         let mut scores = Vec::new();
         let mut images = vec![reference.clone()];

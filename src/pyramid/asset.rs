@@ -33,9 +33,6 @@ use std::time::Instant;
 use serde::{Deserialize, Serialize};
 use serde_json::json;
 
-use super::manifest::Needs;
-use super::repr::{Measurement, Picture, Representation, Source, fold, secs};
-use super::{PipelineError, Plan};
 use crate::asset::{AssetReader, AssetWriter, Channel, Encoding, FloatImage};
 use crate::pyramid::fip::shear_set;
 use crate::pyramid::rip::halvings;
@@ -43,6 +40,9 @@ use crate::pyramid::truth::{PlaneView, footprints, supersampled_truth};
 use crate::pyramid::{
     FipMap, Pyramid, PyramidData, PyramidKind, PyramidParams, RipMap, Texture, WrapMode,
     shear_prefix,
+};
+use crate::representation::{
+    Measurement, Needs, Picture, PipelineError, Plan, Representation, Source, fold, secs,
 };
 
 /// Side of the measured images (pixels).
@@ -215,10 +215,15 @@ fn keep_levels(n: usize, needs: &Needs, axis: &str, plan: &mut Plan, record: boo
 
 impl Representation for PyramidRepr {
     const NAME: &'static str = "pyramid";
+    const FROM_TEXTURE: bool = true;
     const CASTS_RAYS: bool = false;
     type Spec = PyramidParams;
     type Data = PyramidAsset;
     type Decisions = PyramidDecisions;
+
+    fn validate(spec: &Self::Spec) -> Result<(), String> {
+        spec.validate(4).map_err(|e| format!("pyramid: {e}"))
+    }
 
     fn relevant_needs(needs: &Needs) -> serde_json::Value {
         json!({ "screen_px": needs.screen_px, "grazing_deg": needs.grazing_deg })

@@ -21,13 +21,14 @@ use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 use serde_json::json;
 
-use super::manifest::{Lighting, Needs};
-use super::repr::{Measurement, Picture, Representation, Source, fold, score, secs, truth};
-use super::{PipelineError, Plan};
 use crate::asset::{AssetReader, AssetWriter, Channel, CodeImage, Encoding};
 use crate::parallax::{
     BoundKind, BoundParams, Bounds, ParallaxImages, ParallaxParams, PixelBound, Reconstruction,
     RenderParams, ViewCodes, ViewStorage, WarpMethod, build_bounds, render, render_bounded_with,
+};
+use crate::representation::{
+    Lighting, Measurement, Needs, Picture, PipelineError, Plan, Representation, Source, fold,
+    score, secs, truth,
 };
 
 /// Manifest parameters of images with parallax (`[asset.parallax]`).
@@ -67,10 +68,13 @@ fn kind_of(slug: &str) -> Option<BoundKind> {
 impl ParallaxSpec {
     /// Checks ranges; the message names the key.
     pub fn validate(&self) -> Result<(), String> {
-        if !(2..=1024).contains(&self.views) {
+        let counts = ParallaxParams::VIEW_COUNTS;
+        if !counts.contains(&self.views) {
             return Err(format!(
-                "parallax.views = {} must be in 2..=1024",
-                self.views
+                "parallax.views = {} must be in {}..={}",
+                self.views,
+                counts.start(),
+                counts.end()
             ));
         }
         if !(2..=4096).contains(&self.size) {
@@ -172,6 +176,10 @@ impl Representation for Parallax {
     type Spec = ParallaxSpec;
     type Data = ParallaxData;
     type Decisions = ParallaxDecisions;
+
+    fn validate(spec: &Self::Spec) -> Result<(), String> {
+        spec.validate()
+    }
 
     fn relevant_needs(needs: &Needs) -> serde_json::Value {
         json!({ "azimuth_deg": needs.azimuth_deg, "screen_px": needs.screen_px, "lighting": needs.lighting })
@@ -591,7 +599,10 @@ impl Representation for Parallax {
             .iter()
             .filter(|b| b.kind != BoundKind::Cylinder)
             .max_by_key(|b| BoundKind::ALL.iter().position(|&k| k == b.kind));
-        for (i, &angle) in super::repr::measure_angles(needs, 4).iter().enumerate() {
+        for (i, &angle) in crate::representation::measure_angles(needs, 4)
+            .iter()
+            .enumerate()
+        {
             let reference = truth(source, angle, size, 3)?;
             let screen = RenderParams {
                 supersample: 1,

@@ -24,7 +24,9 @@ use std::path::PathBuf;
 use serde::{Deserialize, Serialize};
 
 pub use read::{AssetReader, PngDecode};
-pub use write::{AssetWriter, PngCode, STAGING_DIR, replace_dir, valid_name, write_atomic};
+pub use write::{
+    AssetWriter, PngCode, STAGING_DIR, check_owned, replace_dir, valid_name, write_atomic,
+};
 
 /// Major version of the asset format. A reader refuses a file of a newer major version; minor
 /// versions only add optional fields.
@@ -93,6 +95,18 @@ pub enum AssetError {
         /// The asset folder.
         path: PathBuf,
         /// What is missing or unexpected.
+        reason: String,
+    },
+    /// A path altrep would write or replace exists and is not altrep's (a folder without
+    /// altrep's `asset.json`, a file, a symbolic link): altrep never writes through it, replaces
+    /// it or removes it.
+    #[error(
+        "{path}: {reason}; altrep writes only what it wrote itself: move it aside or choose another --out"
+    )]
+    NotOurs {
+        /// The path at fault.
+        path: PathBuf,
+        /// What it is.
         reason: String,
     },
     /// Data handed to the writer is inconsistent (sizes, non-finite values).

@@ -3,7 +3,7 @@
 use std::io::Cursor;
 use std::path::{Path, PathBuf};
 
-use image::{ImageBuffer, ImageFormat, Rgba};
+use exr::prelude::WritableImage;
 
 use super::{
     AssetDescription, AssetError, Channel, CodeImage, Conventions, DESCRIPTION_FILE, FORMAT_MAJOR,
@@ -260,15 +260,23 @@ impl AssetWriter {
         if image.data.iter().flatten().any(|v| !v.is_finite()) {
             return Err(bad("a value is not finite".into()));
         }
-        let buf: ImageBuffer<Rgba<f32>, Vec<f32>> = ImageBuffer::from_raw(
-            image.width as u32,
-            image.height as u32,
-            image.data.iter().flatten().copied().collect(),
-        )
-        .ok_or_else(|| bad("size".into()))?;
+        // The same image, channels and defaults as the `image` crate's encoder writes, but its
+        // blocks compressed and written one after another, so the bytes are the same on every
+        // run (the parallel writer stores them in completion order).
+        let (width, data) = (image.width, &image.data);
+        let channels_of = |p: exr::math::Vec2<usize>| {
+            let [r, g, b, a] = data[p.y() * width + p.x()];
+            (r, g, b, a)
+        };
         let mut out = Cursor::new(Vec::new());
-        buf.write_to(&mut out, ImageFormat::OpenExr)
-            .map_err(|e| bad(e.to_string()))?;
+        exr::image::Image::from_channels(
+            (image.width, image.height),
+            exr::image::SpecificChannels::rgba(channels_of),
+        )
+        .write()
+        .non_parallel()
+        .to_buffered(&mut out)
+        .map_err(|e| bad(e.to_string()))?;
         self.add(
             role,
             file,
@@ -340,7 +348,14 @@ impl AssetWriter {
         })?;
         let path = self.staging.join(DESCRIPTION_FILE);
         std::fs::write(&path, json).map_err(io(&path))?;
+        // Checked again at the last moment: what is replaced below must still be altrep's.
+        let name = |p: &Path| p.file_name().map(|n| n.to_string_lossy().into_owned());
         if let Some(parent) = self.target.parent() {
+            if let (Some(out), Some(a), Some(r)) =
+                (parent.parent(), name(parent), name(&self.target))
+            {
+                check_owned(out, &a, &r)?;
+            }
             std::fs::create_dir_all(parent).map_err(io(parent))?;
         }
         replace_dir(&self.staging, &self.target)?;
@@ -374,6 +389,74 @@ pub fn replace_dir(from: &Path, to: &Path) -> Result<(), AssetError> {
         std::fs::remove_dir_all(&aside).map_err(io(&aside))?;
     } else {
         std::fs::rename(from, to).map_err(io(to))?;
+    }
+    Ok(())
+}
+
+/// Checks that writing representation `repr` of asset `asset` into `out` touches only what altrep
+/// wrote: `out/asset` is absent or a real folder (not a symbolic link), and `out/asset/repr` is
+/// absent or a real folder holding an `asset.json` (itself not a link) that parses as altrep's
+/// asset description. Anything else is [`AssetError::NotOurs`] naming the path, and is left as it
+/// is. Called before any work and again just before a folder is replaced. Cost: at most three
+/// `lstat`s and one read of `asset.json`.
+pub fn check_owned(out: &Path, asset: &str, repr: &str) -> Result<(), AssetError> {
+    let not_ours = |path: &Path, reason: &str| AssetError::NotOurs {
+        path: path.to_path_buf(),
+        reason: reason.into(),
+    };
+    let kind = |path: &Path| match std::fs::symlink_metadata(path) {
+        Ok(m) => Ok(Some(m.file_type())),
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(None),
+        Err(e) => Err(io(path)(e)),
+    };
+    let folder = out.join(asset);
+    match kind(&folder)? {
+        None => return Ok(()),
+        Some(t) if t.is_symlink() => {
+            return Err(not_ours(
+                &folder,
+                "is a symbolic link, which altrep does not follow",
+            ));
+        }
+        Some(t) if !t.is_dir() => return Err(not_ours(&folder, "is a file, not an asset folder")),
+        Some(_) => {}
+    }
+    let target = folder.join(repr);
+    match kind(&target)? {
+        None => return Ok(()),
+        Some(t) if t.is_symlink() => {
+            return Err(not_ours(
+                &target,
+                "is a symbolic link, which altrep does not follow",
+            ));
+        }
+        Some(t) if !t.is_dir() => {
+            return Err(not_ours(&target, "is a file, not an asset folder"));
+        }
+        Some(_) => {}
+    }
+    let description = target.join(DESCRIPTION_FILE);
+    match kind(&description)? {
+        None => {
+            return Err(not_ours(
+                &target,
+                "exists and holds no asset.json: it is not an asset altrep wrote",
+            ));
+        }
+        Some(t) if !t.is_file() => {
+            return Err(not_ours(
+                &description,
+                "is not a plain file (a link or a folder): the folder is not an asset altrep wrote",
+            ));
+        }
+        Some(_) => {}
+    }
+    let bytes = std::fs::read(&description).map_err(io(&description))?;
+    if serde_json::from_slice::<AssetDescription>(&bytes).is_err() {
+        return Err(not_ours(
+            &description,
+            "is not an asset description altrep wrote (docs/asset-format.md)",
+        ));
     }
     Ok(())
 }

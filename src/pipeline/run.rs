@@ -213,6 +213,35 @@ fn io(path: &Path) -> impl FnOnce(std::io::Error) -> PipelineError + '_ {
 fn prepare_output(out: &Path) -> Result<OutputLock, PipelineError> {
     std::fs::create_dir_all(out).map_err(io(out))?;
     let lock_path = out.join(LOCK_FILE);
+    // A folder altrep has run in holds its lock file. In any other folder, the names altrep
+    // writes at the top must be free; and a symbolic link is never written through.
+    let ran_here = lock_path.exists();
+    for name in [
+        "report.md",
+        "report.json",
+        "pictures",
+        STAGING_DIR,
+        LOCK_FILE,
+    ] {
+        let path = out.join(name);
+        let Ok(meta) = std::fs::symlink_metadata(&path) else {
+            continue;
+        };
+        let reason = if meta.file_type().is_symlink() {
+            "is a symbolic link, which altrep does not follow"
+        } else if !ran_here {
+            "exists in a folder altrep has not written into (no lock file)"
+        } else if (name == "pictures" || name == STAGING_DIR) != meta.is_dir() {
+            "is not what altrep writes under this name"
+        } else {
+            continue;
+        };
+        return Err(crate::asset::AssetError::NotOurs {
+            path,
+            reason: reason.into(),
+        }
+        .into());
+    }
     let file = File::options()
         .create(true)
         .truncate(false)
@@ -375,6 +404,12 @@ pub fn run_scene(manifest: &Manifest, options: &RunOptions) -> Result<RunSummary
         .assets
         .iter()
         .partition(|a| options.shard.is_none_or(|s| s.owns(&a.name)));
+    // Before any work: every folder this run may replace is altrep's.
+    for spec in &mine {
+        for repr in wanted(spec) {
+            crate::asset::check_owned(&options.out, &spec.name, repr)?;
+        }
+    }
     let jobs: u64 = mine.iter().map(|a| wanted(a).len() as u64).sum();
     let bar = if options.progress {
         indicatif::ProgressBar::new(jobs)

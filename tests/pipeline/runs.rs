@@ -668,3 +668,120 @@ fn shards_split_the_assets_once() {
         assert!(Shard::parse(bad).is_err(), "{bad}");
     }
 }
+
+/// Every entry under `dir`, symbolic links not followed: files with their bytes, links with
+/// their targets, folders as empty entries.
+fn snapshot(dir: &Path) -> std::collections::BTreeMap<PathBuf, Vec<u8>> {
+    let mut out = std::collections::BTreeMap::new();
+    let mut stack = vec![dir.to_path_buf()];
+    while let Some(d) = stack.pop() {
+        for e in std::fs::read_dir(&d).unwrap() {
+            let p = e.unwrap().path();
+            let t = std::fs::symlink_metadata(&p).unwrap().file_type();
+            let v = if t.is_symlink() {
+                std::fs::read_link(&p)
+                    .unwrap()
+                    .into_os_string()
+                    .into_encoded_bytes()
+            } else if t.is_dir() {
+                stack.push(p.clone());
+                Vec::new()
+            } else {
+                std::fs::read(&p).unwrap()
+            };
+            out.insert(p, v);
+        }
+    }
+    out
+}
+
+/// What the user put where altrep writes is refused before any work, named in the error, and
+/// left as it was, as is everything outside `--out`: a folder without altrep's `asset.json`, an
+/// asset folder or a `pictures` folder that is a symbolic link to a folder outside, an
+/// `asset.json` that is a link, a file where a folder goes, and a `report.md` in a folder altrep
+/// has never run in. An asset folder altrep wrote is still replaced on a rerun.
+#[cfg(unix)]
+#[test]
+fn paths_altrep_did_not_write_are_refused_and_left_untouched() {
+    use std::os::unix::fs::symlink;
+    let m = Manifest::parse(SCENE, Path::new("scene.toml")).unwrap();
+    type Trap = fn(&Path, &Path) -> PathBuf;
+    let traps: [(&str, Trap); 7] = [
+        ("a folder without asset.json", |out, _| {
+            let p = out.join("pear/parallax");
+            std::fs::create_dir_all(&p).unwrap();
+            std::fs::write(p.join("notes.txt"), "mine").unwrap();
+            p
+        }),
+        ("an asset folder linked outside", |out, outside| {
+            std::fs::create_dir_all(outside.join("elsewhere/parallax")).unwrap();
+            std::fs::write(outside.join("elsewhere/parallax/notes.txt"), "mine").unwrap();
+            std::fs::create_dir_all(out).unwrap();
+            symlink(outside.join("elsewhere"), out.join("pear")).unwrap();
+            out.join("pear")
+        }),
+        ("a representation folder linked outside", |out, outside| {
+            std::fs::create_dir_all(outside.join("octree")).unwrap();
+            std::fs::write(outside.join("octree/asset.json"), "{}").unwrap();
+            std::fs::create_dir_all(out.join("chair")).unwrap();
+            symlink(outside.join("octree"), out.join("chair/octree")).unwrap();
+            out.join("chair/octree")
+        }),
+        ("asset.json as a link", |out, outside| {
+            std::fs::create_dir_all(out.join("chair/octree")).unwrap();
+            std::fs::write(outside.join("asset.json"), "mine").unwrap();
+            symlink(
+                outside.join("asset.json"),
+                out.join("chair/octree/asset.json"),
+            )
+            .unwrap();
+            out.join("chair/octree/asset.json")
+        }),
+        ("a file where an asset folder goes", |out, _| {
+            std::fs::create_dir_all(out).unwrap();
+            std::fs::write(out.join("pear"), "mine").unwrap();
+            out.join("pear")
+        }),
+        ("pictures linked outside", |out, outside| {
+            std::fs::create_dir_all(outside.join("photos")).unwrap();
+            std::fs::write(outside.join("photos/holiday.png"), "mine").unwrap();
+            std::fs::create_dir_all(out).unwrap();
+            symlink(outside.join("photos"), out.join("pictures")).unwrap();
+            out.join("pictures")
+        }),
+        ("a report.md of the user's", |out, _| {
+            std::fs::create_dir_all(out).unwrap();
+            std::fs::write(out.join("report.md"), "my notes").unwrap();
+            out.join("report.md")
+        }),
+    ];
+    for (what, trap) in traps {
+        let root = tempfile::tempdir().unwrap();
+        let (out, outside) = (root.path().join("out"), root.path().join("outside"));
+        std::fs::create_dir_all(&outside).unwrap();
+        let named = trap(&out, &outside);
+        let before = snapshot(root.path());
+        let e = run_scene(&m, &options(&out)).expect_err(what);
+        let msg = e.to_string();
+        assert!(
+            msg.contains(&named.display().to_string()) && msg.contains("altrep writes only"),
+            "{what}: {msg}"
+        );
+        let mut after = snapshot(root.path());
+        // The run's lock file is the one thing it may leave in `--out`.
+        after.remove(&out.join(altrep::pipeline::LOCK_FILE));
+        assert_eq!(
+            before, after,
+            "{what}: the file system around --out changed"
+        );
+    }
+    // An asset folder altrep wrote, with a stray file in it, is replaced on a rerun.
+    let root = tempfile::tempdir().unwrap();
+    let out = root.path().join("out");
+    run_scene(&m, &options(&out)).unwrap();
+    std::fs::write(out.join("pear/parallax/stray.txt"), "x").unwrap();
+    let mut o = options(&out);
+    o.force = true;
+    run_scene(&m, &o).unwrap();
+    assert!(!out.join("pear/parallax/stray.txt").exists());
+}

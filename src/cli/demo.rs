@@ -95,6 +95,9 @@ pub fn run(args: DemoArgs) -> CliResult {
             json: None,
             profile: false,
             no_measure: false,
+            // The bundled scene holds two stand-ins below the default 20 dB target (a flat
+            // sign, the truck's cylinder): the demo shows them flagged in its report.
+            allow_below_quality: true,
         },
     )?;
     let ctx = DemoContext {

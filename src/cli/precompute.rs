@@ -39,6 +39,11 @@ pub struct PrecomputeArgs {
     /// where only the precompute matters; a later run without this flag rebuilds and measures).
     #[arg(long)]
     pub no_measure: bool,
+    /// End with success even when a representation measures below its asset's quality target
+    /// (`needs.quality_db`); without it such a run ends non-zero (the report flags them either
+    /// way).
+    #[arg(long)]
+    pub allow_below_quality: bool,
 }
 
 /// Fails unless a file can be created at `path` (checked before any work, then removed).
@@ -130,6 +135,27 @@ pub fn run_manifest(manifest: &Manifest, args: &PrecomputeArgs) -> CliResult {
     }
     if !summary.ok() {
         return Err("some representations failed (see the table above)".into());
+    }
+    let below = summary.below_quality();
+    if !below.is_empty() {
+        let list: Vec<String> = below
+            .iter()
+            .map(|(o, target)| {
+                let db = o.measurement.as_ref().map_or(f64::NAN, |m| m.psnr_db);
+                format!("{}/{} {db:.2} dB < {target} dB", o.asset, o.representation)
+            })
+            .collect();
+        let message = format!(
+            "{} representation(s) below their asset's quality target (needs.quality_db): {}",
+            below.len(),
+            list.join(", ")
+        );
+        if !args.allow_below_quality {
+            return Err(
+                format!("{message}; rerun with --allow-below-quality to accept them").into(),
+            );
+        }
+        println!("{message} (accepted: --allow-below-quality)");
     }
     Ok(())
 }

@@ -196,6 +196,10 @@ pub struct Manifest {
     pub assets: Vec<AssetSpec>,
 }
 
+/// Names an output folder holds besides the asset folders: no asset may take them (ignoring
+/// case, for case-insensitive file systems).
+const RESERVED_NAMES: [&str; 3] = ["report.md", "report.json", "pictures"];
+
 /// 1-based line of byte offset `at` in `text`.
 fn line_of(text: &str, at: usize) -> usize {
     text[..at.min(text.len())]
@@ -270,12 +274,32 @@ impl Manifest {
                     ),
                 ));
             }
-            if assets.iter().any(|b| b.name == name) {
+            if let Some(b) = assets
+                .iter()
+                .find(|b: &&AssetSpec| b.name.eq_ignore_ascii_case(&name))
+            {
+                let message = if b.name == name {
+                    format!("duplicate asset name '{name}'")
+                } else {
+                    format!(
+                        "asset name '{name}' differs from '{}' only by case: one folder on a case-insensitive file system",
+                        b.name
+                    )
+                };
+                return Err(err(path, text, name_span, message));
+            }
+            if let Some(taken) = RESERVED_NAMES
+                .iter()
+                .find(|r| r.eq_ignore_ascii_case(&name))
+            {
                 return Err(err(
                     path,
                     text,
                     name_span,
-                    format!("duplicate asset name '{name}'"),
+                    format!(
+                        "asset name '{name}' is taken by the output folder's own '{taken}' (reserved: {})",
+                        RESERVED_NAMES.join(", ")
+                    ),
                 ));
             }
             let source = match (

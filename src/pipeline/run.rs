@@ -149,9 +149,27 @@ pub struct RunSummary {
     /// Per-stage times, with `--profile`.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub profile: Option<crate::profile::StageTable>,
+    /// Each asset's quality target (`needs.quality_db`, dB), by asset name.
+    pub quality_targets: std::collections::BTreeMap<String, f64>,
 }
 
 impl RunSummary {
+    /// The quality target `o` measures below, if it does.
+    fn below(&self, o: &AssetOutcome) -> Option<f64> {
+        let target = *self.quality_targets.get(&o.asset)?;
+        (o.measurement.as_ref()?.psnr_db < target).then_some(target)
+    }
+
+    /// The measured representations whose mean PSNR against the ray-cast truth lies below their
+    /// asset's quality target (`needs.quality_db`), with that target. Unmeasured ones
+    /// (`--no-measure`, cached without figures) are not judged.
+    pub fn below_quality(&self) -> Vec<(&AssetOutcome, f64)> {
+        self.outcomes
+            .iter()
+            .filter_map(|o| Some((o, self.below(o)?)))
+            .collect()
+    }
+
     /// Whether every representation was built or cached.
     pub fn ok(&self) -> bool {
         self.outcomes
@@ -166,6 +184,15 @@ impl RunSummary {
         );
         for o in &self.outcomes {
             let outcome = match &o.outcome {
+                Outcome::Built | Outcome::Cached if self.below(o).is_some() => format!(
+                    "{}, below the {} dB quality target",
+                    if o.outcome == Outcome::Built {
+                        "built"
+                    } else {
+                        "cached"
+                    },
+                    self.below(o).unwrap_or_default()
+                ),
                 Outcome::Built => "built".to_string(),
                 Outcome::Cached => "cached".to_string(),
                 Outcome::Refused(r) => format!("skipped: {r}"),
@@ -508,6 +535,10 @@ pub fn run_scene(manifest: &Manifest, options: &RunOptions) -> Result<RunSummary
         wall_seconds,
         other_shards: other_shards.iter().map(|a| a.name.clone()).collect(),
         profile: profile.map(|p| p.table(wall_seconds)),
+        quality_targets: mine
+            .iter()
+            .map(|a| (a.name.clone(), a.needs.quality_db))
+            .collect(),
     };
     write_report(&summary, options)?;
     Ok(summary)

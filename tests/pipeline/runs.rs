@@ -785,3 +785,94 @@ fn paths_altrep_did_not_write_are_refused_and_left_untouched() {
     run_scene(&m, &o).unwrap();
     assert!(!out.join("pear/parallax/stray.txt").exists());
 }
+
+/// `needs.quality_db` gates every measured representation: a pear asked for at 60 dB is flagged
+/// in the report and the command ends non-zero, naming it, unless `--allow-below-quality`; at
+/// 10 dB the same run passes without a flag.
+#[test]
+fn a_representation_below_its_quality_target_is_flagged_and_fails_the_run() {
+    let scene = |db: f64| {
+        format!(
+            "[[asset]]\nname = \"pear\"\nshape = \"pear\"\n[asset.needs]\nscreen_px = [8, 32]\nquality_db = {db}\n[asset.parallax]\nviews = 6\nsize = 32\n"
+        )
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let run = |db: f64, allow: bool| {
+        let manifest = dir.path().join(format!("scene-{db}.toml"));
+        std::fs::write(&manifest, scene(db)).unwrap();
+        let out = dir.path().join(format!("out-{db}-{allow}"));
+        let mut c = Command::new(BIN);
+        c.arg("precompute").arg(&manifest).arg("--out").arg(&out);
+        if allow {
+            c.arg("--allow-below-quality");
+        }
+        let o = c.output().unwrap();
+        let report = std::fs::read_to_string(out.join("report.md")).unwrap();
+        (
+            o.status.success(),
+            String::from_utf8_lossy(&o.stderr).into_owned(),
+            report,
+        )
+    };
+    let (ok, err, report) = run(60.0, false);
+    assert!(!ok, "a 60 dB target passed: {err}");
+    assert!(
+        err.contains("pear/parallax") && err.contains("< 60 dB"),
+        "{err}"
+    );
+    assert!(
+        report.contains("below the 60 dB quality target"),
+        "{report}"
+    );
+    let (ok, err, report) = run(60.0, true);
+    assert!(ok, "{err}");
+    assert!(
+        report.contains("below the 60 dB quality target"),
+        "{report}"
+    );
+    let (ok, err, report) = run(10.0, false);
+    assert!(ok, "{err}");
+    assert!(!report.contains("quality target"), "{report}");
+}
+
+/// Asset names that would collide in the output folder are manifest errors with their line:
+/// the names of the run's own files (any case), and two names that differ only by case (one
+/// folder on a case-insensitive file system).
+#[test]
+fn asset_names_that_collide_in_the_output_folder_are_manifest_errors() {
+    let asset =
+        |name: &str| format!("[[asset]]\nname = \"{name}\"\nshape = \"pear\"\n[asset.octree]\n");
+    for (text, want, line) in [
+        (
+            asset("report.md"),
+            "taken by the output folder's own 'report.md'",
+            2,
+        ),
+        (
+            asset("Report.JSON"),
+            "taken by the output folder's own 'report.json'",
+            2,
+        ),
+        (
+            asset("pictures"),
+            "taken by the output folder's own 'pictures'",
+            2,
+        ),
+        (
+            format!("{}{}", asset("a"), asset("A")),
+            "differs from 'a' only by case",
+            6,
+        ),
+        (
+            format!("{}{}", asset("a"), asset("a")),
+            "duplicate asset name 'a'",
+            6,
+        ),
+    ] {
+        let e = Manifest::parse(&text, Path::new("m.toml"))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains(want), "{e}");
+        assert!(e.starts_with(&format!("m.toml:{line}:")), "{e}");
+    }
+}

@@ -409,31 +409,21 @@ pub fn check_owned(out: &Path, asset: &str, repr: &str) -> Result<(), AssetError
         Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(None),
         Err(e) => Err(io(path)(e)),
     };
-    let folder = out.join(asset);
-    match kind(&folder)? {
-        None => return Ok(()),
-        Some(t) if t.is_symlink() => {
-            return Err(not_ours(
-                &folder,
-                "is a symbolic link, which altrep does not follow",
-            ));
+    let target = out.join(asset).join(repr);
+    for folder in [out.join(asset), target.clone()] {
+        match kind(&folder)? {
+            None => return Ok(()),
+            Some(t) if t.is_symlink() => {
+                return Err(not_ours(
+                    &folder,
+                    "is a symbolic link, which altrep does not follow",
+                ));
+            }
+            Some(t) if !t.is_dir() => {
+                return Err(not_ours(&folder, "is a file, not an asset folder"));
+            }
+            Some(_) => {}
         }
-        Some(t) if !t.is_dir() => return Err(not_ours(&folder, "is a file, not an asset folder")),
-        Some(_) => {}
-    }
-    let target = folder.join(repr);
-    match kind(&target)? {
-        None => return Ok(()),
-        Some(t) if t.is_symlink() => {
-            return Err(not_ours(
-                &target,
-                "is a symbolic link, which altrep does not follow",
-            ));
-        }
-        Some(t) if !t.is_dir() => {
-            return Err(not_ours(&target, "is a file, not an asset folder"));
-        }
-        Some(_) => {}
     }
     let description = target.join(DESCRIPTION_FILE);
     match kind(&description)? {

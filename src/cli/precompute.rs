@@ -140,8 +140,7 @@ pub fn run_manifest(manifest: &Manifest, args: &PrecomputeArgs) -> CliResult {
     if !below.is_empty() {
         let list: Vec<String> = below
             .iter()
-            .map(|(o, target)| {
-                let db = o.measurement.as_ref().map_or(f64::NAN, |m| m.psnr_db);
+            .map(|(o, (db, target))| {
                 format!("{}/{} {db:.2} dB < {target} dB", o.asset, o.representation)
             })
             .collect();

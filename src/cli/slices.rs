@@ -49,7 +49,7 @@ pub struct SlicesArgs {
     /// Only views from above (skip the opposite side).
     #[arg(long)]
     pub one_side: bool,
-    /// SliceReconstruction of voxels (truth) and texels (slices): linear (GPU linear filtering) or
+    /// Reconstruction of voxels (truth) and texels (slices): linear (GPU linear filtering) or
     /// nearest (box voxels, which compositing commutes with).
     #[arg(long, value_enum, default_value_t = FilterArg::Linear)]
     pub filter: FilterArg,
@@ -68,7 +68,7 @@ pub struct SlicesArgs {
     pub images: Option<PathBuf>,
 }
 
-/// SliceReconstruction on the command line.
+/// The reconstruction ([`SliceReconstruction`]) on the command line.
 #[derive(clap::ValueEnum, Clone, Copy, Debug)]
 pub enum FilterArg {
     /// Trilinear volume, bilinear slices.

@@ -1,4 +1,4 @@
-//! CoverageReport check: can a cylindrical texture hold this object at all?
+//! Coverage check: can a cylindrical texture hold this object at all?
 //!
 //! A capture ray is horizontal and radial (it travels from the bounding cylinder toward the axis),
 //! so it sees a slice only where the slice is star-shaped around the axis. A flat cut-out whose

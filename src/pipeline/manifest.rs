@@ -137,10 +137,16 @@ macro_rules! asset_structs {
             }
         }
 
-        /// The representations' keys, in the registry's order.
-        const KEYS: &[&str] = &[$(stringify!($key)),*];
-        /// Whether each of [`KEYS`] is built from a texture.
-        const FROM_TEXTURE: &[bool] = &[$(<$repr>::FROM_TEXTURE),*];
+        /// The keys of the representations built from a texture, as `[asset.KEY]`.
+        fn texture_keys() -> Vec<String> {
+            let mut v = Vec::new();
+            $(
+                if <$repr>::FROM_TEXTURE {
+                    v.push(format!("[asset.{}]", stringify!($key)));
+                }
+            )*
+            v
+        }
     };
 }
 for_each_representation!(asset_structs);
@@ -344,12 +350,6 @@ impl Manifest {
             };
             check_needs(&needs).map_err(|m| err(path, text, needs_span, m))?;
             let asked = a.asked();
-            let texture_keys: Vec<String> = KEYS
-                .iter()
-                .zip(FROM_TEXTURE)
-                .filter(|(_, t)| **t)
-                .map(|(k, _)| format!("[asset.{k}]"))
-                .collect();
             if let Some((key, span, from_texture)) =
                 asked.iter().find(|(_, _, t)| *t != source.is_texture())
             {
@@ -361,7 +361,7 @@ impl Manifest {
                     format!(
                         "asset '{name}' is a texture: it may only ask for {}; \
                          [asset.{key}] needs a `shape` or `mesh`",
-                        texture_keys.join(", ")
+                        texture_keys().join(", ")
                     )
                 };
                 return Err(err(path, text, span.clone(), message));

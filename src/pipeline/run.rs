@@ -154,16 +154,17 @@ pub struct RunSummary {
 }
 
 impl RunSummary {
-    /// The quality target `o` measures below, if it does.
-    fn below(&self, o: &AssetOutcome) -> Option<f64> {
+    /// `(measured mean PSNR, target)` when `o` measures below its asset's quality target.
+    fn below(&self, o: &AssetOutcome) -> Option<(f64, f64)> {
         let target = *self.quality_targets.get(&o.asset)?;
-        (o.measurement.as_ref()?.psnr_db < target).then_some(target)
+        let db = o.measurement.as_ref()?.psnr_db;
+        (db < target).then_some((db, target))
     }
 
     /// The measured representations whose mean PSNR against the ray-cast truth lies below their
-    /// asset's quality target (`needs.quality_db`), with that target. Unmeasured ones
-    /// (`--no-measure`, cached without figures) are not judged.
-    pub fn below_quality(&self) -> Vec<(&AssetOutcome, f64)> {
+    /// asset's quality target (`needs.quality_db`), with `(measured, target)` in dB. Unmeasured
+    /// ones (`--no-measure`, cached without figures) are not judged.
+    pub fn below_quality(&self) -> Vec<(&AssetOutcome, (f64, f64))> {
         self.outcomes
             .iter()
             .filter_map(|o| Some((o, self.below(o)?)))
@@ -183,20 +184,17 @@ impl RunSummary {
             "| asset | representation | outcome | skipped | seconds (build) | bytes | PSNR dB (worst) | IoU | steps |\n|---|---|---|---|---|---|---|---|---|\n",
         );
         for o in &self.outcomes {
-            let outcome = match &o.outcome {
-                Outcome::Built | Outcome::Cached if self.below(o).is_some() => format!(
-                    "{}, below the {} dB quality target",
-                    if o.outcome == Outcome::Built {
-                        "built"
-                    } else {
-                        "cached"
-                    },
-                    self.below(o).unwrap_or_default()
-                ),
-                Outcome::Built => "built".to_string(),
-                Outcome::Cached => "cached".to_string(),
-                Outcome::Refused(r) => format!("skipped: {r}"),
-                Outcome::Failed(m) => format!("FAILED: {m}"),
+            let outcome = match (&o.outcome, self.below(o)) {
+                (Outcome::Built, Some((_, target))) => {
+                    format!("built, below the {target} dB quality target")
+                }
+                (Outcome::Cached, Some((_, target))) => {
+                    format!("cached, below the {target} dB quality target")
+                }
+                (Outcome::Built, None) => "built".to_string(),
+                (Outcome::Cached, None) => "cached".to_string(),
+                (Outcome::Refused(r), _) => format!("skipped: {r}"),
+                (Outcome::Failed(m), _) => format!("FAILED: {m}"),
             };
             let (psnr, iou, steps) = o.measurement.as_ref().map_or(
                 ("–".to_string(), "–".to_string(), "–".to_string()),

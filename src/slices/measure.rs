@@ -47,7 +47,7 @@ pub struct SliceMeasureParams {
     pub both_sides: bool,
     /// Truth march samples per voxel.
     pub truth_steps: usize,
-    /// SliceReconstruction of the voxels in the truth and of the texels in the slices.
+    /// Reconstruction of the voxels in the truth and of the texels in the slices.
     pub filter: SliceReconstruction,
     /// Seed of the tiles.
     pub seed: u64,
@@ -161,7 +161,7 @@ pub struct LevelRow {
 pub struct CurvedRow {
     /// Tile.
     pub tile: TestTile,
-    /// StackView tilt toward the axis (degrees).
+    /// View tilt toward the axis (degrees).
     pub tilt_deg: f64,
     /// Level `k`.
     pub level: usize,

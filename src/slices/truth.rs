@@ -15,7 +15,7 @@ use super::{SliceError, TexelVolume};
 pub struct VolumeTruthParams {
     /// March samples per voxel edge of path length.
     pub steps_per_voxel: usize,
-    /// SliceReconstruction of the medium between voxel centres.
+    /// Reconstruction of the medium between voxel centres.
     pub filter: SliceReconstruction,
 }
 

@@ -98,6 +98,7 @@ fn source<'a>(shape: &'a (dyn altrep_data_gen::Shape + Sync)) -> Source<'a> {
         geometry: Some(shape),
         texture: None,
         light: Light::default(),
+        placement: None,
     }
 }
 

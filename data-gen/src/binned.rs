@@ -48,7 +48,7 @@ use glam::{DVec3, Vec3A};
 use obvhs::triangle::Triangle;
 use rayon::prelude::*;
 
-use crate::geometry::{Hit, ParallelRays, Ray};
+use crate::geometry::{Footprint as RayCell, Hit, ParallelRays, Ray};
 use crate::mesh::Mesh;
 use crate::shape::ParallelTracer;
 
@@ -127,6 +127,10 @@ impl BandTracer for MeshTracer<'_> {
         (self.rays.columns.len(), self.rays.rows.len())
     }
 
+    fn footprint(&self) -> Option<RayCell> {
+        self.rays.footprint()
+    }
+
     fn trace_band<T>(
         &self,
         b: usize,
@@ -166,6 +170,7 @@ impl BandTracer for MeshTracer<'_> {
         let mut best_d = vec![template.tmax; cells];
         let mut best_t = vec![u32::MAX; cells];
         let mut bray = template;
+        let traced = self.mesh.traced();
         for &t in self.bands.of(b) {
             let span = self.row_spans[t as usize];
             let (s0, s1) = ((span[0] as usize).max(r0), (span[1] as usize).min(r1));
@@ -180,7 +185,7 @@ impl BandTracer for MeshTracer<'_> {
             let mut test = |k: usize| {
                 bray.origin = origins[k];
                 let d = tri.intersect(&bray);
-                if d < best_d[k] {
+                if d < best_d[k] && self.mesh.traced_stops(traced, t as usize, &bray, d) {
                     best_d[k] = d;
                     best_t[k] = t;
                 }
@@ -234,6 +239,8 @@ pub(crate) trait BandTracer: Sync {
         out: &mut [T],
         emit: impl Fn(&Ray, Option<(usize, f32)>) -> T,
     );
+    /// The cell each ray of the grid stands for.
+    fn footprint(&self) -> Option<RayCell>;
     /// Traces rows `rows` (any range) band by band.
     fn trace<T>(
         &self,
@@ -254,8 +261,9 @@ impl<B: BandTracer> ParallelTracer for B {
     }
 
     fn trace_rows(&self, rows: Range<usize>, out: &mut [Option<Hit>]) {
+        let cell = self.footprint();
         self.trace(rows, out, |ray, hit| {
-            hit.map(|(t, d)| self.mesh().hit_at(ray, t, d))
+            hit.map(|(t, d)| self.mesh().hit_over(ray, t, d, cell))
         });
     }
 
@@ -529,7 +537,7 @@ mod tests {
     use crate::frame::OrthoFrame;
     use crate::geometry::{BoundingCylinder, PixelGrid, ViewGrid, direction, screen_right};
     use crate::shape::Shape;
-    use crate::test_meshes::{check_traced, mesh, soup, sphere, squash_flat};
+    use crate::test_meshes::{check_traced, masked_soup, mesh, soup, sphere, squash_flat};
 
     /// Checks the binned grid ray by ray ([`check_ray`]). Returns the number of ties: rays where
     /// the walk reports another triangle at the same distance.
@@ -585,6 +593,7 @@ mod tests {
             ("sphere", mesh(sphere(24, 0.0))),
             ("cube", mesh(cube())),
             ("soup", mesh(soup(7, 400))),
+            ("alpha-masked soup", masked_soup(7, 400)),
         ] {
             let (mut ties, mut rays) = (0, 0);
             let mut add = |t: usize, n: usize| (ties, rays) = (ties + t, rays + n);

@@ -22,6 +22,33 @@ pub enum DataGenError {
         /// The parser's message.
         message: String,
     },
+    /// A glTF file is malformed or uses what altrep does not read; `at` is the glTF path of the
+    /// offending object (`meshes[3].primitives[0]`, `images[2]`, `accessors[7]`, or `document`).
+    #[error("{path}: {at}: {message}")]
+    Gltf {
+        /// The file.
+        path: PathBuf,
+        /// The glTF path of the offending object.
+        at: String,
+        /// What is wrong.
+        message: String,
+    },
+    /// A texture a mesh's materials name could not be read or decoded.
+    #[error("texture {path} (material '{material}'): {message}")]
+    Texture {
+        /// The texture file.
+        path: PathBuf,
+        /// The material naming it.
+        material: String,
+        /// What went wrong.
+        message: String,
+    },
+    /// The file's extension names no mesh format altrep reads.
+    #[error("{path}: not a mesh altrep reads (.obj, .gltf or .glb)")]
+    MeshFormat {
+        /// The file.
+        path: PathBuf,
+    },
     /// The mesh has no (non-degenerate) triangle.
     #[error("mesh {name} has no non-degenerate triangle")]
     EmptyMesh {

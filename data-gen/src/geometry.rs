@@ -156,10 +156,59 @@ pub struct ParallelRays<'a> {
     pub ray: &'a (dyn Fn(usize, usize) -> Ray + Sync),
 }
 
+/// The cell of a grid of rays that one ray stands for: what a textured surface is averaged over
+/// where the ray meets it (`docs/real-assets.md`). A capture's ray stands for its pixel; each of
+/// the truth's `k × k` rays for a `1/k` part of it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Footprint {
+    /// Parallel rays: the cell's two edge vectors (world units), orthogonal to the rays.
+    Parallel([DVec3; 2]),
+    /// Horizontal rays toward the `y` axis: `angle` radians around the axis by `height` world
+    /// units (the cell's width grows with the distance from the axis).
+    Radial {
+        /// Angular width (radians).
+        angle: f64,
+        /// Height (world units).
+        height: f64,
+    },
+}
+
+impl Footprint {
+    /// The cell's two edge vectors at point `p` of a ray along `dir`.
+    pub fn at(&self, p: DVec3, dir: DVec3) -> [DVec3; 2] {
+        match *self {
+            Footprint::Parallel(axes) => axes,
+            Footprint::Radial { angle, height } => {
+                let r = p.x.hypot(p.z);
+                let tangent = DVec3::new(-dir.z, 0.0, dir.x).normalize_or_zero();
+                [tangent * (r * angle), DVec3::Y * height]
+            }
+        }
+    }
+}
+
+/// The mean spacing of sorted positions `v`, `None` for fewer than two or a non-finite spacing.
+fn spacing(v: &[f64]) -> Option<f64> {
+    let (first, last) = (v.first()?, v.last()?);
+    let s = ((last - first) / (v.len() as f64 - 1.0)).abs();
+    (v.len() >= 2 && s.is_finite() && s > 0.0).then_some(s)
+}
+
 impl<'a> ParallelRays<'a> {
     /// Number of rays, `columns × rows`.
     pub fn len(&self) -> usize {
         self.columns.len() * self.rows.len()
+    }
+
+    /// The cell each ray stands for: the grid's mean spacing along each screen axis (one axis's
+    /// for the other when the grid is one ray across). `None` for a single ray.
+    pub fn footprint(&self) -> Option<Footprint> {
+        let (c, r) = (spacing(self.columns), spacing(self.rows));
+        let (c, r) = (c.or(r)?, r.or(c)?);
+        Some(Footprint::Parallel([
+            self.across[0] * c,
+            self.across[1] * r,
+        ]))
     }
 
     /// Whether the grid has no ray.
@@ -219,6 +268,17 @@ impl RadialRays<'_> {
     #[inline]
     pub fn ray(&self, c: usize, r: usize) -> Ray {
         self.ray_along(self.outward(c), r)
+    }
+
+    /// The cell each ray stands for: `2π/L` around the axis by the rows' mean spacing (the
+    /// angular width at radius `R` for a single row).
+    pub fn footprint(&self) -> Option<Footprint> {
+        if self.columns == 0 {
+            return None;
+        }
+        let angle = std::f64::consts::TAU / self.columns as f64;
+        let height = spacing(self.rows).unwrap_or(angle * self.radius);
+        (angle.is_finite() && height.is_finite()).then_some(Footprint::Radial { angle, height })
     }
 
     /// The end of every ray's hit window, `4R` (the start is 0).

@@ -43,17 +43,23 @@ mod capture;
 mod error;
 mod frame;
 mod geometry;
+mod gltf_file;
+pub mod gltf_write;
 mod image_io;
 mod mesh;
+mod obj_file;
+mod placement;
 pub mod radial;
 mod rng;
 mod shape;
 mod shapes;
 mod shared;
+mod surface;
 #[cfg(test)]
 mod test_meshes;
 mod truth;
 mod volume;
+mod yz_grid;
 
 pub use albedo::Albedo;
 pub use analytic::{AnalyticShape, AnalyticVolume};
@@ -63,14 +69,17 @@ pub use capture::{
 pub use error::DataGenError;
 pub use frame::{FrameCapture, OrthoFrame, capture_frame, render_truth_frame};
 pub use geometry::{
-    BoundingCylinder, Hit, ParallelRays, PixelGrid, RadialRays, Ray, direction, screen_right,
+    BoundingCylinder, Footprint, Hit, ParallelRays, PixelGrid, RadialRays, Ray, direction,
+    screen_right,
 };
 pub use image_io::{RgbaImage, linear_to_srgb, srgb_to_linear};
 pub use mesh::{Mesh, MeshLoadOptions};
+pub use placement::{Placement, UpAxis};
 pub use rng::SplitMix64;
 pub use shape::{Csg, ParallelTracer, Part, Primitive, RayByRay, Shape, intersect_parallel};
 pub use shapes::{SCENE_SHAPES, scene_shape};
 #[doc(hidden)]
 pub use shared::{shared_mesh, shared_mesh_paths, shared_meshes, skip, under_ci};
+pub use surface::{AlphaMode, Filter, Material, TextureImage, TextureRef, UvTransform, Wrap};
 pub use truth::{Light, TruthParams, render_silhouette, render_truth};
 pub use volume::{Volume, Voxel, VoxelParams, voxelize};

@@ -1,5 +1,6 @@
-//! Triangle meshes from Wavefront OBJ (`tobj`), normalised into the bounding cylinder and
-//! ray-cast through a compressed wide BVH (`obvhs`'s CWBVH, built with PLOC).
+//! Triangle meshes from Wavefront OBJ (`tobj`) and glTF 2.0 (the `gltf_file` module), normalised
+//! into the bounding cylinder and ray-cast through a compressed wide BVH (`obvhs`'s CWBVH, built
+//! with PLOC).
 //!
 //! The BVH is built once, on the first ray query or on [`Mesh::prepare_rays`], not at load: the
 //! inside test of voxelisation ([`Shape::contains_row`]) needs no BVH, so a pipeline can voxelise
@@ -7,22 +8,29 @@
 //! queries see the triangles in the BVH's leaf order (ties between equal distances follow it);
 //! the inside test counts crossings, which no order changes.
 //!
-//! Normalisation: translate so that the centre of the bounding box's x–z extent lies on the `y`
-//! axis and the lowest vertex at `y = 0`; scale uniformly by the largest factor that keeps every
-//! vertex within radius `R` of the axis and below `H`; then centre vertically in `[0, H]`.
+//! Normalisation: rotate the source's up axis to `+y` ([`UpAxis`]); translate so that the centre
+//! of the bounding box's x–z extent lies on the `y` axis and the lowest vertex at `y = 0`; scale
+//! uniformly by the largest factor that keeps every vertex within radius `R` of the axis and below
+//! `H`; then centre vertically in `[0, H]`. The whole map is kept ([`Mesh::placement`]).
 //!
-//! Colour: the per-vertex colour of the OBJ when present (interpolated), else the material's
-//! diffuse colour when the MTL file is found, else a procedural albedo (stripes by azimuth and
-//! height) so that warping errors show in images.
+//! Colour: a textured material (glTF, or OBJ with `map_Kd` / `map_d` / `d < 1`) is read through
+//! the `surface` module (factor × texture × vertex colour, with alpha); otherwise the per-vertex
+//! colour of the OBJ when present (interpolated), else the material's diffuse colour when the
+//! MTL file is found, else a procedural albedo (stripes by azimuth and height) so that warping
+//! errors show in images.
+//!
+//! Alpha: where a material's alpha stops no ray ([`AlphaMode`]), every tracer (the BVH walk, the
+//! binned and radial tracers, the inside tests) passes through the hit as if the triangle were
+//! not there, with the same test, so the truth and every capture agree.
 //!
 //! Ray casting runs in `f32` inside the BVH (relative precision about 1e-6 of the object size);
 //! the hit parameter is returned in `f64`.
 
-use std::path::Path;
-use std::sync::OnceLock;
+use std::path::{Path, PathBuf};
+use std::sync::{Arc, OnceLock};
 use std::time::{Duration, Instant};
 
-use glam::{DVec3, Vec3, Vec3A};
+use glam::{DVec3, Vec3, Vec3A, Vec4Swizzles};
 use obvhs::{
     BvhBuildParams,
     aabb::Aabb,
@@ -37,9 +45,12 @@ use rayon::prelude::*;
 use crate::albedo::Albedo;
 use crate::binned::MeshTracer;
 use crate::error::DataGenError;
-use crate::geometry::{BoundingCylinder, Hit, ParallelRays, RadialRays, Ray};
+use crate::geometry::{BoundingCylinder, Footprint, Hit, ParallelRays, RadialRays, Ray};
+use crate::placement::{Placement, UpAxis};
 use crate::radial::RadialTracer;
 use crate::shape::{OneByOne, ParallelTracer, RadialOneByOne, Shape};
+use crate::surface::{Material, SurfaceTri, barycentric, stops, uv_axes};
+use crate::yz_grid::YzGrid;
 
 /// How to load and normalise a mesh.
 #[derive(Clone, Debug)]
@@ -48,6 +59,11 @@ pub struct MeshLoadOptions {
     pub cylinder: BoundingCylinder,
     /// Colour when the file has neither vertex colours nor materials.
     pub fallback_albedo: Albedo,
+    /// The source's up axis (default `+y`).
+    pub up: UpAxis,
+    /// glTF only: the name of the node whose subtree is loaded, in the scene's world
+    /// coordinates (default: the whole default scene).
+    pub node: Option<String>,
 }
 
 impl Default for MeshLoadOptions {
@@ -59,19 +75,45 @@ impl Default for MeshLoadOptions {
                 b: Vec3::new(0.35, 0.55, 0.8),
                 count: 10,
             },
+            up: UpAxis::PosY,
+            node: None,
         }
     }
 }
 
 /// Where a triangle's colour comes from.
 #[derive(Clone, Debug)]
-enum TriColor {
+pub(crate) enum TriColor {
     /// Per-vertex colours.
     Vertex([Vec3; 3]),
     /// One colour for the face.
     Flat(Vec3),
     /// The procedural fallback.
     Procedural,
+    /// A material of the mesh's list, read with the triangle's attributes.
+    Surface(SurfaceTri),
+}
+
+/// A loader's triangles (corners in source coordinates), their colours, and the rest.
+pub(crate) type Loaded = (Vec<[[f64; 3]; 3]>, Vec<TriColor>, Extras);
+
+/// What a loader hands to the normalisation besides the triangles.
+pub(crate) struct Extras {
+    pub(crate) materials: Vec<Material>,
+    pub(crate) notes: Vec<String>,
+    pub(crate) inputs: Vec<(PathBuf, blake3::Hash)>,
+    pub(crate) units: &'static str,
+}
+
+impl Extras {
+    fn none(units: &'static str) -> Self {
+        Self {
+            materials: Vec::new(),
+            notes: Vec::new(),
+            inputs: Vec::new(),
+            units,
+        }
+    }
 }
 
 /// A normalised triangle mesh. Implements [`Shape`]; its BVH is built on first need (module
@@ -83,6 +125,13 @@ pub struct Mesh {
     /// Each input triangle's colour; empty when every triangle takes the fallback.
     input_colors: Vec<TriColor>,
     fallback: Albedo,
+    /// The materials [`TriColor::Surface`] refers to.
+    materials: Arc<[Material]>,
+    /// Whether some material's alpha can let a ray through (every tracer then tests it).
+    cut_out: bool,
+    placement: Placement,
+    notes: Vec<String>,
+    inputs: Vec<(PathBuf, blake3::Hash)>,
     pub(crate) bounds: (DVec3, DVec3),
     /// The BVH and the triangles in its leaf order, built on the first ray query.
     traced: OnceLock<Traced>,
@@ -229,84 +278,70 @@ impl Mesh {
         path: &Path,
         options: &MeshLoadOptions,
     ) -> Result<Self, DataGenError> {
-        if std::str::from_utf8(bytes).is_err() {
-            return Err(DataGenError::ObjParse {
-                path: path.to_path_buf(),
-                message: "the file is not text (invalid UTF-8)".into(),
-            });
-        }
-        let load = tobj::LoadOptions {
-            triangulate: true,
-            single_index: false,
-            ..Default::default()
-        };
-        // As `tobj::load_obj` does, from the bytes: materials relative to the file's folder.
-        let (models, materials) = tobj::load_obj_buf(&mut &bytes[..], &load, |mtl| {
-            tobj::load_mtl(
-                path.parent()
-                    .map_or_else(|| mtl.to_owned(), |d| d.join(mtl)),
-            )
-        })
-        .map_err(|e| DataGenError::ObjParse {
-            path: path.to_path_buf(),
-            message: e.to_string(),
-        })?;
-        let materials = materials.unwrap_or_default();
-        let total: usize = models.iter().map(|m| m.mesh.indices.len() / 3).sum();
-        let mut positions = Vec::with_capacity(total);
-        let mut colors = Vec::with_capacity(total);
-        for model in &models {
-            let m = &model.mesh;
-            let faces = m.indices.len() / 3;
-            // The first face corner (in file order) that refers to a missing vertex.
-            let vertices = m.positions.len() / 3;
-            if let Some(&i) = m.indices[..3 * faces]
-                .iter()
-                .find(|&&i| i as usize >= vertices)
-            {
-                return Err(DataGenError::ObjParse {
-                    path: path.to_path_buf(),
-                    message: format!("face refers to vertex {} which does not exist", i + 1),
-                });
-            }
-            let vertex = |k: usize| {
-                let i = 3 * m.indices[k] as usize;
-                let p = &m.positions[i..i + 3];
-                [f64::from(p[0]), f64::from(p[1]), f64::from(p[2])]
-            };
-            let material_color = m
-                .material_id
-                .and_then(|id| materials.get(id))
-                .and_then(|mat| mat.diffuse)
-                .map(|d| Vec3::new(d[0], d[1], d[2]));
-            let has_vc = m.vertex_color.len() == m.positions.len() && !m.vertex_color.is_empty();
-            positions.par_extend(
-                (0..faces)
-                    .into_par_iter()
-                    .map(|tri| [vertex(3 * tri), vertex(3 * tri + 1), vertex(3 * tri + 2)]),
-            );
-            colors.par_extend((0..faces).into_par_iter().map(|tri| {
-                if has_vc {
-                    let c = |k: usize| {
-                        let i = m.indices[3 * tri + k] as usize;
-                        Vec3::new(
-                            m.vertex_color[3 * i],
-                            m.vertex_color[3 * i + 1],
-                            m.vertex_color[3 * i + 2],
-                        )
-                    };
-                    TriColor::Vertex([c(0), c(1), c(2)])
-                } else if let Some(c) = material_color {
-                    TriColor::Flat(c)
-                } else {
-                    TriColor::Procedural
-                }
-            }));
-        }
+        let (positions, colors, extras) = crate::obj_file::load(bytes, path, options)?;
         let name = path
             .file_stem()
             .map_or_else(|| "mesh".into(), |s| s.to_string_lossy().into_owned());
-        Self::from_triangles(name, positions, colors, options)
+        Self::from_triangles(name, positions, colors, extras, options)
+    }
+
+    /// Loads a mesh by its file's extension: `.obj` ([`Mesh::load_obj`]), `.gltf` or `.glb`
+    /// ([`Mesh::from_gltf_bytes`]), case-insensitive.
+    ///
+    /// Errors: [`DataGenError::MeshFormat`] for another extension, else the loader's.
+    pub fn load(path: impl AsRef<Path>, options: &MeshLoadOptions) -> Result<Self, DataGenError> {
+        let path = path.as_ref();
+        let bytes = std::fs::read(path).map_err(|source| DataGenError::Io {
+            path: path.to_path_buf(),
+            source,
+        })?;
+        Self::from_bytes(&bytes, path, options)
+    }
+
+    /// Parses a mesh file already read from `path`, by `path`'s extension (as [`Mesh::load`]).
+    pub fn from_bytes(
+        bytes: &[u8],
+        path: &Path,
+        options: &MeshLoadOptions,
+    ) -> Result<Self, DataGenError> {
+        let ext = path
+            .extension()
+            .map(|e| e.to_string_lossy().to_ascii_lowercase());
+        match ext.as_deref() {
+            Some("obj") => Self::from_obj_bytes(bytes, path, options),
+            Some("gltf" | "glb") => Self::from_gltf_bytes(bytes, path, options),
+            _ => Err(DataGenError::MeshFormat {
+                path: path.to_path_buf(),
+            }),
+        }
+    }
+
+    /// Parses a glTF 2.0 document (`.gltf` JSON or `.glb` binary) already read from `path`: the
+    /// default scene, or the subtree of `options.node`, in the scene's world coordinates, with
+    /// its materials (see the `gltf_file` module for what is read and what is named in
+    /// [`Mesh::notes`]). External buffers and images are read from `path`'s folder. Cost: the
+    /// parse, the decoding of every base-colour image (in parallel), one pass over the
+    /// vertices.
+    ///
+    /// Errors: [`DataGenError::Gltf`] naming the glTF path of what is malformed or not
+    /// supported, else as [`Mesh::load_obj`].
+    pub fn from_gltf_bytes(
+        bytes: &[u8],
+        path: &Path,
+        options: &MeshLoadOptions,
+    ) -> Result<Self, DataGenError> {
+        let scene = crate::gltf_file::load(bytes, path, options.node.as_deref())?;
+        let name = path
+            .file_stem()
+            .map_or_else(|| "mesh".into(), |s| s.to_string_lossy().into_owned());
+        let colors = scene.surfaces.into_iter().map(TriColor::Surface).collect();
+        let extras = Extras {
+            materials: scene.materials,
+            notes: scene.notes,
+            inputs: scene.inputs,
+            units: "metre",
+        };
+        Self::from_triangles(name, scene.positions, colors, extras, options)
     }
 
     /// Builds a mesh from raw triangles (`[[x, y, z]; 3]` each, any scale), normalising it.
@@ -317,13 +352,20 @@ impl Mesh {
         options: &MeshLoadOptions,
     ) -> Result<Self, DataGenError> {
         let colors = vec![TriColor::Procedural; triangles.len()];
-        Self::from_triangles(name.into(), triangles, colors, options)
+        Self::from_triangles(
+            name.into(),
+            triangles,
+            colors,
+            Extras::none("file unit"),
+            options,
+        )
     }
 
     fn from_triangles(
         name: String,
-        positions: Vec<[[f64; 3]; 3]>,
-        colors: Vec<TriColor>,
+        mut positions: Vec<[[f64; 3]; 3]>,
+        mut colors: Vec<TriColor>,
+        extras: Extras,
         options: &MeshLoadOptions,
     ) -> Result<Self, DataGenError> {
         options.cylinder.validate()?;
@@ -332,6 +374,23 @@ impl Mesh {
             return Err(DataGenError::NonFinite {
                 what: format!("vertex of triangle {t} in {name}"),
                 index: t,
+            });
+        }
+        // The source's up axis to `+y` (entries 0 and ±1: exact).
+        if options.up != UpAxis::PosY {
+            let u = options.up.rotation();
+            let uf = u.as_mat3();
+            positions
+                .par_iter_mut()
+                .flatten()
+                .for_each(|v| *v = (u * DVec3::from(*v)).to_array());
+            colors.par_iter_mut().for_each(|c| {
+                if let TriColor::Surface(SurfaceTri {
+                    normal: Some(n), ..
+                }) = c
+                {
+                    *n = n.map(|v| uf * v);
+                }
             });
         }
         // Bounds of the raw vertices, in file order (the sign of a zero bound may depend on
@@ -400,11 +459,24 @@ impl Mesh {
         {
             kept_colors = Vec::new();
         }
+        let materials: Arc<[Material]> = extras.materials.into();
+        let cut_out = kept_colors.iter().any(|c| match c {
+            TriColor::Surface(s) => materials
+                .get(s.material as usize)
+                .is_some_and(Material::is_cut_out),
+            _ => false,
+        });
+        let translation = DVec3::new(0.0, lift, 0.0) - centre * scale;
         Ok(Self {
             name,
             input: triangles,
             input_colors: kept_colors,
             fallback: options.fallback_albedo.clone(),
+            materials,
+            cut_out,
+            placement: Placement::new(options.up, scale, translation, extras.units),
+            notes: extras.notes,
+            inputs: extras.inputs,
             bounds,
             traced: OnceLock::new(),
             yz_grid: OnceLock::new(),
@@ -414,6 +486,71 @@ impl Mesh {
     /// Number of triangles kept (degenerate ones are dropped).
     pub fn triangle_count(&self) -> usize {
         self.input.len()
+    }
+
+    /// The map from the source's coordinates (glTF: world space of the loaded scene or node;
+    /// OBJ: file space) to the normalised frame, and its units.
+    pub fn placement(&self) -> &Placement {
+        &self.placement
+    }
+
+    /// What the source holds that altrep does not read or reads differently (glTF features,
+    /// an OBJ's assumed up axis), one sentence each; empty for a fully read source.
+    pub fn notes(&self) -> &[String] {
+        &self.notes
+    }
+
+    /// The files read besides the mesh file itself (MTL files, textures, glTF buffers and
+    /// images) with the BLAKE3 hash of the bytes read, in reading order: a cache key over the
+    /// mesh's bytes and these covers everything the mesh depends on.
+    pub fn inputs(&self) -> &[(PathBuf, blake3::Hash)] {
+        &self.inputs
+    }
+
+    /// The materials of textured or alpha-tested triangles (empty for meshes coloured by
+    /// vertex, flat or procedural colours).
+    pub fn materials(&self) -> &[Material] {
+        &self.materials
+    }
+
+    /// Whether some material lets rays through (alpha mask or blend).
+    pub fn is_cut_out(&self) -> bool {
+        self.cut_out
+    }
+
+    /// Whether the hit at distance `d` of a ray from `origin` along `dir` on triangle `tri`
+    /// (coloured by `color`) stops the ray: always, unless its material's alpha says otherwise.
+    #[inline]
+    pub(crate) fn stops_at(
+        &self,
+        tri: &Triangle,
+        color: Option<&TriColor>,
+        origin: Vec3A,
+        dir: Vec3A,
+        d: f32,
+    ) -> bool {
+        let Some(TriColor::Surface(s)) = color else {
+            return true;
+        };
+        let Some(m) = self.materials.get(s.material as usize) else {
+            return true;
+        };
+        if !m.is_cut_out() {
+            return true;
+        }
+        let p = origin + dir * d;
+        let (uv, vc) = s.at(barycentric(tri, p.as_dvec3()));
+        let alpha = m.color(uv, vc).w;
+        let key = u64::from(p.x.to_bits())
+            ^ u64::from(p.y.to_bits()).rotate_left(21)
+            ^ u64::from(p.z.to_bits()).rotate_left(42);
+        stops(m.alpha_mode, alpha, key)
+    }
+
+    /// [`Mesh::stops_at`] for triangle `k` of the BVH's order, on `f32` ray `r`.
+    #[inline]
+    pub(crate) fn traced_stops(&self, tr: &Traced, k: usize, r: &BvhRay, d: f32) -> bool {
+        !self.cut_out || self.stops_at(&tr.triangles[k], tr.colors.get(k), r.origin, r.direction, d)
     }
 
     /// Time spent building the BVH, `None` before it is built.
@@ -449,13 +586,34 @@ impl Mesh {
         let tris = &tr.triangles;
         let idx = &tr.bvh.primitive_indices;
         tr.bvh
-            .ray_traverse(bray, &mut hit, |r, id| tris[idx[id] as usize].intersect(r))
+            .ray_traverse(bray, &mut hit, |r, id| {
+                let k = idx[id] as usize;
+                let d = tris[k].intersect(r);
+                if d.is_finite() && !self.traced_stops(tr, k, r, d) {
+                    f32::INFINITY
+                } else {
+                    d
+                }
+            })
             .then(|| (idx[hit.primitive_id as usize] as usize, hit.t))
     }
 
     /// The hit record of `ray` meeting triangle `tri_id` at distance `t`: the geometric normal
     /// turned toward the ray and the triangle's colour at the hit point.
     pub(crate) fn hit_at(&self, ray: &Ray, tri_id: usize, t: f32) -> Hit {
+        self.hit_over(ray, tri_id, t, None)
+    }
+
+    /// [`Mesh::hit_at`] for a ray that stands for the cell `footprint`: a base-colour texture
+    /// is read over the cell's image on the triangle (projected along the ray), through the
+    /// texture's mip chain (`surface` module).
+    pub(crate) fn hit_over(
+        &self,
+        ray: &Ray,
+        tri_id: usize,
+        t: f32,
+        footprint: Option<Footprint>,
+    ) -> Hit {
         let tr = self.traced();
         let tri = &tr.triangles[tri_id];
         let t = f64::from(t);
@@ -463,19 +621,41 @@ impl Mesh {
         // Winding is not trusted: the normal faces the incoming ray.
         let n = if n.dot(ray.dir) > 0.0 { -n } else { n };
         let p = ray.at(t);
-        let albedo = match tr.colors.get(tri_id) {
+        let (albedo, normal) = match tr.colors.get(tri_id) {
             Some(TriColor::Vertex(c)) => {
                 let w = barycentric(tri, p);
-                c[0] * w[0] + c[1] * w[1] + c[2] * w[2]
+                (c[0] * w[0] + c[1] * w[1] + c[2] * w[2], n)
             }
-            Some(TriColor::Flat(c)) => *c,
-            Some(TriColor::Procedural) | None => self.fallback.at(p),
+            Some(TriColor::Flat(c)) => (*c, n),
+            Some(TriColor::Procedural) | None => (self.fallback.at(p), n),
+            Some(TriColor::Surface(s)) => {
+                let w = barycentric(tri, p);
+                let (uv, vc) = s.at(w);
+                let axes = footprint.and_then(|f| uv_axes(tri, s, f.at(p, ray.dir), ray.dir));
+                let albedo = self
+                    .materials
+                    .get(s.material as usize)
+                    .map_or(Vec3::ONE, |m| match axes {
+                        Some(axes) => m.color_over(uv, axes, vc).xyz(),
+                        None => m.color(uv, vc).xyz(),
+                    });
+                // The interpolated shading normal, on the side the geometric one faces.
+                let shading = s.normal.map_or(DVec3::ZERO, |v| {
+                    (v[0] * w[0] + v[1] * w[1] + v[2] * w[2])
+                        .as_dvec3()
+                        .normalize_or_zero()
+                });
+                let normal = if shading == DVec3::ZERO {
+                    n
+                } else if shading.dot(n) < 0.0 {
+                    -shading
+                } else {
+                    shading
+                };
+                (albedo, normal)
+            }
         };
-        Hit {
-            t,
-            normal: n,
-            albedo,
-        }
+        Hit { t, normal, albedo }
     }
 }
 
@@ -496,6 +676,17 @@ impl Shape for Mesh {
             .map(|(tri, t)| self.hit_at(ray, tri, t))
     }
 
+    fn intersect_over(
+        &self,
+        ray: &Ray,
+        t_min: f64,
+        t_max: f64,
+        footprint: Option<Footprint>,
+    ) -> Option<Hit> {
+        self.first_hit(ray, t_min, t_max)
+            .map(|(tri, t)| self.hit_over(ray, tri, t, footprint))
+    }
+
     /// The BVH walk stopped at the first triangle whose test accepts the ray, without shading.
     /// Until its first hit the nearest-hit walk is exactly this walk (its window shrinks only
     /// at a hit), so both agree.
@@ -503,8 +694,15 @@ impl Shape for Mesh {
         let bray = Self::to_bvh_ray(ray, t_min, t_max);
         let tr = self.traced();
         let (tris, idx) = (&tr.triangles, &tr.bvh.primitive_indices);
-        !tr.bvh
-            .ray_traverse_miss(bray, |r, id| tris[idx[id] as usize].intersect(r))
+        !tr.bvh.ray_traverse_miss(bray, |r, id| {
+            let k = idx[id] as usize;
+            let d = tris[k].intersect(r);
+            if d.is_finite() && !self.traced_stops(tr, k, r, d) {
+                f32::INFINITY
+            } else {
+                d
+            }
+        })
     }
 
     /// Triangles binned over the grid ([`crate::binned`]) instead of a BVH walk per ray, when
@@ -547,7 +745,9 @@ impl Shape for Mesh {
         let tris = &tr.triangles;
         let idx = &tr.bvh.primitive_indices;
         tr.bvh.ray_traverse_anyhit(ray, |r, id| {
-            if tris[idx[id] as usize].intersect(r).is_finite() {
+            let k = idx[id] as usize;
+            let d = tris[k].intersect(r);
+            if d.is_finite() && self.traced_stops(tr, k, r, d) {
                 crossings += 1;
             }
         });
@@ -600,7 +800,19 @@ impl Shape for Mesh {
             let crossings = candidates
                 .iter()
                 .filter(|&&(x_max, t)| {
-                    x_max >= origin.x && self.input[t as usize].intersect(&ray).is_finite()
+                    let tri = &self.input[t as usize];
+                    x_max >= origin.x && {
+                        let d = tri.intersect(&ray);
+                        d.is_finite()
+                            && (!self.cut_out
+                                || self.stops_at(
+                                    tri,
+                                    self.input_colors.get(t as usize),
+                                    ray.origin,
+                                    ray.direction,
+                                    d,
+                                ))
+                    }
                 })
                 .count();
             *o = crossings % 2 == 1;
@@ -611,9 +823,30 @@ impl Shape for Mesh {
         self.bounds
     }
 
-    /// The fallback albedo at `p` (vertex and material colours are not looked up off the surface).
+    /// The colour of the surface nearest to `p` along 26 directions (the axes, the face and
+    /// the cube diagonals): vertex, material and texture colours reach the voxels. A mesh
+    /// coloured by the procedural fallback alone (or with no surface along any of them)
+    /// gives the fallback at `p`. Cost: 26 ray casts.
     fn albedo_at(&self, p: DVec3) -> Vec3 {
-        self.fallback.at(p)
+        if self.input_colors.is_empty() {
+            return self.fallback.at(p);
+        }
+        let mut best: Option<Hit> = None;
+        for dx in -1i32..=1 {
+            for dy in -1i32..=1 {
+                for dz in -1i32..=1 {
+                    if (dx, dy, dz) == (0, 0, 0) {
+                        continue;
+                    }
+                    let dir = DVec3::new(dx.into(), dy.into(), dz.into()).normalize();
+                    let t_max = best.map_or(f64::INFINITY, |b| b.t);
+                    if let Some(h) = self.intersect(&Ray::new(p, dir), 0.0, t_max) {
+                        best = Some(h);
+                    }
+                }
+            }
+        }
+        best.map_or_else(|| self.fallback.at(p), |h| h.albedo)
     }
 }
 
@@ -621,119 +854,6 @@ impl Shape for Mesh {
 /// along mesh rows and columns do not graze edges.
 fn parity_dir() -> Vec3A {
     Vec3A::new(1.0, 1.3e-4, 2.7e-4).normalize()
-}
-
-/// The triangles of a mesh binned on a uniform grid of the y–z plane by their y–z extent widened
-/// by [`YzGrid::MARGIN`] (compressed rows: the triangles of cell `c` are
-/// `tris[start[c]..start[c + 1]]`), with each triangle's `[x_max, y_min, y_max, z_min, z_max]`.
-struct YzGrid {
-    lo: [f32; 2],
-    inv_cell: [f32; 2],
-    cells: [usize; 2],
-    start: Vec<u32>,
-    tris: Vec<u32>,
-    boxes: Vec<[f32; 5]>,
-    x_max: f32,
-}
-
-impl YzGrid {
-    /// Widening of each triangle's y–z extent when binning (world units; the object is
-    /// normalised to radius 1): more than a parity ray drifts in y or z across the mesh
-    /// (`2.7e-4` per unit of x) plus [`YzGrid::SLOP`].
-    const MARGIN: f32 = 2e-3;
-    /// Allowance for `f32` rounding in the triangle test (a ray the test accepts passes within
-    /// ~1e-6 of the triangle).
-    const SLOP: f32 = 1e-4;
-
-    fn new(triangles: &[Triangle]) -> Self {
-        let boxes: Vec<[f32; 5]> = triangles
-            .iter()
-            .map(|t| {
-                let b = t.aabb();
-                [b.max.x, b.min.y, b.max.y, b.min.z, b.max.z]
-            })
-            .collect();
-        let m = Self::MARGIN;
-        let (mut lo, mut hi) = ([f32::INFINITY; 2], [f32::NEG_INFINITY; 2]);
-        let mut x_max = f32::NEG_INFINITY;
-        for b in &boxes {
-            lo = [lo[0].min(b[1] - m), lo[1].min(b[3] - m)];
-            hi = [hi[0].max(b[2] + m), hi[1].max(b[4] + m)];
-            x_max = x_max.max(b[0]);
-        }
-        let side = ((triangles.len() as f64).sqrt() as usize).clamp(8, 512);
-        let cells = [side, side];
-        let inv_cell = [0, 1].map(|k| side as f32 / (hi[k] - lo[k]).max(f32::MIN_POSITIVE));
-        let index = |v: f32, k: usize| -> usize {
-            (((v - lo[k]) * inv_cell[k]).floor().max(0.0) as usize).min(cells[k] - 1)
-        };
-        let range = |b: &[f32; 5]| {
-            (
-                index(b[1] - m, 0)..=index(b[2] + m, 0),
-                index(b[3] - m, 1)..=index(b[4] + m, 1),
-            )
-        };
-        let mut count = vec![0u32; side * side + 1];
-        for b in &boxes {
-            let (ry, rz) = range(b);
-            for iz in rz {
-                for iy in ry.clone() {
-                    count[iy + side * iz + 1] += 1;
-                }
-            }
-        }
-        for c in 1..count.len() {
-            count[c] += count[c - 1];
-        }
-        let start = count.clone();
-        let mut tris = vec![0u32; *count.last().unwrap_or(&0) as usize];
-        for (t, b) in boxes.iter().enumerate() {
-            let (ry, rz) = range(b);
-            for iz in rz {
-                for iy in ry.clone() {
-                    let c = iy + side * iz;
-                    tris[count[c] as usize] = t as u32;
-                    count[c] += 1;
-                }
-            }
-        }
-        Self {
-            lo,
-            inv_cell,
-            cells,
-            start,
-            tris,
-            boxes,
-            x_max,
-        }
-    }
-
-    /// The cell holding `(y, z)` (the last cell for points at or past the upper edge), `None`
-    /// below the grid's lower edges, where no widened extent reaches.
-    fn cell(&self, y: f32, z: f32) -> Option<usize> {
-        let fy = (y - self.lo[0]) * self.inv_cell[0];
-        let fz = (z - self.lo[1]) * self.inv_cell[1];
-        if !(fy >= 0.0 && fz >= 0.0) {
-            return None;
-        }
-        let iy = (fy as usize).min(self.cells[0] - 1);
-        let iz = (fz as usize).min(self.cells[1] - 1);
-        Some(iy + self.cells[0] * iz)
-    }
-}
-
-/// Barycentric weights of point `p` (assumed in the triangle's plane) with respect to
-/// `v0, v1, v2`, clamped to the triangle.
-fn barycentric(tri: &Triangle, p: DVec3) -> [f32; 3] {
-    let v = |a: Vec3A| DVec3::new(a.x.into(), a.y.into(), a.z.into());
-    let (a, b, c) = (v(tri.v0), v(tri.v1), v(tri.v2));
-    let n = (b - a).cross(c - a);
-    let nn = n.length_squared();
-    let w1 = ((p - a).cross(c - a)).dot(n) / nn;
-    let w2 = ((b - a).cross(p - a)).dot(n) / nn;
-    let w = [1.0 - w1 - w2, w1, w2].map(|x| x.clamp(0.0, 1.0));
-    let s: f64 = w.iter().sum();
-    w.map(|x| (x / s) as f32)
 }
 
 #[cfg(test)]

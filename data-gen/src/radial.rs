@@ -180,6 +180,10 @@ impl BandTracer for RadialTracer<'_> {
         (self.rays.columns, self.rays.rows.len())
     }
 
+    fn footprint(&self) -> Option<crate::geometry::Footprint> {
+        self.rays.footprint()
+    }
+
     fn trace_band<T>(
         &self,
         b: usize,
@@ -217,12 +221,14 @@ impl BandTracer for RadialTracer<'_> {
             let tri = &self.triangles[t as usize];
             let columns = self.columns(tri);
             let tri = Prepared::new(tri);
+            let traced = self.mesh.traced();
             for r in s0..s1 {
                 let row = (r - r0) * w;
                 for c in columns.iter().flat_map(Clone::clone) {
                     let k = row + c;
                     let d = tri.intersect(&bvh_rays[k]);
-                    if d < best_d[k] {
+                    if d < best_d[k] && self.mesh.traced_stops(traced, t as usize, &bvh_rays[k], d)
+                    {
                         best_d[k] = d;
                         best_t[k] = t;
                     }
@@ -319,7 +325,7 @@ mod tests {
 
     use super::*;
     use crate::shape::Shape;
-    use crate::test_meshes::{check_traced, mesh, soup, sphere, squash_flat};
+    use crate::test_meshes::{check_traced, masked_soup, mesh, soup, sphere, squash_flat};
 
     /// Checks the binned grid ray by ray ([`check_ray`]). Returns the number of ties: rays where
     /// the walk reports another triangle at the same distance.
@@ -381,6 +387,7 @@ mod tests {
             ),
             ("awkward", mesh(awkward())),
             ("soup", mesh(soup(7, 400))),
+            ("alpha-masked soup", masked_soup(7, 400)),
         ] {
             let (lo, hi) = (m.bounds.0.y, m.bounds.1.y);
             let (mut ties, mut rays) = (0, 0);

@@ -13,7 +13,7 @@ use rayon::prelude::*;
 
 use crate::albedo::Albedo;
 use crate::error::DataGenError;
-use crate::geometry::{Hit, ParallelRays, RadialRays, Ray};
+use crate::geometry::{Footprint, Hit, ParallelRays, RadialRays, Ray};
 
 /// Anything data-gen can sample: ray intersection, inside test, bounds.
 ///
@@ -24,6 +24,19 @@ pub trait Shape: Send + Sync {
     fn name(&self) -> &str;
     /// First hit of `ray` with `t ∈ (t_min, t_max)`, or `None`.
     fn intersect(&self, ray: &Ray, t_min: f64, t_max: f64) -> Option<Hit>;
+    /// [`Shape::intersect`] for a ray that stands for the cell `footprint` of a grid: a
+    /// textured surface is read over the cell ([`crate::Mesh`]); shapes without textures
+    /// ignore it (the default).
+    fn intersect_over(
+        &self,
+        ray: &Ray,
+        t_min: f64,
+        t_max: f64,
+        footprint: Option<Footprint>,
+    ) -> Option<Hit> {
+        let _ = footprint;
+        self.intersect(ray, t_min, t_max)
+    }
     /// Whether `ray` meets the shape with `t ∈ (t_min, t_max)`: exactly
     /// `self.intersect(ray, t_min, t_max).is_some()`, which is what the default computes. A
     /// shape overrides it where it can stop at any hit and skip shading ([`crate::Mesh`]: the
@@ -91,6 +104,15 @@ impl Shape for RayByRay<'_> {
     }
     fn intersect(&self, ray: &Ray, t_min: f64, t_max: f64) -> Option<Hit> {
         self.0.intersect(ray, t_min, t_max)
+    }
+    fn intersect_over(
+        &self,
+        ray: &Ray,
+        t_min: f64,
+        t_max: f64,
+        footprint: Option<Footprint>,
+    ) -> Option<Hit> {
+        self.0.intersect_over(ray, t_min, t_max, footprint)
     }
     fn occluded(&self, ray: &Ray, t_min: f64, t_max: f64) -> bool {
         self.0.occluded(ray, t_min, t_max)
@@ -273,7 +295,10 @@ impl<S: Shape + ?Sized> ParallelTracer for OneByOne<'_, S> {
 
     fn trace_rows(&self, rows: Range<usize>, out: &mut [Option<Hit>]) {
         let (t_min, t_max) = (self.rays.t_min, self.rays.t_max);
-        self.each_ray(rows, out, |ray| self.shape.intersect(ray, t_min, t_max));
+        let cell = self.rays.footprint();
+        self.each_ray(rows, out, |ray| {
+            self.shape.intersect_over(ray, t_min, t_max, cell)
+        });
     }
 
     fn occluded_rows(&self, rows: Range<usize>, out: &mut [bool]) {
@@ -299,11 +324,14 @@ impl<S: Shape + ?Sized> ParallelTracer for RadialOneByOne<'_, S> {
             return;
         }
         let outward: Vec<DVec3> = (0..w).map(|c| self.rays.outward(c)).collect();
+        let cell = self.rays.footprint();
         let rows = rows.start..rows.end.min(self.rays.rows.len());
         for (r, out) in rows.zip(out.chunks_mut(w)) {
             for (d, o) in outward.iter().zip(out.iter_mut()) {
                 let ray = self.rays.ray_along(*d, r);
-                *o = self.shape.intersect(&ray, 0.0, self.rays.t_max());
+                *o = self
+                    .shape
+                    .intersect_over(&ray, 0.0, self.rays.t_max(), cell);
             }
         }
     }

@@ -28,6 +28,31 @@ pub(crate) fn sphere(n: usize, shift: f64) -> Vec<[[f64; 3]; 3]> {
     tris
 }
 
+/// `n` random triangles of [`soup`] with random texture coordinates, in one glTF material whose
+/// alpha mask ([`TestGltf::masked_quad`]'s texture) cuts holes in about a third of each: every
+/// tracer must pass through the same holes.
+pub(crate) fn masked_soup(seed: u64, n: usize) -> Mesh {
+    use crate::gltf_write::{TestGltf, TestPrimitive};
+    let mut doc = TestGltf::masked_quad(8);
+    let mut rng = SplitMix64::new(seed ^ 0x5eed);
+    let tris = soup(seed, n);
+    doc.meshes = vec![vec![TestPrimitive {
+        positions: tris.iter().flatten().map(|v| v.map(|c| c as f32)).collect(),
+        uvs: (0..3 * tris.len())
+            .map(|_| [rng.range(0.0, 1.0) as f32, rng.range(0.0, 1.0) as f32])
+            .collect(),
+        indices: (0..3 * tris.len() as u32).collect(),
+        material: 0,
+    }]];
+    let glb = doc.to_glb().unwrap();
+    Mesh::from_gltf_bytes(
+        &glb,
+        std::path::Path::new("soup.glb"),
+        &MeshLoadOptions::default(),
+    )
+    .unwrap()
+}
+
 /// Random triangles, a third of them slivers (two vertices within 1e-4 of each other).
 pub(crate) fn soup(seed: u64, n: usize) -> Vec<[[f64; 3]; 3]> {
     let mut rng = SplitMix64::new(seed);
@@ -67,9 +92,10 @@ pub(crate) fn nearest_of_all(
 ) -> Option<(usize, f32)> {
     let mut bray = Mesh::to_bvh_ray(ray, t_min, t_max);
     let mut all = None;
-    for (t, tri) in mesh.traced().triangles.iter().enumerate() {
+    let tr = mesh.traced();
+    for (t, tri) in tr.triangles.iter().enumerate() {
         let d = tri.intersect(&bray);
-        if d < bray.tmax {
+        if d < bray.tmax && mesh.traced_stops(tr, t, &bray, d) {
             bray.tmax = d;
             all = Some((t, d));
         }

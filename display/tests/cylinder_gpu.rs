@@ -55,6 +55,7 @@ fn asset(shape: &str, dir: &Path) -> (CylinderData, OffsetTexture) {
         geometry: Some(&s),
         texture: None,
         light: Light::default(),
+        placement: None,
     };
     let spec = CylinderSpec {
         columns: 128,
@@ -411,6 +412,7 @@ fn bad_draw_parameters_are_typed_errors() {
             geometry: Some(&s),
             texture: None,
             light: Light::default(),
+            placement: None,
         };
         let spec = CylinderSpec {
             columns: 64,

@@ -43,6 +43,7 @@ fn asset(shape: &str, dir: &Path) -> ParallaxData {
         geometry: Some(&s),
         texture: None,
         light: Light::default(),
+        placement: None,
     };
     let spec = ParallaxSpec {
         views: 8,

@@ -73,6 +73,7 @@ fn asset(tex: &Texture, grazing: f64, dir: &Path) -> PyramidAsset {
         geometry: None,
         texture: Some(tex),
         light: Light::default(),
+        placement: None,
     };
     let needs = Needs {
         grazing_deg: grazing,

@@ -32,7 +32,7 @@ pub use write::{
 /// versions only add optional fields.
 pub const FORMAT_MAJOR: u32 = 1;
 /// Minor version of the asset format.
-pub const FORMAT_MINOR: u32 = 0;
+pub const FORMAT_MINOR: u32 = 1;
 /// Name of the description file in every asset folder.
 pub const DESCRIPTION_FILE: &str = "asset.json";
 
@@ -207,6 +207,48 @@ pub struct Conventions {
     pub cylinder_radius: f64,
     /// Height `H` of the bounding cylinder, in units of `R`.
     pub cylinder_height: f64,
+    /// For an asset made from a mesh file: where the object frame sits in the file's
+    /// coordinates (absent for procedural shapes and textures). Since format 1.1.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub source: Option<SourcePlacement>,
+}
+
+/// The exact affine maps between a mesh file's coordinates and the object frame, as 4 × 4
+/// matrices in **row-major** order acting on column vectors `(x, y, z, 1)`: a renderer draws a
+/// stand-in where the mesh was by applying `to_source` (then the mesh's own world transform,
+/// if it is drawn inside a larger scene).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SourcePlacement {
+    /// Source coordinates → object frame: `p_object = s·U·p_source + t`.
+    pub to_object: [[f64; 4]; 4],
+    /// Object frame → source coordinates (the inverse).
+    pub to_source: [[f64; 4]; 4],
+    /// The uniform scale `s` (object-frame units per source unit).
+    pub scale: f64,
+    /// The source's up axis (`U` takes it to the object frame's `+y`).
+    pub up: String,
+    /// The source's length unit ("metre" for glTF, "file unit" for OBJ).
+    pub units: String,
+    /// What "source coordinates" are.
+    pub frame: String,
+}
+
+impl SourcePlacement {
+    /// The record of `p`.
+    pub fn new(p: &altrep_data_gen::Placement) -> Self {
+        // The columns of the transpose are the rows.
+        let rows = |m: glam::DAffine3| glam::DMat4::from(m).transpose().to_cols_array_2d();
+        Self {
+            to_object: rows(p.to_normalised),
+            to_source: rows(p.to_source()),
+            scale: p.scale(),
+            up: p.up.name().into(),
+            units: p.units.into(),
+            frame: "glTF: world space of the loaded scene or node; OBJ: the file's coordinates"
+                .into(),
+        }
+    }
 }
 
 impl Conventions {
@@ -227,7 +269,14 @@ impl Conventions {
                 .into(),
             cylinder_radius: radius,
             cylinder_height: height,
+            source: None,
         }
+    }
+
+    /// These conventions with the placement of the mesh the asset was made from, if any.
+    pub fn placed(mut self, placement: Option<&altrep_data_gen::Placement>) -> Self {
+        self.source = placement.map(SourcePlacement::new);
+        self
     }
 }
 

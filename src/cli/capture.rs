@@ -1,4 +1,4 @@
-//! `altrep capture` — N orthographic views of an OBJ mesh (or a procedural shape) with colour,
+//! `altrep capture` — N orthographic views of a mesh (OBJ or glTF) (or a procedural shape) with colour,
 //! 16-bit depth and normals, and the ray-casting throughput.
 
 use std::path::PathBuf;
@@ -14,7 +14,7 @@ use super::CliResult;
 /// Arguments of `altrep capture`.
 #[derive(clap::Args, Debug)]
 pub struct CaptureArgs {
-    /// OBJ mesh to capture.
+    /// Mesh to capture (.obj, .gltf or .glb).
     #[arg(long, conflicts_with = "shape", required_unless_present = "shape")]
     pub mesh: Option<PathBuf>,
     /// Procedural shape to capture instead (sphere, box, torus, capsule, pear, truck, chair, tree, building).
@@ -37,7 +37,7 @@ pub fn load_shape(
     shape: Option<&str>,
 ) -> Result<Box<dyn Shape>, Box<dyn std::error::Error + Send + Sync>> {
     match (mesh, shape) {
-        (Some(path), _) => Ok(Box::new(Mesh::load_obj(path, &MeshLoadOptions::default())?)),
+        (Some(path), _) => Ok(Box::new(Mesh::load(path, &MeshLoadOptions::default())?)),
         (None, Some(name)) => Ok(Box::new(scene_shape(name)?)),
         (None, None) => Err("give --mesh FILE or --shape NAME".into()),
     }

@@ -20,7 +20,7 @@ use crate::cylinder::{
 /// Arguments of `altrep cylinder`.
 #[derive(clap::Args, Debug)]
 pub struct CylinderArgs {
-    /// OBJ mesh to represent (repeat for several; with `--shape` too, a summary follows).
+    /// Mesh to represent, .obj, .gltf or .glb (repeat for several; with `--shape` too, a summary follows).
     #[arg(long, conflicts_with = "suite", required_unless_present_any = ["shape", "suite"])]
     pub mesh: Vec<PathBuf>,
     /// Procedural shape instead (sphere, box, torus, capsule, pear, truck, chair, tree,
@@ -72,7 +72,7 @@ pub fn run(args: CylinderArgs) -> CliResult {
         }
         for name in ["teapot", "beetle", "stanford-bunny"] {
             let path = args.meshes.join(format!("{name}.obj"));
-            match Mesh::load_obj(&path, &MeshLoadOptions::default()) {
+            match Mesh::load(&path, &MeshLoadOptions::default()) {
                 Ok(mesh) => shapes.push(Box::new(mesh)),
                 Err(e) => eprintln!("altrep: skipping {name}: {e}"),
             }

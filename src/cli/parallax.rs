@@ -20,7 +20,7 @@ use crate::metrics::{psnr, silhouette_iou};
 /// Arguments of `altrep parallax`.
 #[derive(clap::Args, Debug)]
 pub struct ParallaxArgs {
-    /// OBJ mesh to represent.
+    /// Mesh to represent (.obj, .gltf or .glb).
     #[arg(long, conflicts_with = "shape", required_unless_present = "shape")]
     pub mesh: Option<PathBuf>,
     /// Procedural shape instead (sphere, box, torus, capsule, pear, truck, chair, tree, building).

@@ -28,7 +28,7 @@ pub struct ReportArgs {
         default_value = "fit,parallax,cylinder,slices,octree,pyramid"
     )]
     pub only: Vec<String>,
-    /// OBJ mesh for the parallax and cylinder sweeps (default: the procedural truck and pear).
+    /// Mesh (.obj, .gltf or .glb) for the parallax and cylinder sweeps (default: the procedural truck and pear).
     #[arg(long)]
     pub mesh: Option<PathBuf>,
 }

@@ -16,7 +16,7 @@ use crate::sphere::{
 /// Arguments of `altrep sphere`.
 #[derive(clap::Args, Debug)]
 pub struct SphereArgs {
-    /// OBJ mesh to represent.
+    /// Mesh to represent (.obj, .gltf or .glb).
     #[arg(long, conflicts_with = "shape", required_unless_present = "shape")]
     pub mesh: Option<PathBuf>,
     /// Procedural shape instead (sphere, box, torus, capsule, pear, truck, chair, tree, building).

@@ -7,7 +7,10 @@
 //!
 //! [[asset]]
 //! name = "truck"               # folder name of the asset
-//! shape = "truck"              # a procedural shape, or: mesh = "meshes/truck.obj" (relative to the manifest)
+//! shape = "truck"              # a procedural shape, or: mesh = "meshes/truck.obj" (relative to the
+//!                              # manifest; .obj, .gltf or .glb)
+//! # up = "z"                   # a mesh's up axis: x, -x, y (default), -y, z, -z
+//! # node = "Tree_01"           # glTF: load this node's subtree instead of the default scene
 //! [asset.needs]
 //! azimuth_deg = [0, 360]       # range of view azimuths α (degrees)
 //! elevation_deg = [0, 0]       # range of view elevations (degrees; horizontal captures hold 0)
@@ -80,6 +83,10 @@ macro_rules! asset_structs {
             shape: Option<String>,
             #[serde(default)]
             mesh: Option<PathBuf>,
+            #[serde(default)]
+            up: Option<Spanned<String>>,
+            #[serde(default)]
+            node: Option<Spanned<String>>,
             #[serde(default)]
             texture: Option<PathBuf>,
             #[serde(default)]
@@ -177,8 +184,16 @@ struct RawManifest {
 pub enum SourceSpec {
     /// A procedural shape of data-gen by name.
     Shape(String),
-    /// An OBJ mesh (path resolved against the manifest's folder).
-    Mesh(PathBuf),
+    /// A mesh file, OBJ or glTF 2.0 (`.gltf`, `.glb`; path resolved against the manifest's
+    /// folder).
+    Mesh {
+        /// The file.
+        path: PathBuf,
+        /// The source's up axis.
+        up: altrep_data_gen::UpAxis,
+        /// glTF: the node whose subtree is loaded (default: the whole default scene).
+        node: Option<String>,
+    },
     /// A texture image, PNG or EXR (path resolved against the manifest's folder), loaded as
     /// RGBA f32 (8- and 16-bit codes divided by 255 or 65535, values as stored: sRGB stays sRGB).
     Texture(PathBuf),
@@ -320,7 +335,19 @@ impl Manifest {
                     })?;
                     SourceSpec::Shape(s)
                 }
-                (None, Some(m), None, None) => SourceSpec::Mesh(base.join(m)),
+                (None, Some(m), None, None) => {
+                    let up = match a.up.take() {
+                        Some(u) => u.get_ref().parse().map_err(|e: String| {
+                            err(path, text, u.span(), format!("asset.up: {e}"))
+                        })?,
+                        None => altrep_data_gen::UpAxis::default(),
+                    };
+                    SourceSpec::Mesh {
+                        path: base.join(m),
+                        up,
+                        node: a.node.take().map(Spanned::into_inner),
+                    }
+                }
                 (None, None, Some(t), None) => SourceSpec::Texture(base.join(t)),
                 (None, None, None, Some(t)) => {
                     if !(4..=4096).contains(&t.size) {
@@ -344,6 +371,14 @@ impl Manifest {
                     ));
                 }
             };
+            if let Some(key) = [a.up.as_ref(), a.node.as_ref()].iter().flatten().next() {
+                return Err(err(
+                    path,
+                    text,
+                    key.span(),
+                    format!("asset '{name}': `up` and `node` apply to a `mesh` only"),
+                ));
+            }
             let (needs_span, needs) = match a.needs.take() {
                 Some(n) => (n.span(), n.into_inner()),
                 None => (name_span.clone(), Needs::default()),

@@ -151,6 +151,10 @@ pub struct RunSummary {
     pub profile: Option<crate::profile::StageTable>,
     /// Each asset's quality target (`needs.quality_db`, dB), by asset name.
     pub quality_targets: std::collections::BTreeMap<String, f64>,
+    /// What each mesh's file holds that altrep does not read, or reads differently (glTF
+    /// normal maps, emission, skins…; an OBJ's assumed up axis), by asset name.
+    #[serde(skip_serializing_if = "std::collections::BTreeMap::is_empty")]
+    pub source_notes: std::collections::BTreeMap<String, Vec<String>>,
 }
 
 impl RunSummary {
@@ -298,8 +302,12 @@ fn prepare_output(out: &Path) -> Result<OutputLock, PipelineError> {
 
 /// What an asset is made of, once loaded.
 enum Loaded {
-    /// A shape or mesh.
-    Geometry(Box<dyn Shape + Send + Sync>),
+    /// A shape or mesh, with a mesh's placement and the notes of its loader.
+    Geometry(
+        Box<dyn Shape + Send + Sync>,
+        Option<altrep_data_gen::Placement>,
+        Vec<String>,
+    ),
     /// A texture.
     Texture(crate::pyramid::Texture),
 }
@@ -307,15 +315,24 @@ enum Loaded {
 impl Loaded {
     /// The [`Source`] of asset `name` lit by `light`.
     fn source<'a>(&'a self, name: &'a str, light: Light) -> Source<'a> {
-        let (geometry, texture) = match self {
-            Self::Geometry(g) => (Some(g.as_ref() as &(dyn Shape + Sync)), None),
-            Self::Texture(t) => (None, Some(t)),
+        let (geometry, texture, placement) = match self {
+            Self::Geometry(g, p, _) => (Some(g.as_ref() as &(dyn Shape + Sync)), None, *p),
+            Self::Texture(t) => (None, Some(t), None),
         };
         Source {
             name,
             geometry,
             texture,
             light,
+            placement,
+        }
+    }
+
+    /// What the source's loader noted (features of the file not read).
+    fn notes(&self) -> &[String] {
+        match self {
+            Self::Geometry(_, _, n) => n,
+            Self::Texture(_) => &[],
         }
     }
 }
@@ -341,16 +358,38 @@ fn load_texture(path: &Path) -> Result<(crate::pyramid::Texture, Vec<u8>), Pipel
 fn load_source(spec: &AssetSpec) -> Result<(Loaded, String), PipelineError> {
     match &spec.source {
         SourceSpec::Shape(name) => Ok((
-            Loaded::Geometry(Box::new(scene_shape(name)?)),
+            Loaded::Geometry(Box::new(scene_shape(name)?), None, Vec::new()),
             crate::asset::hash_hex(format!("shape:{name}").as_bytes()),
         )),
-        SourceSpec::Mesh(path) => {
+        SourceSpec::Mesh { path, up, node } => {
             let bytes = std::fs::read(path).map_err(io(path))?;
-            let mesh = Mesh::from_obj_bytes(&bytes, path, &MeshLoadOptions::default())?;
-            Ok((
-                Loaded::Geometry(Box::new(mesh)),
-                crate::asset::hash_hex(&bytes),
-            ))
+            let options = MeshLoadOptions {
+                up: *up,
+                node: node.clone(),
+                ..MeshLoadOptions::default()
+            };
+            let mesh = Mesh::from_bytes(&bytes, path, &options)?;
+            // The key covers the mesh file, every file it read (materials, buffers, images)
+            // and how it was read. A plain y-up OBJ without other files keeps the key of the
+            // mesh bytes alone.
+            let hash = if mesh.inputs().is_empty() && *up == Default::default() && node.is_none() {
+                crate::asset::hash_hex(&bytes)
+            } else {
+                let mut h = blake3::Hasher::new();
+                h.update(blake3::hash(&bytes).as_bytes());
+                h.update(format!("up:{up};node:{node:?}").as_bytes());
+                for (file, digest) in mesh.inputs() {
+                    let name = file
+                        .strip_prefix(path.parent().unwrap_or(path))
+                        .unwrap_or(file);
+                    h.update(name.to_string_lossy().as_bytes());
+                    h.update(digest.as_bytes());
+                }
+                h.finalize().to_hex().to_string()
+            };
+            let placement = Some(*mesh.placement());
+            let notes = mesh.notes().to_vec();
+            Ok((Loaded::Geometry(Box::new(mesh), placement, notes), hash))
         }
         SourceSpec::Texture(path) => {
             let (tex, bytes) = load_texture(path)?;
@@ -448,6 +487,7 @@ pub fn run_scene(manifest: &Manifest, options: &RunOptions) -> Result<RunSummary
     let pictures_dir = options.out.join("pictures");
     std::fs::create_dir_all(&pictures_dir).map_err(io(&pictures_dir))?;
     let profile = options.profile.then(crate::profile::Profile::new);
+    let source_notes = std::sync::Mutex::new(std::collections::BTreeMap::new());
     let one = |spec: &&AssetSpec| {
         let t_asset = Instant::now();
         let loaded = load_source(spec);
@@ -469,6 +509,11 @@ pub fn run_scene(manifest: &Manifest, options: &RunOptions) -> Result<RunSummary
             Ok(l) => l,
             Err(e) => return wanted(spec).into_iter().map(|r| fail(r, &e)).collect(),
         };
+        if !loaded.notes().is_empty()
+            && let Ok(mut notes) = source_notes.lock()
+        {
+            notes.insert(spec.name.clone(), loaded.notes().to_vec());
+        }
         let source = loaded.source(&spec.name, light);
         bar.set_message(spec.name.clone());
         let p = profile.as_ref();
@@ -537,6 +582,7 @@ pub fn run_scene(manifest: &Manifest, options: &RunOptions) -> Result<RunSummary
             .iter()
             .map(|a| (a.name.clone(), a.needs.quality_db))
             .collect(),
+        source_notes: source_notes.into_inner().unwrap_or_default(),
     };
     write_report(&summary, options)?;
     Ok(summary)
@@ -708,7 +754,7 @@ fn build_one<'a, R: Representation>(
         R::NAME,
         source.name,
         &key,
-        Conventions::new(1.0, 2.0),
+        Conventions::new(1.0, 2.0).placed(source.placement.as_ref()),
         metadata,
         report,
     )?;
@@ -784,6 +830,12 @@ fn write_report(summary: &RunSummary, options: &RunOptions) -> Result<(), Pipeli
         },
         summary.table()
     );
+    if !summary.source_notes.is_empty() {
+        md += "\n## What the sources hold that altrep does not read\n\n";
+        for (asset, notes) in &summary.source_notes {
+            md += &format!("- {asset}: {}\n", notes.join("; "));
+        }
+    }
     for o in &summary.outcomes {
         md += &format!("\n## {} — {}\n\n", o.asset, o.representation);
         if let Some(m) = &o.measurement {

@@ -22,7 +22,7 @@ fn object(
 ) -> Result<Box<dyn Shape>, ReportError> {
     match mesh {
         Some(path) => Ok(Box::new(
-            Mesh::load_obj(path, &MeshLoadOptions::default()).map_err(err(representation))?,
+            Mesh::load(path, &MeshLoadOptions::default()).map_err(err(representation))?,
         )),
         None => Ok(Box::new(scene_shape(default).map_err(err(representation))?)),
     }
@@ -463,6 +463,7 @@ pub fn octree(quick: bool) -> Result<RepresentationReport, ReportError> {
         geometry: Some(&shape),
         texture: None,
         light: altrep_data_gen::Light::default(),
+        placement: None,
     };
     let needs = Needs {
         screen_px: [1.0, 4096.0],

@@ -206,6 +206,9 @@ pub struct Source<'a> {
     pub texture: Option<&'a crate::pyramid::Texture>,
     /// The scene's light (baked lighting and every measured image).
     pub light: Light,
+    /// For a mesh: the map from the source file's coordinates to the object frame, recorded
+    /// in every `asset.json` so that a renderer can place the stand-in where the mesh was.
+    pub placement: Option<altrep_data_gen::Placement>,
 }
 
 impl<'a> Source<'a> {

@@ -30,6 +30,7 @@ fn source<'a>(name: &'a str, shape: &'a (dyn altrep_data_gen::Shape + Sync)) -> 
         geometry: Some(shape),
         texture: None,
         light: Light::default(),
+        placement: None,
     }
 }
 
@@ -118,6 +119,7 @@ fn texture_source(tex: &altrep::pyramid::Texture) -> Source<'_> {
         geometry: None,
         texture: Some(tex),
         light: Light::default(),
+        placement: None,
     }
 }
 
@@ -599,4 +601,5 @@ fn the_library_the_manifest_and_the_command_accept_the_same_view_counts() {
     assert_eq!(accepted, [3, 4, 8, 1023, 1024]);
 }
 
+mod real_assets;
 mod runs;

@@ -82,6 +82,7 @@ fn precompute(args: &Args) -> Result<CylinderData, String> {
         geometry: Some(&shape),
         texture: None,
         light: Light::default(),
+        placement: None,
     };
     let spec = CylinderSpec {
         columns: args.columns,

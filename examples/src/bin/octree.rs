@@ -65,6 +65,7 @@ fn run(args: &Args) -> Result<(), String> {
                 geometry: Some(&shape),
                 texture: None,
                 light,
+                placement: None,
             };
             let spec = OctreeSpec {
                 resolution: args.resolution,

@@ -68,6 +68,7 @@ fn precompute(args: &Args, kind: BoundKind) -> Result<ParallaxData, String> {
         geometry: Some(&shape),
         texture: None,
         light: Light::default(),
+        placement: None,
     };
     let spec = ParallaxSpec {
         size: args.size,

@@ -91,6 +91,7 @@ fn precompute(args: &Args, tex: &Texture, grazing: f64) -> Result<PyramidAsset, 
         geometry: None,
         texture: Some(tex),
         light: Light::default(),
+        placement: None,
     };
     let needs = Needs {
         grazing_deg: grazing,

@@ -85,6 +85,7 @@ fn precompute(args: &Args) -> Result<SphereImages, String> {
         geometry: Some(&shape),
         texture: None,
         light: Light::default(),
+        placement: None,
     };
     let spec = SphereSpec {
         grid: args.grid,

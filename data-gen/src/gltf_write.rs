@@ -1,0 +1,392 @@
+//! Small glTF 2.0 files with known content, written by data-gen for tests and examples: a textured
+//! box whose texel colours are known in closed form, an alpha-masked quad with a known hole
+//! pattern, a mirrored node, a z-up asset ([`TestGltf`]). Written as `.glb` (one file) or as
+//! `.gltf` with an external `.bin` buffer and PNG images beside it.
+//!
+//! Not a general exporter: one buffer, float positions and texture coordinates, `u32` indices,
+//! one optional PNG per material.
+
+use std::path::Path;
+
+use serde_json::{Value, json};
+
+use crate::error::DataGenError;
+
+/// An 8-bit RGBA image, row 0 at the top (stored as PNG in the file).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Rgba8 {
+    /// Width in texels.
+    pub width: u32,
+    /// Height in texels.
+    pub height: u32,
+    /// Row-major RGBA bytes, `4·width·height` of them.
+    pub data: Vec<u8>,
+}
+
+/// A material of a [`TestGltf`].
+#[derive(Clone, Debug, PartialEq)]
+pub struct TestMaterial {
+    /// `baseColorFactor`.
+    pub base_color: [f32; 4],
+    /// `baseColorTexture` (sampled with `NEAREST` when `nearest`, else `LINEAR`).
+    pub texture: Option<Rgba8>,
+    /// Magnification filter `NEAREST` instead of `LINEAR`.
+    pub nearest: bool,
+    /// `"OPAQUE"`, `"MASK"` or `"BLEND"`.
+    pub alpha_mode: &'static str,
+    /// `alphaCutoff` (written for `MASK` only).
+    pub alpha_cutoff: f32,
+}
+
+/// A triangle primitive of a [`TestGltf`] mesh.
+#[derive(Clone, Debug, PartialEq)]
+pub struct TestPrimitive {
+    /// Vertex positions.
+    pub positions: Vec<[f32; 3]>,
+    /// `TEXCOORD_0` (same length as `positions`), or empty for none.
+    pub uvs: Vec<[f32; 2]>,
+    /// Triangle indices (`TRIANGLES` mode).
+    pub indices: Vec<u32>,
+    /// Index into [`TestGltf::materials`].
+    pub material: usize,
+}
+
+/// A node: an optional mesh, a column-major 4 × 4 matrix, children.
+#[derive(Clone, Debug, PartialEq)]
+pub struct TestNode {
+    /// The node's name.
+    pub name: String,
+    /// Index into [`TestGltf::meshes`].
+    pub mesh: Option<usize>,
+    /// Column-major local transform.
+    pub matrix: [f32; 16],
+    /// Indices of child nodes.
+    pub children: Vec<usize>,
+}
+
+/// A whole glTF document: meshes (lists of primitives), materials, nodes, the scene's roots.
+#[derive(Clone, Debug, PartialEq, Default)]
+pub struct TestGltf {
+    /// Meshes, each a list of primitives.
+    pub meshes: Vec<Vec<TestPrimitive>>,
+    /// Materials.
+    pub materials: Vec<TestMaterial>,
+    /// Nodes.
+    pub nodes: Vec<TestNode>,
+    /// The scene's root nodes.
+    pub roots: Vec<usize>,
+}
+
+/// The identity as a column-major matrix.
+pub const IDENTITY: [f32; 16] = [
+    1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0,
+];
+
+fn png(img: &Rgba8) -> Result<Vec<u8>, DataGenError> {
+    let mut out = Vec::new();
+    image::codecs::png::PngEncoder::new(&mut out)
+        .write_image(
+            &img.data,
+            img.width,
+            img.height,
+            image::ExtendedColorType::Rgba8,
+        )
+        .map_err(|e| DataGenError::ImageWrite {
+            path: "<memory>".into(),
+            message: e.to_string(),
+        })?;
+    Ok(out)
+}
+
+use image::ImageEncoder as _;
+
+impl TestGltf {
+    /// The JSON document and the binary buffer; images go into the buffer (`external = None`)
+    /// or are named `<stem>_<k>.png` (`external = Some(stem)`, returned as files to write).
+    #[allow(clippy::type_complexity)]
+    fn build(
+        &self,
+        external: Option<&str>,
+    ) -> Result<(Value, Vec<u8>, Vec<(String, Vec<u8>)>), DataGenError> {
+        let mut bin: Vec<u8> = Vec::new();
+        let mut views = Vec::new();
+        let mut accessors = Vec::new();
+        let mut push_view = |bin: &mut Vec<u8>, bytes: &[u8]| {
+            while !bin.len().is_multiple_of(4) {
+                bin.push(0);
+            }
+            let offset = bin.len();
+            bin.extend_from_slice(bytes);
+            views.push(json!({"buffer": 0, "byteOffset": offset, "byteLength": bytes.len()}));
+            views.len() - 1
+        };
+        let mut meshes = Vec::new();
+        for mesh in &self.meshes {
+            let mut prims = Vec::new();
+            for p in mesh {
+                let pos: Vec<u8> = p
+                    .positions
+                    .iter()
+                    .flatten()
+                    .flat_map(|v| v.to_le_bytes())
+                    .collect();
+                let v = push_view(&mut bin, &pos);
+                let (lo, hi) = p.positions.iter().fold(
+                    ([f32::INFINITY; 3], [f32::NEG_INFINITY; 3]),
+                    |(lo, hi), q| {
+                        (
+                            [0, 1, 2].map(|k| lo[k].min(q[k])),
+                            [0, 1, 2].map(|k| hi[k].max(q[k])),
+                        )
+                    },
+                );
+                accessors.push(json!({"bufferView": v, "componentType": 5126, "count": p.positions.len(), "type": "VEC3", "min": lo, "max": hi}));
+                let mut attributes = json!({"POSITION": accessors.len() - 1});
+                if !p.uvs.is_empty() {
+                    let uv: Vec<u8> = p
+                        .uvs
+                        .iter()
+                        .flatten()
+                        .flat_map(|v| v.to_le_bytes())
+                        .collect();
+                    let v = push_view(&mut bin, &uv);
+                    accessors.push(json!({"bufferView": v, "componentType": 5126, "count": p.uvs.len(), "type": "VEC2"}));
+                    attributes["TEXCOORD_0"] = json!(accessors.len() - 1);
+                }
+                let idx: Vec<u8> = p.indices.iter().flat_map(|v| v.to_le_bytes()).collect();
+                let v = push_view(&mut bin, &idx);
+                accessors.push(json!({"bufferView": v, "componentType": 5125, "count": p.indices.len(), "type": "SCALAR"}));
+                prims.push(json!({"attributes": attributes, "indices": accessors.len() - 1, "material": p.material}));
+            }
+            meshes.push(json!({"primitives": prims}));
+        }
+        let mut images = Vec::new();
+        let mut textures = Vec::new();
+        let mut samplers = Vec::new();
+        let mut files = Vec::new();
+        let mut materials = Vec::new();
+        for (k, m) in self.materials.iter().enumerate() {
+            let mut pbr = json!({"baseColorFactor": m.base_color, "metallicFactor": 0.0});
+            if let Some(img) = &m.texture {
+                let bytes = png(img)?;
+                match external {
+                    Some(stem) => {
+                        let name = format!("{stem}_{k}.png");
+                        images.push(json!({"uri": name}));
+                        files.push((name, bytes));
+                    }
+                    None => {
+                        let v = push_view(&mut bin, &bytes);
+                        images.push(json!({"bufferView": v, "mimeType": "image/png"}));
+                    }
+                }
+                let filter = if m.nearest { 9728 } else { 9729 };
+                samplers.push(json!({"magFilter": filter, "minFilter": filter, "wrapS": 33071, "wrapT": 33071}));
+                textures.push(json!({"source": images.len() - 1, "sampler": samplers.len() - 1}));
+                pbr["baseColorTexture"] = json!({"index": textures.len() - 1});
+            }
+            let mut mat = json!({"pbrMetallicRoughness": pbr, "alphaMode": m.alpha_mode, "doubleSided": true});
+            if m.alpha_mode == "MASK" {
+                mat["alphaCutoff"] = json!(m.alpha_cutoff);
+            }
+            materials.push(mat);
+        }
+        let nodes: Vec<Value> = self
+            .nodes
+            .iter()
+            .map(|n| {
+                let mut v = json!({"name": n.name, "matrix": n.matrix});
+                if let Some(m) = n.mesh {
+                    v["mesh"] = json!(m);
+                }
+                if !n.children.is_empty() {
+                    v["children"] = json!(n.children);
+                }
+                v
+            })
+            .collect();
+        while !bin.len().is_multiple_of(4) {
+            bin.push(0);
+        }
+        let mut buffer = json!({"byteLength": bin.len()});
+        if let Some(stem) = external {
+            buffer["uri"] = json!(format!("{stem}.bin"));
+        }
+        let mut doc = json!({
+            "asset": {"version": "2.0", "generator": "altrep-data-gen test assets"},
+            "scene": 0,
+            "scenes": [{"nodes": self.roots}],
+            "nodes": nodes,
+            "meshes": meshes,
+            "materials": materials,
+            "accessors": accessors,
+            "bufferViews": views,
+            "buffers": [buffer],
+        });
+        if !images.is_empty() {
+            doc["images"] = json!(images);
+            doc["textures"] = json!(textures);
+            doc["samplers"] = json!(samplers);
+        }
+        Ok((doc, bin, files))
+    }
+
+    /// The document as one `.glb` file's bytes.
+    pub fn to_glb(&self) -> Result<Vec<u8>, DataGenError> {
+        let (doc, bin, _) = self.build(None)?;
+        let mut json = serde_json::to_vec(&doc).expect("a JSON value serialises");
+        while !json.len().is_multiple_of(4) {
+            json.push(b' ');
+        }
+        let total = 12 + 8 + json.len() + 8 + bin.len();
+        let mut out = Vec::with_capacity(total);
+        out.extend_from_slice(b"glTF");
+        out.extend_from_slice(&2u32.to_le_bytes());
+        out.extend_from_slice(&(total as u32).to_le_bytes());
+        out.extend_from_slice(&(json.len() as u32).to_le_bytes());
+        out.extend_from_slice(b"JSON");
+        out.extend_from_slice(&json);
+        out.extend_from_slice(&(bin.len() as u32).to_le_bytes());
+        out.extend_from_slice(b"BIN\0");
+        out.extend_from_slice(&bin);
+        Ok(out)
+    }
+
+    /// Writes `<dir>/<stem>.gltf` with `<stem>.bin` and `<stem>_<k>.png` beside it; returns the
+    /// `.gltf` path.
+    pub fn write_gltf(&self, dir: &Path, stem: &str) -> Result<std::path::PathBuf, DataGenError> {
+        let (doc, bin, files) = self.build(Some(stem))?;
+        let write = |name: &str, bytes: &[u8]| {
+            let p = dir.join(name);
+            std::fs::write(&p, bytes).map_err(|source| DataGenError::Io { path: p, source })
+        };
+        write(&format!("{stem}.bin"), &bin)?;
+        for (name, bytes) in &files {
+            write(name, bytes)?;
+        }
+        let path = dir.join(format!("{stem}.gltf"));
+        write(
+            &format!("{stem}.gltf"),
+            &serde_json::to_vec_pretty(&doc).expect("a JSON value serialises"),
+        )?;
+        Ok(path)
+    }
+
+    /// A unit cube `[0, 1]³` whose six faces each map the whole texture (`uv` from `(0, 0)` at
+    /// the face's corner of greatest `y`… see [`TestGltf::textured_box_texel`]), textured with an
+    /// `n × n` image of sRGB codes `(32·i mod 256, 32·j mod 256, 200, 255)` at texel `(i, j)`,
+    /// sampled `NEAREST`, base colour factor 1.
+    pub fn textured_box(n: u32) -> Self {
+        let data = (0..n)
+            .flat_map(|j| (0..n).flat_map(move |i| Self::textured_box_texel(i, j)))
+            .collect();
+        let mut prim = TestPrimitive {
+            positions: Vec::new(),
+            uvs: Vec::new(),
+            indices: Vec::new(),
+            material: 0,
+        };
+        // Each face: corners a (uv 0,0), b (1,0), c (1,1), d (0,1) as (origin, u edge, v edge).
+        let faces: [([f32; 3], [f32; 3], [f32; 3]); 6] = [
+            ([0.0, 1.0, 1.0], [1.0, 0.0, 0.0], [0.0, -1.0, 0.0]), // +z
+            ([1.0, 1.0, 0.0], [-1.0, 0.0, 0.0], [0.0, -1.0, 0.0]), // −z
+            ([1.0, 1.0, 1.0], [0.0, 0.0, -1.0], [0.0, -1.0, 0.0]), // +x
+            ([0.0, 1.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]), // −x
+            ([0.0, 1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]),  // +y
+            ([0.0, 0.0, 1.0], [1.0, 0.0, 0.0], [0.0, 0.0, -1.0]), // −y
+        ];
+        for (o, u, v) in faces {
+            let base = prim.positions.len() as u32;
+            for (s, t) in [(0.0, 0.0), (1.0, 0.0), (1.0, 1.0), (0.0, 1.0)] {
+                prim.positions
+                    .push([0, 1, 2].map(|k| o[k] + s * u[k] + t * v[k]));
+                prim.uvs.push([s, t]);
+            }
+            prim.indices
+                .extend([base, base + 1, base + 2, base, base + 2, base + 3]);
+        }
+        Self {
+            meshes: vec![vec![prim]],
+            materials: vec![TestMaterial {
+                base_color: [1.0; 4],
+                texture: Some(Rgba8 {
+                    width: n,
+                    height: n,
+                    data,
+                }),
+                nearest: true,
+                alpha_mode: "OPAQUE",
+                alpha_cutoff: 0.5,
+            }],
+            nodes: vec![TestNode {
+                name: "box".into(),
+                mesh: Some(0),
+                matrix: IDENTITY,
+                children: vec![],
+            }],
+            roots: vec![0],
+        }
+    }
+
+    /// The sRGB code of texel `(i, j)` of [`TestGltf::textured_box`]'s image.
+    pub fn textured_box_texel(i: u32, j: u32) -> [u8; 4] {
+        [((32 * i) % 256) as u8, ((32 * j) % 256) as u8, 200, 255]
+    }
+
+    /// A square `[0, 1]²` in the plane `z = 0` (`uv = (x, 1 − y)`), textured `n × n` with alpha
+    /// 0 on the texels where [`TestGltf::hole`] is true and 255 elsewhere, `MASK` with cutoff ½,
+    /// sampled `NEAREST`; behind it (at `z = −0.5`) an opaque untextured square of base colour
+    /// `(0.2, 0.9, 0.2)`.
+    pub fn masked_quad(n: u32) -> Self {
+        let data = (0..n)
+            .flat_map(|j| {
+                (0..n).flat_map(move |i| {
+                    let a = if Self::hole(i, j) { 0 } else { 255 };
+                    [230, 120, 40, a]
+                })
+            })
+            .collect();
+        let square = |z: f32, material: usize| TestPrimitive {
+            positions: vec![[0.0, 0.0, z], [1.0, 0.0, z], [1.0, 1.0, z], [0.0, 1.0, z]],
+            uvs: vec![[0.0, 1.0], [1.0, 1.0], [1.0, 0.0], [0.0, 0.0]],
+            indices: vec![0, 1, 2, 0, 2, 3],
+            material,
+        };
+        Self {
+            meshes: vec![vec![square(0.0, 0), square(-0.5, 1)]],
+            materials: vec![
+                TestMaterial {
+                    base_color: [1.0; 4],
+                    texture: Some(Rgba8 {
+                        width: n,
+                        height: n,
+                        data,
+                    }),
+                    nearest: true,
+                    alpha_mode: "MASK",
+                    alpha_cutoff: 0.5,
+                },
+                TestMaterial {
+                    base_color: [0.2, 0.9, 0.2, 1.0],
+                    texture: None,
+                    nearest: false,
+                    alpha_mode: "OPAQUE",
+                    alpha_cutoff: 0.5,
+                },
+            ],
+            nodes: vec![TestNode {
+                name: "quad".into(),
+                mesh: Some(0),
+                matrix: IDENTITY,
+                children: vec![],
+            }],
+            roots: vec![0],
+        }
+    }
+
+    /// The hole pattern of [`TestGltf::masked_quad`]: texel `(i, j)` is a hole when `i + 2·j`
+    /// is a multiple of 3.
+    pub fn hole(i: u32, j: u32) -> bool {
+        (i + 2 * j).is_multiple_of(3)
+    }
+}

@@ -1,0 +1,614 @@
+//! glTF 2.0 and textured OBJ input against closed-form answers: texel colours of a textured box,
+//! the holes of an alpha-masked quad, the placement map under a mirroring node and a z-up source,
+//! and typed errors (never a panic) on malformed files.
+
+use std::path::Path;
+
+use altrep_data_gen::gltf_write::{IDENTITY, TestGltf};
+use altrep_data_gen::{
+    DataGenError, Mesh, MeshLoadOptions, Ray, Shape, UpAxis, ViewParams, capture_view,
+    srgb_to_linear,
+};
+use approx::assert_abs_diff_eq;
+use glam::{DVec3, Vec3};
+use proptest::prelude::*;
+
+fn load_glb(doc: &TestGltf, options: &MeshLoadOptions) -> Result<Mesh, DataGenError> {
+    Mesh::from_gltf_bytes(&doc.to_glb().unwrap(), Path::new("test.glb"), options)
+}
+
+/// The linear colour of an sRGB byte triple.
+fn linear(c: [u8; 4]) -> Vec3 {
+    Vec3::new(
+        srgb_to_linear(f32::from(c[0]) / 255.0),
+        srgb_to_linear(f32::from(c[1]) / 255.0),
+        srgb_to_linear(f32::from(c[2]) / 255.0),
+    )
+}
+
+/// Casts a ray at source point `p` (source coordinates) coming from `outward` (a unit source
+/// direction) and returns the hit and the distance at which `p` lies along the ray.
+fn hit_at_source_point(
+    mesh: &Mesh,
+    p: DVec3,
+    outward: DVec3,
+) -> (Option<altrep_data_gen::Hit>, f64) {
+    let map = mesh.placement().to_normalised;
+    let target = map.transform_point3(p);
+    let dir = -map.transform_vector3(outward).normalize();
+    let ray = Ray::new(target - 0.5 * dir, dir);
+    (mesh.intersect(&ray, 0.0, 10.0), 0.5)
+}
+
+/// A point of texel `(i, j)` of the box's `+z` face, in source coordinates: off the texel's
+/// centre so that it never lies on the face's diagonal, the edge the two triangles share (the
+/// triangle test is not watertight: a ray exactly through a shared edge can miss both, see
+/// `docs/real-assets.md`).
+fn plus_z_texel(i: u32, j: u32, n: u32) -> DVec3 {
+    let s = (f64::from(i) + 0.3) / f64::from(n);
+    let t = (f64::from(j) + 0.7) / f64::from(n);
+    DVec3::new(s, 1.0 - t, 1.0)
+}
+
+#[test]
+fn a_textured_box_shows_every_texel_colour_in_glb_and_in_gltf_with_external_files() {
+    let n = 8;
+    let doc = TestGltf::textured_box(n);
+    let dir = tempfile::tempdir().unwrap();
+    let gltf_path = doc.write_gltf(dir.path(), "box").unwrap();
+    let from_files = Mesh::load(&gltf_path, &MeshLoadOptions::default()).unwrap();
+    // The buffer and the image were read from beside the .gltf, and are listed for the cache.
+    let read: Vec<String> = from_files
+        .inputs()
+        .iter()
+        .map(|(p, _)| p.file_name().unwrap().to_string_lossy().into_owned())
+        .collect();
+    assert_eq!(read, ["box.bin", "box_0.png"]);
+    let from_glb = load_glb(&doc, &MeshLoadOptions::default()).unwrap();
+    for mesh in [&from_files, &from_glb] {
+        assert_eq!(mesh.triangle_count(), 12);
+        assert!(!mesh.is_cut_out());
+        for j in 0..n {
+            for i in 0..n {
+                let (hit, t) = hit_at_source_point(mesh, plus_z_texel(i, j, n), DVec3::Z);
+                let hit = hit.unwrap_or_else(|| panic!("texel ({i}, {j}) missed"));
+                assert_abs_diff_eq!(hit.t, t, epsilon = 1e-5);
+                let want = linear(TestGltf::textured_box_texel(i, j));
+                assert_abs_diff_eq!(hit.albedo.x, want.x, epsilon = 1e-6);
+                assert_abs_diff_eq!(hit.albedo.y, want.y, epsilon = 1e-6);
+                assert_abs_diff_eq!(hit.albedo.z, want.z, epsilon = 1e-6);
+            }
+        }
+    }
+}
+
+#[test]
+fn an_alpha_mask_lets_rays_through_exactly_its_holes_in_every_tracer() {
+    let n = 6;
+    let mesh = load_glb(&TestGltf::masked_quad(n), &MeshLoadOptions::default()).unwrap();
+    assert!(mesh.is_cut_out());
+    let front = linear([230, 120, 40, 255]);
+    let back = Vec3::new(0.2, 0.9, 0.2);
+    let (mut holes, mut solid) = (0, 0);
+    for j in 0..n {
+        for i in 0..n {
+            // Texel (i, j) of the quad: uv = (x, 1 − y).
+            let p = DVec3::new(
+                (f64::from(i) + 0.5) / f64::from(n),
+                1.0 - (f64::from(j) + 0.5) / f64::from(n),
+                0.0,
+            );
+            let (hit, t) = hit_at_source_point(&mesh, p, DVec3::Z);
+            let hit = hit.expect("the back square stops every ray");
+            if TestGltf::hole(i, j) {
+                holes += 1;
+                assert!(hit.t > t + 1e-3, "texel ({i}, {j}) is a hole");
+                assert_abs_diff_eq!(hit.albedo.y, back.y, epsilon = 1e-6);
+            } else {
+                solid += 1;
+                assert_abs_diff_eq!(hit.t, t, epsilon = 1e-5);
+                assert_abs_diff_eq!(hit.albedo.x, front.x, epsilon = 1e-6);
+            }
+        }
+    }
+    assert!(holes > 0 && solid > 0);
+    // The binned capture (a grid with more rays than triangles) sees the same holes as single
+    // rays: its colours over the front square are the front colour where the texel is solid,
+    // the back colour where it is a hole. The view at α = π/2 looks along −z.
+    let grid = capture_view(
+        &mesh,
+        &ViewParams {
+            angle: std::f64::consts::FRAC_PI_2,
+            width: 96,
+            height: 96,
+            cylinder: Default::default(),
+        },
+    )
+    .unwrap();
+    let (mut front_px, mut back_px) = (0, 0);
+    for j in 0..96 {
+        for i in 0..96 {
+            if let Some(s) = grid.get(i, j) {
+                if (s.albedo - front).abs().max_element() < 1e-5 {
+                    front_px += 1;
+                } else if (s.albedo - back).abs().max_element() < 1e-5 {
+                    back_px += 1;
+                }
+            }
+        }
+    }
+    let (h, s) = (f64::from(holes), f64::from(solid));
+    let share = f64::from(back_px) / f64::from(front_px + back_px);
+    // The back square's rim shows around the front square in this view; the share of back
+    // pixels is at least the hole share.
+    assert!(
+        share >= h / (h + s) - 0.02,
+        "{back_px} back pixels of {}: holes are {h} of {}",
+        front_px + back_px,
+        h + s
+    );
+}
+
+#[test]
+fn a_mirrored_node_and_a_z_up_source_are_placed_exactly_by_the_recorded_map() {
+    let n = 4;
+    let mut doc = TestGltf::textured_box(n);
+    // A parent translating by (5, 0, 0) over a child mirroring x and stretching z by 3.
+    let mut mirror = IDENTITY;
+    mirror[0] = -1.0;
+    mirror[10] = 3.0;
+    let mut shift = IDENTITY;
+    shift[12] = 5.0;
+    doc.nodes[0].matrix = mirror;
+    doc.nodes.push(altrep_data_gen::gltf_write::TestNode {
+        name: "parent".into(),
+        mesh: None,
+        matrix: shift,
+        children: vec![0],
+    });
+    doc.roots = vec![1];
+    let world = |p: DVec3| DVec3::new(5.0 - p.x, p.y, 3.0 * p.z);
+    for up in [UpAxis::PosY, UpAxis::PosZ, UpAxis::NegX] {
+        let options = MeshLoadOptions {
+            up,
+            ..MeshLoadOptions::default()
+        };
+        let mesh = load_glb(&doc, &options).unwrap();
+        // The map takes the world box onto the mesh's bounds (to f32 rounding of the vertices).
+        let map = mesh.placement().to_normalised;
+        let corners: Vec<DVec3> = (0..8)
+            .map(|k| {
+                world(DVec3::new(
+                    (k & 1) as f64,
+                    (k >> 1 & 1) as f64,
+                    (k >> 2 & 1) as f64,
+                ))
+            })
+            .map(|p| map.transform_point3(p))
+            .collect();
+        let lo = corners.iter().fold(DVec3::INFINITY, |a, &b| a.min(b));
+        let hi = corners.iter().fold(DVec3::NEG_INFINITY, |a, &b| a.max(b));
+        let (blo, bhi) = mesh.bounds();
+        let size = (bhi - blo).max_element();
+        assert!(
+            (lo - blo).abs().max_element() <= 1e-5 * size,
+            "{up}: {lo} vs {blo}"
+        );
+        assert!(
+            (hi - bhi).abs().max_element() <= 1e-5 * size,
+            "{up}: {hi} vs {bhi}"
+        );
+        // Under z up the long (z) side stands upright.
+        if up == UpAxis::PosZ {
+            assert_abs_diff_eq!(bhi.y - blo.y, 2.0, epsilon = 1e-5);
+        }
+        // Every texel of the (mirrored) +z face is where the map puts it, with its colour.
+        for j in 0..n {
+            for i in 0..n {
+                let (hit, t) = hit_at_source_point(&mesh, world(plus_z_texel(i, j, n)), DVec3::Z);
+                let hit = hit.expect("hits");
+                assert_abs_diff_eq!(hit.t, t, epsilon = 1e-5);
+                let want = linear(TestGltf::textured_box_texel(i, j));
+                assert_abs_diff_eq!(hit.albedo.x, want.x, epsilon = 1e-6);
+            }
+        }
+        // The inverse map takes the normalised bounds back to the world box.
+        let back = mesh
+            .placement()
+            .to_source()
+            .transform_point3(map.transform_point3(DVec3::new(5.0, 1.0, 3.0)));
+        assert_abs_diff_eq!(back.x, 5.0, epsilon = 1e-9);
+        assert_abs_diff_eq!(back.z, 3.0, epsilon = 1e-9);
+    }
+}
+
+#[test]
+fn a_textured_obj_reads_kd_times_map_kd_and_lists_the_files_it_read() {
+    let dir = tempfile::tempdir().unwrap();
+    let n = 4u32;
+    let data: Vec<u8> = (0..n)
+        .flat_map(|j| (0..n).flat_map(move |i| TestGltf::textured_box_texel(i, j)))
+        .collect();
+    image::save_buffer(
+        dir.path().join("tex.png"),
+        &data,
+        n,
+        n,
+        image::ExtendedColorType::Rgba8,
+    )
+    .unwrap();
+    std::fs::write(
+        dir.path().join("m.mtl"),
+        "newmtl t\nKd 0.5 1 1\nmap_Kd tex.png\n",
+    )
+    .unwrap();
+    // A unit square at z = 0 with vt = (x, y): OBJ's v points up the image.
+    std::fs::write(
+        dir.path().join("q.obj"),
+        "mtllib m.mtl\nv 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv 0 0 -1\nvt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\nusemtl t\nf 1/1 2/2 3/3\nf 1/1 3/3 4/4\nf 1/1 2/2 5/1\n",
+    )
+    .unwrap();
+    let mesh = Mesh::load(dir.path().join("q.obj"), &MeshLoadOptions::default()).unwrap();
+    let read: Vec<String> = mesh
+        .inputs()
+        .iter()
+        .map(|(p, _)| p.file_name().unwrap().to_string_lossy().into_owned())
+        .collect();
+    assert_eq!(read, ["m.mtl", "tex.png"]);
+    assert!(mesh.notes().iter().any(|n| n.contains("up axis")));
+    for j in 0..n {
+        for i in 0..n {
+            let p = DVec3::new(
+                (f64::from(i) + 0.5) / f64::from(n),
+                1.0 - (f64::from(j) + 0.5) / f64::from(n),
+                0.0,
+            );
+            let (hit, _) = hit_at_source_point(&mesh, p, DVec3::Z);
+            let want = linear(TestGltf::textured_box_texel(i, j));
+            let got = hit.expect("hits").albedo;
+            assert_abs_diff_eq!(got.x, 0.5 * want.x, epsilon = 1e-6);
+            assert_abs_diff_eq!(got.y, want.y, epsilon = 1e-6);
+        }
+    }
+    // A missing texture is an error naming it and its material.
+    std::fs::remove_file(dir.path().join("tex.png")).unwrap();
+    let e = Mesh::load(dir.path().join("q.obj"), &MeshLoadOptions::default()).unwrap_err();
+    let text = e.to_string();
+    assert!(matches!(e, DataGenError::Texture { .. }), "{text}");
+    assert!(text.contains("tex.png") && text.contains("'t'"), "{text}");
+}
+
+/// Edits the JSON chunk of a `.glb` and returns the new file.
+fn edit_glb(doc: &TestGltf, edit: impl FnOnce(&mut serde_json::Value)) -> Vec<u8> {
+    let glb = doc.to_glb().unwrap();
+    let json_len = u32::from_le_bytes(glb[12..16].try_into().unwrap()) as usize;
+    let mut json: serde_json::Value = serde_json::from_slice(&glb[20..20 + json_len]).unwrap();
+    edit(&mut json);
+    let mut text = serde_json::to_vec(&json).unwrap();
+    while !text.len().is_multiple_of(4) {
+        text.push(b' ');
+    }
+    let bin = &glb[20 + json_len..];
+    let mut out = Vec::new();
+    out.extend_from_slice(b"glTF");
+    out.extend_from_slice(&2u32.to_le_bytes());
+    out.extend_from_slice(&((20 + text.len() + bin.len()) as u32).to_le_bytes());
+    out.extend_from_slice(&(text.len() as u32).to_le_bytes());
+    out.extend_from_slice(b"JSON");
+    out.extend_from_slice(&text);
+    out.extend_from_slice(bin);
+    out
+}
+
+fn error_of(bytes: &[u8]) -> String {
+    match Mesh::from_gltf_bytes(bytes, Path::new("bad.glb"), &MeshLoadOptions::default()) {
+        Ok(_) => "loaded".into(),
+        Err(e) => e.to_string(),
+    }
+}
+
+#[test]
+fn malformed_gltf_is_a_typed_error_naming_the_gltf_path() {
+    let doc = TestGltf::textured_box(2);
+    let cases: Vec<(Vec<u8>, &str)> = vec![
+        (
+            edit_glb(&doc, |j| j["meshes"][0]["primitives"][0]["mode"] = 0.into()),
+            "meshes[0].primitives[0]: Points",
+        ),
+        (
+            edit_glb(&doc, |j| j["meshes"][0]["primitives"][0]["mode"] = 1.into()),
+            "meshes[0].primitives[0]: Lines",
+        ),
+        (
+            edit_glb(&doc, |j| {
+                j["extensionsRequired"] = serde_json::json!(["KHR_draco_mesh_compression"])
+            }),
+            "extensionsRequired[0]: required extension KHR_draco_mesh_compression",
+        ),
+        (
+            edit_glb(&doc, |j| j["accessors"][0]["count"] = 1000.into()),
+            "accessors[0]: 1000 elements do not fit",
+        ),
+        (
+            edit_glb(&doc, |j| j["accessors"][0]["count"] = 0.into()),
+            "accessors[0]",
+        ),
+        (
+            edit_glb(&doc, |j| j["accessors"][0]["type"] = "VEC2".into()),
+            "accessors[0]: Vec2",
+        ),
+        (
+            edit_glb(&doc, |j| j["bufferViews"][0]["byteStride"] = 4.into()),
+            "bufferViews[0]",
+        ),
+        (
+            edit_glb(&doc, |j| j["scenes"] = serde_json::json!([])),
+            "scene",
+        ),
+        (
+            edit_glb(&doc, |j| {
+                j["images"][0] = serde_json::json!({"uri": "missing.png"})
+            }),
+            "images[0]",
+        ),
+        (
+            edit_glb(&doc, |j| {
+                j["buffers"][0]["uri"] = "https://example.com/a.bin".into()
+            }),
+            "buffers[0]: URI scheme 'https:'",
+        ),
+        (doc.to_glb().unwrap()[..40].to_vec(), "bad.glb"),
+    ];
+    for (bytes, want) in &cases {
+        let got = error_of(bytes);
+        assert!(got.contains(want), "want '{want}', got '{got}'");
+    }
+    // An index past the vertices names the index accessor and the index.
+    let mut bad = doc.clone();
+    bad.meshes[0][0].indices[5] = 9123;
+    let got = error_of(&bad.to_glb().unwrap());
+    assert!(
+        got.contains("accessors[2]: index 9123 out of range"),
+        "{got}"
+    );
+    // A node that is not there is named, with the names that are.
+    let options = MeshLoadOptions {
+        node: Some("tree".into()),
+        ..MeshLoadOptions::default()
+    };
+    let got = load_glb(&doc, &options).unwrap_err().to_string();
+    assert!(
+        got.contains("no node named 'tree'") && got.contains("box"),
+        "{got}"
+    );
+}
+
+/// Every numeric leaf of a JSON value, by path.
+fn numbers(
+    v: &serde_json::Value,
+    out: &mut Vec<Vec<serde_json::Value>>,
+    path: &mut Vec<serde_json::Value>,
+) {
+    match v {
+        serde_json::Value::Number(_) => out.push(path.clone()),
+        serde_json::Value::Array(a) => {
+            for (i, x) in a.iter().enumerate() {
+                path.push(i.into());
+                numbers(x, out, path);
+                path.pop();
+            }
+        }
+        serde_json::Value::Object(o) => {
+            for (k, x) in o {
+                path.push(k.as_str().into());
+                numbers(x, out, path);
+                path.pop();
+            }
+        }
+        _ => {}
+    }
+}
+
+fn at_path<'a>(
+    v: &'a mut serde_json::Value,
+    path: &[serde_json::Value],
+) -> &'a mut serde_json::Value {
+    path.iter().fold(v, |v, k| match k {
+        serde_json::Value::Number(i) => &mut v[i.as_u64().unwrap() as usize],
+        serde_json::Value::String(s) => &mut v[s.as_str()],
+        _ => unreachable!(),
+    })
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig {
+        cases: 10_000,
+        rng_seed: proptest::test_runner::RngSeed::Fixed(20261205),
+        failure_persistence: None,
+        ..ProptestConfig::default()
+    })]
+    /// Random byte edits of a valid `.glb` (its JSON and its binary chunk) load or fail with an
+    /// error; a loaded mesh has finite bounds. Never a panic.
+    #[test]
+    fn mutated_glb_bytes_never_panic(edits in proptest::collection::vec((any::<prop::sample::Index>(), any::<u8>()), 1..6), cut in any::<prop::sample::Index>(), truncate in any::<bool>()) {
+        let mut bytes = TestGltf::masked_quad(4).to_glb().unwrap();
+        for (at, b) in edits {
+            let i = at.index(bytes.len());
+            bytes[i] = b;
+        }
+        if truncate {
+            bytes.truncate(cut.index(bytes.len()));
+        }
+        if let Ok(m) = Mesh::from_gltf_bytes(&bytes, Path::new("m.glb"), &MeshLoadOptions::default()) {
+            let (lo, hi) = m.bounds();
+            prop_assert!(lo.is_finite() && hi.is_finite());
+        }
+    }
+
+    /// Random numbers written into the numeric fields of a `.gltf` (counts, offsets, strides,
+    /// indices, component types, factors, matrices) load or fail with an error, never a panic.
+    #[test]
+    fn mutated_gltf_numbers_never_panic(picks in proptest::collection::vec((any::<prop::sample::Index>(), prop_oneof![Just(0i64), Just(1), Just(-1), Just(2), Just(3), Just(4), Just(5), Just(7), Just(5121), Just(5123), Just(5125), Just(5126), Just(1 << 31), Just(i64::MAX), -20i64..200]), 1..4)) {
+        let doc = TestGltf::masked_quad(4);
+        let glb = doc.to_glb().unwrap();
+        let json_len = u32::from_le_bytes(glb[12..16].try_into().unwrap()) as usize;
+        let mut json: serde_json::Value = serde_json::from_slice(&glb[20..20 + json_len]).unwrap();
+        let mut leaves = Vec::new();
+        numbers(&json, &mut leaves, &mut Vec::new());
+        for (at, value) in picks {
+            let path = &leaves[at.index(leaves.len())];
+            *at_path(&mut json, path) = value.into();
+        }
+        let bytes = edit_glb(&doc, |j| *j = json);
+        if let Ok(m) = Mesh::from_gltf_bytes(&bytes, Path::new("m.glb"), &MeshLoadOptions::default()) {
+            let (lo, hi) = m.bounds();
+            prop_assert!(lo.is_finite() && hi.is_finite());
+        }
+    }
+}
+
+/// A square facing the view, textured with `n × n` random texels far finer than the pixels.
+fn fine_quad(n: u32, seed: u64) -> TestGltf {
+    let mut doc = TestGltf::masked_quad(2);
+    let mut rng = altrep_data_gen::SplitMix64::new(seed);
+    let data = (0..n * n)
+        .flat_map(|_| {
+            let mut c = || (rng.range(0.0, 255.0)) as u8;
+            [c(), c(), c(), 255]
+        })
+        .collect();
+    doc.materials[0].texture = Some(altrep_data_gen::gltf_write::Rgba8 {
+        width: n,
+        height: n,
+        data,
+    });
+    doc.materials[0].alpha_mode = "OPAQUE";
+    doc.materials[0].nearest = false;
+    doc.meshes[0].truncate(1);
+    doc
+}
+
+/// Mean squared error over the pixels both pictures cover fully, as PSNR in dB.
+fn interior_psnr(a: &altrep_data_gen::RgbaImage, b: &altrep_data_gen::RgbaImage) -> f64 {
+    let (mut sum, mut n) = (0.0f64, 0usize);
+    for (p, q) in a.pixels.iter().zip(&b.pixels) {
+        if p[3] == 1.0 && q[3] == 1.0 {
+            for k in 0..3 {
+                sum += f64::from(p[k] - q[k]).powi(2);
+            }
+            n += 3;
+        }
+    }
+    assert!(n > 0, "no pixel covered by both pictures");
+    -10.0 * (sum / n as f64).log10()
+}
+
+/// A capture reads a texture over its pixel's footprint, the truth over each of its `k × k`
+/// rays' smaller footprints: the two agree where a point lookup per ray aliases. A 512² random
+/// texture seen at 32 × 64 pixels (16 texels per pixel across): the capture at the view's own
+/// direction against the truth (k = 4) over the fully covered pixels, and the same with one
+/// point lookup per ray in both (`Shape::intersect`, no footprint) — measured 2026-12-05:
+/// 54.55 dB filtered, 21.65 dB point-sampled.
+#[test]
+fn a_capture_reads_fine_textures_over_its_pixel_as_the_truth_does() {
+    use altrep_data_gen::{Light, RgbaImage, TruthParams, direction, render_truth, screen_right};
+    let mesh = load_glb(&fine_quad(512, 3), &MeshLoadOptions::default()).unwrap();
+    let angle = std::f64::consts::FRAC_PI_2;
+    let (w, h, k) = (32usize, 64usize, 4usize);
+    let light = Light::default();
+    let capture = capture_view(
+        &mesh,
+        &ViewParams {
+            angle,
+            width: w,
+            height: h,
+            cylinder: Default::default(),
+        },
+    )
+    .unwrap()
+    .shade(&light);
+    let truth = render_truth(
+        &mesh,
+        &TruthParams {
+            angle,
+            width: w,
+            height: h,
+            supersample: k,
+            light,
+            cylinder: Default::default(),
+        },
+    )
+    .unwrap();
+    let filtered = interior_psnr(&capture, &truth);
+    // One point lookup per ray, in the capture and in the truth alike.
+    let point = |k: usize| {
+        let (d, right) = (direction(angle), screen_right(angle));
+        let mut img = RgbaImage::new(w, h);
+        for j in 0..h {
+            for i in 0..w {
+                let mut acc = [0.0f32; 4];
+                for b in 0..k {
+                    for a in 0..k {
+                        let x = -1.0 + (i as f64 + (a as f64 + 0.5) / k as f64) * 2.0 / w as f64;
+                        let y = 2.0 - (j as f64 + (b as f64 + 0.5) / k as f64) * 2.0 / h as f64;
+                        let ray = Ray::new(x * right + y * DVec3::Y + 2.0 * d, -d);
+                        if let Some(hit) = mesh.intersect(&ray, 0.0, 4.0) {
+                            let c = light.shade(hit.albedo, hit.normal.as_vec3());
+                            acc = [acc[0] + c.x, acc[1] + c.y, acc[2] + c.z, acc[3] + 1.0];
+                        }
+                    }
+                }
+                img.pixels[i + w * j] = acc.map(|v| v / (k * k) as f32);
+            }
+        }
+        img
+    };
+    let point_sampled = interior_psnr(&point(1), &point(k));
+    eprintln!("filtered {filtered:.2} dB, point-sampled {point_sampled:.2} dB");
+    assert!(filtered >= FILTERED_FLOOR_DB, "{filtered:.2} dB");
+    assert!(
+        filtered > point_sampled + 10.0,
+        "{filtered:.2} against {point_sampled:.2} dB"
+    );
+}
+
+/// The measured 54.55 dB less 0.5.
+const FILTERED_FLOOR_DB: f64 = 54.05;
+
+/// Voxels take the colour of the textured surface nearest them (not the procedural fallback):
+/// a box whose every texel is one colour gives that colour to every occupied voxel.
+#[test]
+fn voxels_of_a_textured_mesh_take_its_texture_colour() {
+    use altrep_data_gen::{VoxelParams, voxelize};
+    let mut doc = TestGltf::textured_box(2);
+    let texel = [200u8, 60, 30, 255];
+    doc.materials[0].texture = Some(altrep_data_gen::gltf_write::Rgba8 {
+        width: 2,
+        height: 2,
+        data: texel.repeat(4),
+    });
+    let mesh = load_glb(&doc, &MeshLoadOptions::default()).unwrap();
+    let (lo, hi) = mesh.bounds();
+    let vol = voxelize(
+        &mesh,
+        &VoxelParams {
+            dims: [12, 12, 12],
+            min: lo - 0.05,
+            max: hi + 0.05,
+            periodic: [false; 3],
+            supersample: 2,
+        },
+    )
+    .unwrap();
+    let want = linear(texel);
+    let occupied: Vec<usize> = (0..vol.density.len())
+        .filter(|&i| vol.density[i] > 0.0)
+        .collect();
+    assert!(occupied.len() > 100);
+    for i in occupied {
+        let c = vol.color[i];
+        assert_abs_diff_eq!(c[0], want.x, epsilon = 1e-5);
+        assert_abs_diff_eq!(c[1], want.y, epsilon = 1e-5);
+        assert_abs_diff_eq!(c[2], want.z, epsilon = 1e-5);
+    }
+}

@@ -302,9 +302,36 @@ pub struct AssetDescription {
     pub report: serde_json::Value,
     /// Every file of the asset.
     pub files: Vec<FileEntry>,
+    /// BLAKE3 (hex) of this description written without this key (format 1.1 on), so an edit of
+    /// `asset.json` itself is detected like an edit of a data file. Absent in format 1.0.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub description_blake3: Option<String>,
 }
 
 impl AssetDescription {
+    /// The bytes of `asset.json` for this description without its own hash (pretty JSON), and
+    /// their BLAKE3 (hex): what [`AssetDescription::description_blake3`] records.
+    pub fn own_hash(&self) -> Result<(Vec<u8>, String), serde_json::Error> {
+        let bare = Self {
+            description_blake3: None,
+            ..self.clone()
+        };
+        let bytes = serde_json::to_vec_pretty(&bare)?;
+        let hash = hash_hex(&bytes);
+        Ok((bytes, hash))
+    }
+
+    /// This description as `asset.json` bytes (pretty JSON) with `description_blake3` set to
+    /// the hash of the rest ([`AssetDescription::own_hash`]): what every write of `asset.json`
+    /// stores, so that a reader can tell an edit.
+    pub fn sealed_json(&self) -> Result<Vec<u8>, serde_json::Error> {
+        let (_, hash) = self.own_hash()?;
+        serde_json::to_vec_pretty(&Self {
+            description_blake3: Some(hash),
+            ..self.clone()
+        })
+    }
+
     /// The entry with `role`, if any.
     pub fn file(&self, role: &str) -> Option<&FileEntry> {
         self.files.iter().find(|f| f.role == role)

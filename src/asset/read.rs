@@ -66,6 +66,18 @@ impl AssetReader {
                 path: path.clone(),
                 reason: e.to_string(),
             })?;
+        if let Some(recorded) = &description.description_blake3 {
+            let (_, hash) = description.own_hash().map_err(|e| AssetError::Malformed {
+                path: path.clone(),
+                reason: e.to_string(),
+            })?;
+            if &hash != recorded {
+                return Err(AssetError::Altered {
+                    path,
+                    what: "its own recorded hash",
+                });
+            }
+        }
         let mut bytes = HashMap::new();
         for f in &description.files {
             if !super::write::valid_name(&f.path) {

@@ -341,11 +341,13 @@ impl AssetWriter {
             metadata,
             report,
             files: std::mem::take(&mut self.files),
+            description_blake3: None,
         };
-        let json = serde_json::to_vec_pretty(&desc).map_err(|e| AssetError::BadData {
+        let bad = |e: serde_json::Error| AssetError::BadData {
             role: DESCRIPTION_FILE.into(),
             reason: e.to_string(),
-        })?;
+        };
+        let json = desc.sealed_json().map_err(bad)?;
         let path = self.staging.join(DESCRIPTION_FILE);
         std::fs::write(&path, json).map_err(io(&path))?;
         // Checked again at the last moment: what is replaced below must still be altrep's.

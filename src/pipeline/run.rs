@@ -602,6 +602,28 @@ fn wanted(spec: &AssetSpec) -> Vec<&'static str> {
     v
 }
 
+/// Names in an asset folder that its `asset.json` does not list (a rebuild replaces the folder,
+/// and with it these).
+fn stray_files(r: &AssetReader) -> Vec<String> {
+    let listed: std::collections::HashSet<&str> = r
+        .description()
+        .files
+        .iter()
+        .map(|f| f.path.as_str())
+        .chain([DESCRIPTION_FILE])
+        .collect();
+    let mut stray: Vec<String> = std::fs::read_dir(r.dir())
+        .map(|d| {
+            d.filter_map(Result::ok)
+                .map(|e| e.file_name().to_string_lossy().into_owned())
+                .filter(|n| !listed.contains(n.as_str()))
+                .collect()
+        })
+        .unwrap_or_default();
+    stray.sort();
+    stray
+}
+
 /// The cache key of one representation of one asset.
 fn cache_key<R: Representation>(
     spec: &R::Spec,
@@ -708,6 +730,12 @@ fn build_one<'a, R: Representation>(
     let mut cache_note = None;
     if !options.force && dir.join(DESCRIPTION_FILE).exists() {
         match AssetReader::open(&dir) {
+            Ok(r) if r.description().cache_key == key && !stray_files(&r).is_empty() => {
+                cache_note = Some(format!(
+                    "cached folder holds files asset.json does not list: {}",
+                    stray_files(&r).join(", ")
+                ));
+            }
             Ok(r) if r.description().cache_key == key => {
                 let rep = &r.description().report;
                 let measurement =
@@ -792,8 +820,9 @@ fn build_one<'a, R: Representation>(
         }
         desc.report["measurement"] = serde_json::to_value(&measurement).unwrap_or_default();
         desc.report["pictures"] = serde_json::to_value(&written).unwrap_or_default();
-        let text =
-            serde_json::to_vec_pretty(&desc).map_err(|e| PipelineError::Spec(e.to_string()))?;
+        let text = desc
+            .sealed_json()
+            .map_err(|e| PipelineError::Spec(e.to_string()))?;
         write_atomic(&dir.join(DESCRIPTION_FILE), &text)?;
         outcome.seconds += t1.elapsed().as_secs_f64();
         outcome.measurement = Some(measurement);

@@ -876,3 +876,48 @@ fn asset_names_that_collide_in_the_output_folder_are_manifest_errors() {
         assert!(e.starts_with(&format!("m.toml:{line}:")), "{e}");
     }
 }
+
+/// The cache trusts neither an edited `asset.json` nor a folder holding files it does not list:
+/// both are rebuilt, with the reason in the report; an untouched folder stays cached.
+#[test]
+fn an_edited_description_or_a_stray_file_is_rebuilt_not_trusted() {
+    let dir = tempfile::tempdir().unwrap();
+    let m = Manifest::parse(SCENE, Path::new("scene.toml")).unwrap();
+    let first = run_scene(&m, &options(dir.path())).unwrap();
+    assert!(first.ok(), "{}", first.table());
+    let pear = dir.path().join("pear/parallax");
+    // An edit of the description's metadata (a value a renderer would read).
+    let desc_path = pear.join(DESCRIPTION_FILE);
+    let text = std::fs::read_to_string(&desc_path).unwrap();
+    let edited = text.replacen(
+        "\"representation\": \"parallax\"",
+        "\"representation\": \"parallax\" ",
+        1,
+    );
+    let mut value: serde_json::Value = serde_json::from_str(&edited).unwrap();
+    value["metadata"]["edited_by_hand"] = true.into();
+    std::fs::write(&desc_path, serde_json::to_vec_pretty(&value).unwrap()).unwrap();
+    // A stray file beside the chair's octree.
+    let chair = dir.path().join("chair/octree");
+    std::fs::write(chair.join("notes.txt"), "mine").unwrap();
+    let second = run_scene(&m, &options(dir.path())).unwrap();
+    assert!(second.ok(), "{}", second.table());
+    let note = |asset: &str| {
+        let o = second.outcomes.iter().find(|o| o.asset == asset).unwrap();
+        assert_eq!(o.outcome, Outcome::Built, "{asset}: {o:?}");
+        o.cache_note.clone().unwrap_or_default()
+    };
+    assert!(
+        note("pear").contains("altered") || note("pear").contains("hash"),
+        "{}",
+        note("pear")
+    );
+    assert!(note("chair").contains("notes.txt"), "{}", note("chair"));
+    // Rebuilt folders are altrep's again: a third run caches both.
+    let third = run_scene(&m, &options(dir.path())).unwrap();
+    assert!(
+        third.outcomes.iter().all(|o| o.outcome == Outcome::Cached),
+        "{}",
+        third.table()
+    );
+}

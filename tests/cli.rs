@@ -169,3 +169,34 @@ fn bad_input_is_reported_not_panicked() {
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(!out.status.success() && err.contains("prose"), "{err}");
 }
+
+/// The commands that take `--mesh` read glTF too, with `--up` and `--node`; what the file holds
+/// and altrep does not read is printed; a bad axis or node is an error naming it.
+#[test]
+fn capture_reads_gltf_with_an_up_axis_and_a_node() {
+    use altrep_data_gen::gltf_write::TestGltf;
+    let dir = tempfile::tempdir().unwrap();
+    let glb = dir.path().join("box.glb");
+    std::fs::write(&glb, TestGltf::textured_box(4).to_glb().unwrap()).unwrap();
+    let run = |extra: &[&str]| {
+        let o = altrep()
+            .args(["capture", "--views", "2", "--size", "16", "--mesh"])
+            .arg(&glb)
+            .arg("--out")
+            .arg(dir.path().join("out"))
+            .args(extra)
+            .output()
+            .unwrap();
+        (
+            o.status.success(),
+            String::from_utf8_lossy(&o.stderr).into_owned(),
+        )
+    };
+    let (ok, err) = run(&["--up", "z", "--node", "box"]);
+    assert!(ok, "{err}");
+    assert!(dir.path().join("out").read_dir().unwrap().count() > 0);
+    let (ok, err) = run(&["--up", "q"]);
+    assert!(!ok && err.contains("unknown up axis 'q'"), "{err}");
+    let (ok, err) = run(&["--node", "tree"]);
+    assert!(!ok && err.contains("no node named 'tree'"), "{err}");
+}

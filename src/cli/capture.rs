@@ -12,11 +12,27 @@ use serde_json::json;
 use super::CliResult;
 
 /// Arguments of `altrep capture`.
+/// How a `--mesh` file is read (`docs/real-assets.md`).
+#[derive(clap::Args, Clone, Debug, Default)]
+pub struct MeshReadArgs {
+    /// The mesh's up axis: x, -x, y, -y, z or -z (glTF is y-up by its specification; OBJ has
+    /// no convention).
+    #[arg(long, default_value = "y")]
+    pub up: altrep_data_gen::UpAxis,
+    /// glTF only: load the subtree of the node of this name, in the scene's world coordinates
+    /// (default: the whole default scene).
+    #[arg(long)]
+    pub node: Option<String>,
+}
+
 #[derive(clap::Args, Debug)]
 pub struct CaptureArgs {
     /// Mesh to capture (.obj, .gltf or .glb).
     #[arg(long, conflicts_with = "shape", required_unless_present = "shape")]
     pub mesh: Option<PathBuf>,
+    /// How the mesh file is read.
+    #[command(flatten)]
+    pub read: crate::cli::capture::MeshReadArgs,
     /// Procedural shape to capture instead (sphere, box, torus, capsule, pear, truck, chair, tree, building).
     #[arg(long)]
     pub shape: Option<String>,
@@ -35,9 +51,21 @@ pub struct CaptureArgs {
 pub fn load_shape(
     mesh: Option<&PathBuf>,
     shape: Option<&str>,
+    read: &MeshReadArgs,
 ) -> Result<Box<dyn Shape>, Box<dyn std::error::Error + Send + Sync>> {
     match (mesh, shape) {
-        (Some(path), _) => Ok(Box::new(Mesh::load(path, &MeshLoadOptions::default())?)),
+        (Some(path), _) => {
+            let options = MeshLoadOptions {
+                up: read.up,
+                node: read.node.clone(),
+                ..MeshLoadOptions::default()
+            };
+            let mesh = Mesh::load(path, &options)?;
+            for note in mesh.notes() {
+                eprintln!("altrep: {}: {note}", path.display());
+            }
+            Ok(Box::new(mesh))
+        }
         (None, Some(name)) => Ok(Box::new(scene_shape(name)?)),
         (None, None) => Err("give --mesh FILE or --shape NAME".into()),
     }
@@ -46,7 +74,7 @@ pub fn load_shape(
 /// Runs `altrep capture`.
 pub fn run(args: CaptureArgs) -> CliResult {
     let t_load = Instant::now();
-    let shape = load_shape(args.mesh.as_ref(), args.shape.as_deref())?;
+    let shape = load_shape(args.mesh.as_ref(), args.shape.as_deref(), &args.read)?;
     let load_ms = t_load.elapsed().as_secs_f64() * 1e3;
     // The rate counts tracing only: a mesh's BVH, built on its first ray query, is built here.
     let t_setup = Instant::now();

@@ -23,6 +23,9 @@ pub struct CylinderArgs {
     /// Mesh to represent, .obj, .gltf or .glb (repeat for several; with `--shape` too, a summary follows).
     #[arg(long, conflicts_with = "suite", required_unless_present_any = ["shape", "suite"])]
     pub mesh: Vec<PathBuf>,
+    /// How the mesh file is read.
+    #[command(flatten)]
+    pub read: crate::cli::capture::MeshReadArgs,
     /// Procedural shape instead (sphere, box, torus, capsule, pear, truck, chair, tree,
     /// building); repeat for several.
     #[arg(long, conflicts_with = "suite")]
@@ -81,10 +84,10 @@ pub fn run(args: CylinderArgs) -> CliResult {
     } else {
         let mut shapes = Vec::new();
         for path in &args.mesh {
-            shapes.push(load_shape(Some(path), None)?);
+            shapes.push(load_shape(Some(path), None, &args.read)?);
         }
         for name in &args.shape {
-            shapes.push(load_shape(None, Some(name))?);
+            shapes.push(load_shape(None, Some(name), &args.read)?);
         }
         shapes
     };

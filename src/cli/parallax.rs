@@ -23,6 +23,9 @@ pub struct ParallaxArgs {
     /// Mesh to represent (.obj, .gltf or .glb).
     #[arg(long, conflicts_with = "shape", required_unless_present = "shape")]
     pub mesh: Option<PathBuf>,
+    /// How the mesh file is read.
+    #[command(flatten)]
+    pub read: crate::cli::capture::MeshReadArgs,
     /// Procedural shape instead (sphere, box, torus, capsule, pear, truck, chair, tree, building).
     #[arg(long)]
     pub shape: Option<String>,
@@ -239,7 +242,7 @@ pub fn run(args: ParallaxArgs) -> CliResult {
     if let Some(path) = &args.json {
         super::precompute::check_writable(path)?;
     }
-    let shape = load_shape(args.mesh.as_ref(), args.shape.as_deref())?;
+    let shape = load_shape(args.mesh.as_ref(), args.shape.as_deref(), &args.read)?;
     let base = ParallaxParams {
         views: args.views as usize,
         width: args.size as usize,

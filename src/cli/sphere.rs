@@ -19,6 +19,9 @@ pub struct SphereArgs {
     /// Mesh to represent (.obj, .gltf or .glb).
     #[arg(long, conflicts_with = "shape", required_unless_present = "shape")]
     pub mesh: Option<PathBuf>,
+    /// How the mesh file is read.
+    #[command(flatten)]
+    pub read: crate::cli::capture::MeshReadArgs,
     /// Procedural shape instead (sphere, box, torus, capsule, pear, truck, chair, tree, building).
     #[arg(long)]
     pub shape: Option<String>,
@@ -98,7 +101,7 @@ pub fn run(args: SphereArgs) -> CliResult {
                 .map_err(|e| format!("cannot create {}: {e}", parent.display()))?;
         }
     }
-    let shape = load_shape(args.mesh.as_ref(), args.shape.as_deref())?;
+    let shape = load_shape(args.mesh.as_ref(), args.shape.as_deref(), &args.read)?;
     let coverage = if args.full_sphere {
         Coverage::Sphere
     } else {

@@ -59,6 +59,7 @@ mod surface;
 mod test_meshes;
 mod truth;
 mod volume;
+mod watertight;
 mod yz_grid;
 
 pub use albedo::Albedo;

@@ -50,6 +50,7 @@ use crate::placement::{Placement, UpAxis};
 use crate::radial::RadialTracer;
 use crate::shape::{OneByOne, ParallelTracer, RadialOneByOne, Shape};
 use crate::surface::{Material, SurfaceTri, barycentric, stops, uv_axes};
+use crate::watertight::Shear;
 use crate::yz_grid::YzGrid;
 
 /// How to load and normalise a mesh.
@@ -585,17 +586,24 @@ impl Mesh {
         let tr = self.traced();
         let tris = &tr.triangles;
         let idx = &tr.bvh.primitive_indices;
-        tr.bvh
-            .ray_traverse(bray, &mut hit, |r, id| {
-                let k = idx[id] as usize;
-                let d = tris[k].intersect(r);
-                if d.is_finite() && !self.traced_stops(tr, k, r, d) {
-                    f32::INFINITY
-                } else {
-                    d
+        let shear = Shear::new(bray.direction);
+        // Among hits at the same distance (a ray through an edge meets both triangles), the
+        // first in triangle order, as the binned tracers choose: every tracer then reports the
+        // same triangle, whatever order the walk visits the leaves in.
+        let mut best: Option<(usize, f32)> = None;
+        tr.bvh.ray_traverse(bray, &mut hit, |r, id| {
+            let k = idx[id] as usize;
+            let d = shear.intersect_ray(&tris[k], r);
+            if d.is_finite() && self.traced_stops(tr, k, r, d) {
+                if !best.is_some_and(|(bk, bd)| bd < d || (bd == d && bk < k)) {
+                    best = Some((k, d));
                 }
-            })
-            .then(|| (idx[hit.primitive_id as usize] as usize, hit.t))
+                d
+            } else {
+                f32::INFINITY
+            }
+        });
+        best
     }
 
     /// The hit record of `ray` meeting triangle `tri_id` at distance `t`: the geometric normal
@@ -694,9 +702,10 @@ impl Shape for Mesh {
         let bray = Self::to_bvh_ray(ray, t_min, t_max);
         let tr = self.traced();
         let (tris, idx) = (&tr.triangles, &tr.bvh.primitive_indices);
+        let shear = Shear::new(bray.direction);
         !tr.bvh.ray_traverse_miss(bray, |r, id| {
             let k = idx[id] as usize;
-            let d = tris[k].intersect(r);
+            let d = shear.intersect_ray(&tris[k], r);
             if d.is_finite() && !self.traced_stops(tr, k, r, d) {
                 f32::INFINITY
             } else {

@@ -14,8 +14,8 @@
 //! `T'` spans seen from the axis, or of those plus `π` (a line through the axis meets both
 //! sides). The columns of those two intervals (widened by `10⁻⁶` of a column for the rounding
 //! of `α_c`) are the footprint; a triangle within `8m` of the axis reaches every column. On each
-//! cell of its footprint the band runs the BVH walk's own `f32` triangle test ([`obvhs`'s
-//! Möller–Trumbore]) against the cell's ray, and a depth buffer keeps the first strictly
+//! cell of its footprint the band runs the BVH walk's own `f32` triangle test (the watertight
+//! test of [`crate::watertight`], one shear per column) against the cell's ray, and a depth buffer keeps the first strictly
 //! nearer distance: triangles go in triangle order.
 //!
 //! ## Exactness
@@ -26,8 +26,8 @@
 //! distance of the ray's line and lies within it of the row's height, and the margin is
 //! `m = 2·10⁻⁵·s`. So the result of a ray is exactly the nearest hit of that test over **all**
 //! the triangles, the first in triangle order among equal distances. Against the BVH walk
-//! ([`crate::Shape::intersect`]) the distance is bitwise the same, and the triangle can differ
-//! where two meet the ray at the same `f32` distance. The tests count these ties. Rows whose heights are not
+//! ([`crate::Shape::intersect`]) the distance and the triangle are bitwise the same (the walk
+//! keeps the first in triangle order among equal distances too). The tests count ties. Rows whose heights are not
 //! strictly monotonic are not binned (the walk traces them).
 //!
 //! ## Cost
@@ -37,20 +37,18 @@
 //! a distance) and tests the cells in them: the triangles of a row are few and narrow, so a
 //! ray meets a handful of tests where a walk through the middle of the mesh tests boxes and
 //! triangles along the whole chord.
-//!
-//! [`obvhs`'s Möller–Trumbore]: obvhs::triangle::Triangle::intersect
 
 use std::f64::consts::{PI, TAU};
 use std::ops::Range;
 
-use glam::{DVec3, Vec3A};
-use obvhs::ray::Ray as BvhRay;
+use glam::DVec3;
 use obvhs::triangle::Triangle;
 use rayon::prelude::*;
 
 use crate::binned::{Axis, BandTracer, Bands, inf};
 use crate::geometry::{RadialRays, Ray};
 use crate::mesh::Mesh;
+use crate::watertight::Shear;
 
 /// The binning tracer of a [`Mesh`] for one grid of radial rays.
 pub(crate) struct RadialTracer<'a> {
@@ -212,6 +210,12 @@ impl BandTracer for RadialTracer<'_> {
         // order wins among equal distances, as in the walk along one ray).
         let mut best_d = vec![first.tmax; cells];
         let mut best_t = vec![u32::MAX; cells];
+        // Every row of a column has the same direction: one shear per column.
+        let shears: Vec<Shear> = bvh_rays[..w]
+            .iter()
+            .map(|r| Shear::new(r.direction))
+            .collect();
+        let traced = self.mesh.traced();
         for &t in self.bands.of(b) {
             let span = self.row_spans[t as usize];
             let (s0, s1) = ((span[0] as usize).max(r0), (span[1] as usize).min(r1));
@@ -220,13 +224,11 @@ impl BandTracer for RadialTracer<'_> {
             }
             let tri = &self.triangles[t as usize];
             let columns = self.columns(tri);
-            let tri = Prepared::new(tri);
-            let traced = self.mesh.traced();
             for r in s0..s1 {
                 let row = (r - r0) * w;
                 for c in columns.iter().flat_map(Clone::clone) {
                     let k = row + c;
-                    let d = tri.intersect(&bvh_rays[k]);
+                    let d = shears[c].intersect_ray(tri, &bvh_rays[k]);
                     if d < best_d[k] && self.mesh.traced_stops(traced, t as usize, &bvh_rays[k], d)
                     {
                         best_d[k] = d;
@@ -242,51 +244,6 @@ impl BandTracer for RadialTracer<'_> {
                 emit(&band_rays[k], Some((best_t[k] as usize, best_d[k])))
             };
         }
-    }
-}
-
-/// A triangle with the parts of [`Triangle::intersect`] that do not depend on the ray computed
-/// once: its edges and unnormalised normal, by the same operations.
-struct Prepared {
-    v0: Vec3A,
-    e1: Vec3A,
-    e2: Vec3A,
-    n: Vec3A,
-}
-
-impl Prepared {
-    #[inline]
-    fn new(t: &Triangle) -> Self {
-        let e1 = t.v0 - t.v1;
-        let e2 = t.v2 - t.v0;
-        Self {
-            v0: t.v0,
-            e1,
-            e2,
-            n: e1.cross(e2),
-        }
-    }
-
-    /// [`Triangle::intersect`] (`obvhs` 0.4's Möller–Trumbore, back faces kept), operation for
-    /// operation from the prepared parts: the same `f32` distance, bit for bit (the tests
-    /// compare every binned hit with `Triangle::intersect` over all triangles).
-    #[inline]
-    fn intersect(&self, ray: &BvhRay) -> f32 {
-        let c = self.v0 - ray.origin;
-        let r = ray.direction.cross(c);
-        let inv_det = 1.0 / self.n.dot(ray.direction);
-        let u = r.dot(self.e2) * inv_det;
-        let v = r.dot(self.e1) * inv_det;
-        let w = 1.0 - u - v;
-        // Valid when no barycentric has its sign bit set (−0.0 included), as in `obvhs`.
-        let hit = u.to_bits() | v.to_bits() | w.to_bits();
-        if inv_det != 0.0 && hit & 0x8000_0000 == 0 {
-            let t = self.n.dot(c) * inv_det;
-            if t >= ray.tmin && t <= ray.tmax {
-                return t;
-            }
-        }
-        f32::INFINITY
     }
 }
 
@@ -322,6 +279,9 @@ fn distance_to_origin(p: [[f64; 2]; 3]) -> f64 {
 #[cfg(test)]
 mod tests {
     use proptest::prelude::*;
+
+    use glam::Vec3A;
+    use obvhs::ray::Ray as BvhRay;
 
     use super::*;
     use crate::shape::Shape;
@@ -473,10 +433,12 @@ mod tests {
 
     proptest! {
         #![proptest_config(ProptestConfig { cases: 256, rng_seed: proptest::test_runner::RngSeed::Fixed(20261204), ..ProptestConfig::default() })]
-        /// The prepared test gives `Triangle::intersect`'s distance bit for bit, on slivers,
-        /// degenerate and edge-on triangles and rays through vertices.
+        /// The watertight test on slivers, degenerate and edge-on triangles and rays through
+        /// vertices: a distance in the window or none, never NaN, and where Möller–Trumbore
+        /// (`obvhs`'s test, an independent formula) also hits, the same distance to `f32`
+        /// rounding of the object's size.
         #[test]
-        fn prepared_test_is_the_triangle_test_bitwise(
+        fn watertight_test_agrees_with_moller_trumbore_where_both_hit(
             v in prop::array::uniform9(-2.0f32..2.0),
             o in prop::array::uniform3(-3.0f32..3.0),
             d in prop::array::uniform3(-1.0f32..1.0),
@@ -499,19 +461,19 @@ mod tests {
             };
             let d = if kind == 3 { Vec3A::new(d[0], 0.0, d[2]) } else { Vec3A::from(d) };
             prop_assume!(d.length() > 1e-3);
-            let ray = BvhRay::new(Vec3A::from(o), d.normalize(), 0.0, 8.0);
-            prop_assert_eq!(
-                Prepared::new(&tri).intersect(&ray).to_bits(),
-                tri.intersect(&ray).to_bits()
-            );
+            let check = |ray: &BvhRay| {
+                let w = Shear::new(ray.direction).intersect_ray(&tri, ray);
+                let m = tri.intersect(ray);
+                assert!(!w.is_nan() && (w.is_infinite() || (0.0..=8.0).contains(&w)), "{w}");
+                if w.is_finite() && m.is_finite() {
+                    assert!((w - m).abs() <= 1e-4, "watertight {w}, Möller–Trumbore {m}");
+                }
+            };
+            check(&BvhRay::new(Vec3A::from(o), d.normalize(), 0.0, 8.0));
             // Through a vertex.
             let to_vertex = tri.v1 - Vec3A::from(o);
             prop_assume!(to_vertex.length() > 1e-3);
-            let ray = BvhRay::new(Vec3A::from(o), to_vertex.normalize(), 0.0, 8.0);
-            prop_assert_eq!(
-                Prepared::new(&tri).intersect(&ray).to_bits(),
-                tri.intersect(&ray).to_bits()
-            );
+            check(&BvhRay::new(Vec3A::from(o), to_vertex.normalize(), 0.0, 8.0));
         }
     }
 

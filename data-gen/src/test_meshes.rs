@@ -7,6 +7,7 @@ use crate::binned::BandTracer;
 use crate::geometry::Ray;
 use crate::mesh::{Mesh, MeshLoadOptions};
 use crate::rng::SplitMix64;
+use crate::watertight::Shear;
 
 pub(crate) fn mesh(tris: Vec<[[f64; 3]; 3]>) -> Mesh {
     Mesh::from_raw_triangles("test", tris, &MeshLoadOptions::default()).unwrap()
@@ -93,8 +94,9 @@ pub(crate) fn nearest_of_all(
     let mut bray = Mesh::to_bvh_ray(ray, t_min, t_max);
     let mut all = None;
     let tr = mesh.traced();
+    let shear = Shear::new(bray.direction);
     for (t, tri) in tr.triangles.iter().enumerate() {
-        let d = tri.intersect(&bray);
+        let d = shear.intersect_ray(tri, &bray);
         if d < bray.tmax && mesh.traced_stops(tr, t, &bray, d) {
             bray.tmax = d;
             all = Some((t, d));
@@ -127,7 +129,9 @@ pub(crate) fn check_ray(
                 let bray = Mesh::to_bvh_ray(ray, t_min, t_max);
                 for t in [ta, tb] {
                     assert_eq!(
-                        mesh.traced().triangles[t].intersect(&bray).to_bits(),
+                        Shear::new(bray.direction)
+                            .intersect_ray(&mesh.traced().triangles[t], &bray)
+                            .to_bits(),
                         da.to_bits(),
                         "ray {k}: triangles {ta} / {tb} do not tie"
                     );

@@ -40,13 +40,12 @@ fn hit_at_source_point(
     (mesh.intersect(&ray, 0.0, 10.0), 0.5)
 }
 
-/// A point of texel `(i, j)` of the box's `+z` face, in source coordinates: off the texel's
-/// centre so that it never lies on the face's diagonal, the edge the two triangles share (the
-/// triangle test is not watertight: a ray exactly through a shared edge can miss both, see
-/// `docs/real-assets.md`).
+/// The centre of texel `(i, j)` of the box's `+z` face, in source coordinates. The centres with
+/// `i = j` lie on the face's diagonal, the edge its two triangles share: the watertight triangle
+/// test must not let those rays through.
 fn plus_z_texel(i: u32, j: u32, n: u32) -> DVec3 {
-    let s = (f64::from(i) + 0.3) / f64::from(n);
-    let t = (f64::from(j) + 0.7) / f64::from(n);
+    let s = (f64::from(i) + 0.5) / f64::from(n);
+    let t = (f64::from(j) + 0.5) / f64::from(n);
     DVec3::new(s, 1.0 - t, 1.0)
 }
 

@@ -169,8 +169,10 @@ impl Representation for Cylinder {
         }
         let max_px = needs.screen_px[1].ceil() as usize;
         let (mut columns, mut rows) = (spec.columns, spec.rows);
-        if max_px < spec.rows {
-            rows = max_px.next_power_of_two().clamp(2, spec.rows);
+        // Nothing is skipped when the rows the largest screen size needs are those asked for.
+        let needed = max_px.next_power_of_two().clamp(2, spec.rows);
+        if needed < spec.rows {
+            rows = needed;
             columns = (spec.columns * rows / spec.rows).max(4).next_multiple_of(2);
             plan.skip(
                 format!("texels above {columns} × {rows}"),

@@ -192,8 +192,11 @@ impl Representation for Parallax {
     ) -> Result<(Plan, ParallaxDecisions), PipelineError> {
         let mut plan = Plan::default();
         let max_px = needs.screen_px[1].ceil() as usize;
-        let size = if max_px < spec.size {
-            let s = max_px.next_power_of_two().clamp(2, spec.size);
+        // The size the largest screen size needs (a power of two at or above it); nothing is
+        // skipped when that is the size asked for.
+        let needed = max_px.next_power_of_two().clamp(2, spec.size);
+        let size = if needed < spec.size {
+            let s = needed;
             plan.skip(
                 format!("texels above {s}² per view"),
                 format!(

@@ -127,18 +127,22 @@ macro_rules! asset_structs {
                 v
             }
 
-            /// Checks every representation's parameters and moves them into the asset.
+            /// Checks every representation's parameters and moves them into the asset. An
+            /// error comes with the span of the representation's table.
             fn into_spec(
                 self,
                 name: String,
                 source: SourceSpec,
                 needs: Needs,
-            ) -> Result<AssetSpec, String> {
+            ) -> Result<AssetSpec, (Range<usize>, String)> {
                 $(
-                    let $key = self.$key.map(Spanned::into_inner);
-                    if let Some(s) = &$key {
-                        <$repr>::validate(s)?;
-                    }
+                    let $key = match self.$key {
+                        Some(s) => {
+                            <$repr>::validate(s.get_ref()).map_err(|m| (s.span(), m))?;
+                            Some(s.into_inner())
+                        }
+                        None => None,
+                    };
                 )*
                 Ok(AssetSpec { name, source, needs, $($key,)* })
             }
@@ -174,9 +178,19 @@ pub struct TestTexture {
 #[serde(deny_unknown_fields)]
 struct RawManifest {
     #[serde(default)]
-    scene: SceneSettings,
+    scene: RawScene,
     #[serde(default)]
     asset: Vec<RawAsset>,
+}
+
+/// `[scene]` as written: each key with its span, so an error names the key's line.
+#[derive(Clone, Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawScene {
+    #[serde(default)]
+    light: Option<Spanned<[f32; 3]>>,
+    #[serde(default)]
+    ambient: Option<Spanned<f32>>,
 }
 
 /// Where an asset's geometry comes from.
@@ -221,6 +235,37 @@ pub struct Manifest {
 /// case, for case-insensitive file systems).
 const RESERVED_NAMES: [&str; 3] = ["report.md", "report.json", "pictures"];
 
+/// The span of the key a representation's validation message names (`"parallax.size = …"`,
+/// `"cylinder.bounds: …"`) within the table spanning `table`: the line of `key = …` up to the
+/// next table header. The table's own span when the key is not written there (a default).
+fn key_span(text: &str, table: Range<usize>, message: &str) -> Range<usize> {
+    let key: String = message
+        .split_once('.')
+        .map(|(_, rest)| {
+            rest.chars()
+                .take_while(|c| c.is_ascii_alphanumeric() || *c == '_')
+                .collect()
+        })
+        .unwrap_or_default();
+    if key.is_empty() || table.start >= text.len() {
+        return table;
+    }
+    let mut at = table.start;
+    for (k, line) in text[table.start..].split_inclusive('\n').enumerate() {
+        let t = line.trim_start();
+        if k > 0 && t.starts_with('[') {
+            break;
+        }
+        if let Some(rest) = t.strip_prefix(key.as_str())
+            && rest.trim_start().starts_with('=')
+        {
+            return at..at + line.len();
+        }
+        at += line.len();
+    }
+    table
+}
+
 /// 1-based line of byte offset `at` in `text`.
 fn line_of(text: &str, at: usize) -> usize {
     text[..at.min(text.len())]
@@ -264,21 +309,37 @@ impl Manifest {
                 message: e.message().to_string(),
             }
         })?;
-        let scene = raw.scene;
+        let defaults = SceneSettings::default();
+        let scene = SceneSettings {
+            light: raw
+                .scene
+                .light
+                .as_ref()
+                .map_or(defaults.light, |l| *l.get_ref()),
+            ambient: raw
+                .scene
+                .ambient
+                .as_ref()
+                .map_or(defaults.ambient, |a| *a.get_ref()),
+        };
         let l = scene.light;
         if l.iter().any(|c| !c.is_finite()) || l.iter().all(|&c| c == 0.0) {
-            return Err(PipelineError::Manifest {
-                path: path.to_path_buf(),
-                line: 0,
-                message: "scene.light must be a finite, non-zero direction".into(),
-            });
+            let span = raw.scene.light.as_ref().map_or(0..0, Spanned::span);
+            return Err(err(
+                path,
+                text,
+                span,
+                "scene.light must be a finite, non-zero direction".into(),
+            ));
         }
         if !(0.0..=1.0).contains(&scene.ambient) {
-            return Err(PipelineError::Manifest {
-                path: path.to_path_buf(),
-                line: 0,
-                message: format!("scene.ambient = {} must be in [0, 1]", scene.ambient),
-            });
+            let span = raw.scene.ambient.as_ref().map_or(0..0, Spanned::span);
+            return Err(err(
+                path,
+                text,
+                span,
+                format!("scene.ambient = {} must be in [0, 1]", scene.ambient),
+            ));
         }
         let base = path.parent().unwrap_or(Path::new("."));
         let mut assets: Vec<AssetSpec> = Vec::new();
@@ -411,7 +472,10 @@ impl Manifest {
             }
             let spec = a
                 .into_spec(name.clone(), source, needs)
-                .map_err(|m| err(path, text, name_span.clone(), format!("{name}: {m}")))?;
+                .map_err(|(span, m)| {
+                    let span = key_span(text, span, &m);
+                    err(path, text, span, format!("{name}: {m}"))
+                })?;
             assets.push(spec);
         }
         if assets.is_empty() {

@@ -325,8 +325,23 @@ fn manifest_errors_name_the_key_and_line() {
         ),
         (
             "[[asset]]\nname = \"a\"\nshape = \"pear\"\n[asset.parallax]\nbounds = [\"best\"]\n",
-            2,
+            5,
             "unknown kind",
+        ),
+        (
+            "[scene]\nlight = [0.5, 0.8, 0.35]\nambient = 3\n[[asset]]\nname = \"a\"\nshape = \"pear\"\n[asset.octree]\n",
+            3,
+            "scene.ambient",
+        ),
+        (
+            "[scene]\n\nlight = [0, 0, 0]\n[[asset]]\nname = \"a\"\nshape = \"pear\"\n[asset.octree]\n",
+            3,
+            "scene.light",
+        ),
+        (
+            "[[asset]]\nname = \"a\"\nshape = \"pear\"\n[asset.cylinder]\n\ncolumns = 3\n",
+            6,
+            "columns",
         ),
         (
             "[[asset]]\nname = \"a\"\nshape = \"nope\"\n[asset.octree]\n",
@@ -920,4 +935,32 @@ fn an_edited_description_or_a_stray_file_is_rebuilt_not_trusted() {
         "{}",
         third.table()
     );
+}
+
+/// A screen size that needs the very texture asked for skips nothing: the plan lists no
+/// "64² instead of 64²"; a smaller one still skips, with the sizes.
+#[test]
+fn the_plan_lists_no_skip_that_changes_nothing() {
+    let scene = |px: u32| {
+        format!(
+            "[[asset]]\nname = \"pear\"\nshape = \"pear\"\n[asset.needs]\nscreen_px = [4, {px}]\n[asset.parallax]\nsize = 64\n[asset.cylinder]\ncolumns = 256\nrows = 64\n"
+        )
+    };
+    let dir = tempfile::tempdir().unwrap();
+    for (px, skips) in [(40, false), (64, false), (20, true)] {
+        let m = Manifest::parse(&scene(px), Path::new("scene.toml")).unwrap();
+        let plans = altrep::pipeline::plan_scene(&m, &options(dir.path())).unwrap();
+        for (_, repr, plan) in &plans {
+            let sized: Vec<&String> = plan
+                .items
+                .iter()
+                .filter_map(|i| i.skipped.as_ref())
+                .filter(|r| r.contains("instead of"))
+                .collect();
+            assert_eq!(!sized.is_empty(), skips, "{px} px, {repr}: {sized:?}");
+            for r in sized {
+                assert!(r.contains("32") && r.contains("64"), "{r}");
+            }
+        }
+    }
 }

@@ -964,3 +964,56 @@ fn the_plan_lists_no_skip_that_changes_nothing() {
         }
     }
 }
+
+/// The planner's coverage check answers for the texture asked for, as `altrep cylinder` does
+/// (`evaluate` checks the texture it captures at the requested size and prefilter): the same
+/// share to the last bit, and the same refusal, at every size.
+#[test]
+fn the_cylinder_coverage_check_is_the_commands_at_the_requested_size() {
+    use altrep::cylinder::{CoverageParams, CylindricalTexture, coverage};
+    let flat = altrep_data_gen::Mesh::from_raw_triangles(
+        "card",
+        vec![
+            [[-1.0, 0.0, 0.0], [1.0, 0.0, 0.0], [1.0, 2.0, 0.0]],
+            [[-1.0, 0.0, 0.0], [1.0, 2.0, 0.0], [-1.0, 2.0, 0.0]],
+        ],
+        &altrep_data_gen::MeshLoadOptions::default(),
+    )
+    .unwrap();
+    let (truck, chair) = (scene_shape("truck").unwrap(), scene_shape("chair").unwrap());
+    let shapes: [(&str, &(dyn altrep_data_gen::Shape + Sync)); 3] =
+        [("truck", &truck), ("chair", &chair), ("card", &flat)];
+    let needs = Needs {
+        screen_px: [4.0, 16.0],
+        ..Needs::default()
+    };
+    for (name, shape) in shapes {
+        for (columns, rows) in [(32, 8), (128, 32), (256, 64)] {
+            let spec = CylinderSpec {
+                columns,
+                rows,
+                ..CylinderSpec::default()
+            };
+            let (plan, decisions) = Cylinder::plan(&spec, &needs, &source(name, shape)).unwrap();
+            let texture = CylindricalTexture::capture(
+                shape,
+                &altrep_data_gen::CylinderParams {
+                    columns,
+                    rows,
+                    cylinder: Default::default(),
+                },
+                spec.prefilter,
+            )
+            .unwrap();
+            let share =
+                coverage(shape, &texture, &CoverageParams::default()).map_or(0.0, |c| c.share);
+            assert_eq!(decisions.coverage, share, "{name} {columns} × {rows}");
+            assert_eq!(
+                plan.refused.is_some(),
+                share < spec.min_coverage,
+                "{name} {columns} × {rows}: {:?}",
+                plan.refused
+            );
+        }
+    }
+}

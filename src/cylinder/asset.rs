@@ -9,9 +9,8 @@
 //! `α_c = 2πc/L`; row `j` at height `y_j = H − (j + ½)H/Ly`.
 //!
 //! The planner refuses an object the texture cannot hold: the share of the true silhouette that
-//! the texture asked for (`columns × rows`, its prefilter) reproduces
-//! ([`crate::cylinder::coverage`], the check of `altrep cylinder`) below `min_coverage` skips
-//! the representation with that reason (use images with parallax instead).
+//! a preview texture reproduces ([`crate::cylinder::coverage`]) below `min_coverage` skips the
+//! representation with that reason (use images with parallax instead).
 
 use std::time::Instant;
 
@@ -41,8 +40,8 @@ pub struct CylinderSpec {
     pub prefilter: usize,
     /// Cells of the march bounds.
     pub bounds: BoundsParams,
-    /// Smallest share of the true silhouette the texture asked for (`columns × rows`, with its
-    /// prefilter) must reproduce, `[0, 1]`. Default 0.5 (see [`CoverageParams::min_share`]).
+    /// Smallest share of the true silhouette a preview texture must reproduce, `[0, 1]`.
+    /// Default 0.5 (see [`CoverageParams::min_share`]).
     pub min_coverage: f64,
 }
 
@@ -98,7 +97,7 @@ pub struct CylinderDecisions {
     pub rows: usize,
     /// Whether normals are stored (dynamic lighting).
     pub normals: bool,
-    /// Share of the true silhouette the texture asked for reproduced (the coverage check).
+    /// Share of the true silhouette the preview reproduced.
     pub coverage: f64,
     /// Light direction and ambient share (baked colour; relighting of loaded baked data).
     pub light: [f32; 4],
@@ -144,14 +143,11 @@ impl Representation for Cylinder {
         source: &Source,
     ) -> Result<(Plan, CylinderDecisions), PipelineError> {
         let mut plan = Plan::default();
-        // The coverage check on the texture asked for (its size and prefilter), as `altrep
-        // cylinder` checks it: the two give the same answer for the same texture. (A texture
-        // lowered below for small screens is not checked again: it draws the same object at
-        // fewer pixels.)
+        // The preview: a quarter-size texture, point-sampled, against the silhouette.
         let preview = CylindricalTexture::capture(
             source.shape()?,
-            &texture_params(spec.columns, spec.rows),
-            spec.prefilter,
+            &texture_params((spec.columns / 4).max(16) & !1, (spec.rows / 4).max(8)),
+            1,
         )?;
         let cov = match coverage(source.shape()?, &preview, &CoverageParams::default()) {
             Ok(c) => c.share,

@@ -12,8 +12,8 @@ use std::path::{Path, PathBuf};
 
 use altrep::metrics::{CompareOptions, compare};
 use altrep_data_gen::{
-    BoundingCylinder, Light, Mesh, MeshLoadOptions, Ray, RgbaImage, Shape, TruthParams, ViewParams,
-    capture_view, direction, render_truth, screen_right,
+    BoundingCylinder, Light, Mesh, MeshLoadOptions, RgbaImage, Shape, TruthParams, ViewParams,
+    capture_view, render_truth, render_truth_at_points,
 };
 
 fn gltf_files(dir: &Path, out: &mut Vec<PathBuf>) {
@@ -32,33 +32,6 @@ fn gltf_files(dir: &Path, out: &mut Vec<PathBuf>) {
             out.push(p);
         }
     }
-}
-
-/// The view at `angle`, `w × h` pixels, each the mean of `k × k` rays cast one by one without a
-/// footprint (the texture read at one point per ray): alpha is the covered share.
-fn point_sampled(mesh: &Mesh, angle: f64, w: usize, h: usize, k: usize) -> RgbaImage {
-    let light = Light::default();
-    let (d, right) = (direction(angle), screen_right(angle));
-    let mut img = RgbaImage::new(w, h);
-    for j in 0..h {
-        for i in 0..w {
-            let mut acc = [0.0f32; 4];
-            for b in 0..k {
-                for a in 0..k {
-                    let x = -1.0 + (i as f64 + (a as f64 + 0.5) / k as f64) * 2.0 / w as f64;
-                    let y = 2.0 - (j as f64 + (b as f64 + 0.5) / k as f64) * 2.0 / h as f64;
-                    let ray = Ray::new(x * right + y * glam::DVec3::Y + 2.0 * d, -d);
-                    if let Some(hit) = mesh.intersect(&ray, 0.0, 4.0) {
-                        let c = light.shade(hit.albedo, hit.normal.as_vec3());
-                        acc = [acc[0] + c.x, acc[1] + c.y, acc[2] + c.z, acc[3] + 1.0];
-                    }
-                }
-            }
-            let n = (k * k) as f32;
-            img.pixels[i + w * j] = acc.map(|v| v / n);
-        }
-    }
-    img
 }
 
 fn interior(capture: &RgbaImage, truth: &RgbaImage) -> f64 {
@@ -82,10 +55,20 @@ fn interior(capture: &RgbaImage, truth: &RgbaImage) -> f64 {
 /// The same comparison as [`interior_psnr`] with the texture read at one point per ray in both
 /// pictures (how captures and the truth read textures before footprints).
 fn interior_psnr_point(mesh: &Mesh, angle: f64, size: usize, k: usize) -> f64 {
-    interior(
-        &point_sampled(mesh, angle, size, 2 * size, 1),
-        &point_sampled(mesh, angle, size, 2 * size, k),
-    )
+    let at_points = |k: usize| render_truth_at_points(mesh, &view(angle, size, k)).unwrap();
+    interior(&at_points(1), &at_points(k))
+}
+
+/// The truth's parameters of the view at `angle`, `size × 2·size` pixels, `k × k` rays each.
+fn view(angle: f64, size: usize, k: usize) -> TruthParams {
+    TruthParams {
+        angle,
+        width: size,
+        height: 2 * size,
+        supersample: k,
+        light: Light::default(),
+        cylinder: BoundingCylinder::default(),
+    }
 }
 
 /// The capture of view `angle` at `size²` against the truth with `k × k` rays per pixel, over
@@ -104,18 +87,7 @@ fn interior_psnr(mesh: &Mesh, angle: f64, size: usize, k: usize) -> f64 {
     )
     .unwrap();
     let capture = grid.shade(&light);
-    let truth = render_truth(
-        mesh,
-        &TruthParams {
-            angle,
-            width: size,
-            height: 2 * size,
-            supersample: k,
-            light,
-            cylinder,
-        },
-    )
-    .unwrap();
+    let truth = render_truth(mesh, &view(angle, size, k)).unwrap();
     interior(&capture, &truth)
 }
 

@@ -223,7 +223,7 @@ impl BandTracer for MeshTracer<'_> {
 
 /// A mesh tracer that works one band of rows at a time ([`MeshTracer`] for parallel rays,
 /// [`crate::radial::RadialTracer`] for radial ones): it traces any rows band by band, and is
-/// the [`ParallelTracer`] that shades its hits with [`Mesh::hit_at`].
+/// the [`ParallelTracer`] that shades its hits with [`Mesh::hit_over`].
 pub(crate) trait BandTracer: Sync {
     /// The mesh traced.
     fn mesh(&self) -> &Mesh;

@@ -259,21 +259,24 @@ pub(crate) fn load(
         }
     }
     precheck(raw.as_json()).map_err(|(at, message)| err(path, at, message))?;
-    drop(raw);
-    let gltf::Gltf { document, blob } = gltf::Gltf::from_slice(bytes).map_err(|e| match e {
-        gltf::Error::Validation(list) => {
-            let (at, what) = list
-                .first()
-                .map(|(p, e)| (p.to_string(), e.to_string()))
-                .unwrap_or_default();
-            err(
-                path,
-                at,
-                format!("invalid: {what} ({} problems in all)", list.len()),
-            )
-        }
-        e => err(path, "document", e.to_string()),
-    })?;
+    // The `gltf` crate's own validation (what `Gltf::from_slice` runs), on the document
+    // parsed once.
+    let mut problems = Vec::new();
+    {
+        use gltf::json::validation::Validate;
+        let root = raw.as_json();
+        root.validate(root, gltf::json::Path::new, &mut |at, e| {
+            problems.push((at().to_string(), e.to_string()));
+        });
+    }
+    if let Some((at, what)) = problems.first() {
+        return Err(err(
+            path,
+            at.clone(),
+            format!("invalid: {what} ({} problems in all)", problems.len()),
+        ));
+    }
+    let gltf::Gltf { document, blob } = raw;
     let mut notes = BTreeSet::new();
     let mut inputs = Vec::new();
     for ext in document.extensions_used() {

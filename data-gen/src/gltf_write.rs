@@ -100,6 +100,11 @@ fn png(img: &Rgba8) -> Result<Vec<u8>, DataGenError> {
 
 use image::ImageEncoder as _;
 
+/// The little-endian bytes of `values` (glTF's byte order).
+fn le_bytes<'a>(values: impl Iterator<Item = &'a f32>) -> Vec<u8> {
+    values.flat_map(|v| v.to_le_bytes()).collect()
+}
+
 impl TestGltf {
     /// The JSON document and the binary buffer; images go into the buffer (`external = None`)
     /// or are named `<stem>_<k>.png` (`external = Some(stem)`, returned as files to write).
@@ -124,13 +129,7 @@ impl TestGltf {
         for mesh in &self.meshes {
             let mut prims = Vec::new();
             for p in mesh {
-                let pos: Vec<u8> = p
-                    .positions
-                    .iter()
-                    .flatten()
-                    .flat_map(|v| v.to_le_bytes())
-                    .collect();
-                let v = push_view(&mut bin, &pos);
+                let v = push_view(&mut bin, &le_bytes(p.positions.iter().flatten()));
                 let (lo, hi) = p.positions.iter().fold(
                     ([f32::INFINITY; 3], [f32::NEG_INFINITY; 3]),
                     |(lo, hi), q| {
@@ -143,18 +142,17 @@ impl TestGltf {
                 accessors.push(json!({"bufferView": v, "componentType": 5126, "count": p.positions.len(), "type": "VEC3", "min": lo, "max": hi}));
                 let mut attributes = json!({"POSITION": accessors.len() - 1});
                 if !p.uvs.is_empty() {
-                    let uv: Vec<u8> = p
-                        .uvs
-                        .iter()
-                        .flatten()
-                        .flat_map(|v| v.to_le_bytes())
-                        .collect();
-                    let v = push_view(&mut bin, &uv);
+                    let v = push_view(&mut bin, &le_bytes(p.uvs.iter().flatten()));
                     accessors.push(json!({"bufferView": v, "componentType": 5126, "count": p.uvs.len(), "type": "VEC2"}));
                     attributes["TEXCOORD_0"] = json!(accessors.len() - 1);
                 }
-                let idx: Vec<u8> = p.indices.iter().flat_map(|v| v.to_le_bytes()).collect();
-                let v = push_view(&mut bin, &idx);
+                let v = push_view(
+                    &mut bin,
+                    &p.indices
+                        .iter()
+                        .flat_map(|v| v.to_le_bytes())
+                        .collect::<Vec<u8>>(),
+                );
                 accessors.push(json!({"bufferView": v, "componentType": 5125, "count": p.indices.len(), "type": "SCALAR"}));
                 prims.push(json!({"attributes": attributes, "indices": accessors.len() - 1, "material": p.material}));
             }

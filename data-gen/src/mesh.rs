@@ -607,14 +607,10 @@ impl Mesh {
     }
 
     /// The hit record of `ray` meeting triangle `tri_id` at distance `t`: the geometric normal
-    /// turned toward the ray and the triangle's colour at the hit point.
-    pub(crate) fn hit_at(&self, ray: &Ray, tri_id: usize, t: f32) -> Hit {
-        self.hit_over(ray, tri_id, t, None)
-    }
-
-    /// [`Mesh::hit_at`] for a ray that stands for the cell `footprint`: a base-colour texture
-    /// is read over the cell's image on the triangle (projected along the ray), through the
-    /// texture's mip chain (`surface` module).
+    /// turned toward the ray (or the interpolated shading normal on its side) and the
+    /// triangle's colour at the hit point. For a ray that stands for the cell `footprint`, a
+    /// base-colour texture is read over the cell's image on the triangle (projected along the
+    /// ray), through the texture's mip chain (`surface` module); without one, at the point.
     pub(crate) fn hit_over(
         &self,
         ray: &Ray,
@@ -680,8 +676,7 @@ impl Shape for Mesh {
     }
 
     fn intersect(&self, ray: &Ray, t_min: f64, t_max: f64) -> Option<Hit> {
-        self.first_hit(ray, t_min, t_max)
-            .map(|(tri, t)| self.hit_at(ray, tri, t))
+        self.intersect_over(ray, t_min, t_max, None)
     }
 
     fn intersect_over(

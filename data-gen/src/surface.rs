@@ -197,10 +197,7 @@ impl TextureImage {
     /// Bilinear lookup in level `l`.
     fn bilinear(&self, l: usize, uv: Vec2, wrap: [Wrap; 2]) -> Vec4 {
         let (w, h, texels) = self.level(l);
-        let uv = if uv.is_finite() { uv } else { Vec2::ZERO };
-        let lim = 1e12;
-        let x = (f64::from(uv.x) * w as f64 - 0.5).clamp(-lim, lim);
-        let y = (f64::from(uv.y) * h as f64 - 0.5).clamp(-lim, lim);
+        let (x, y) = texel_coordinates(uv, w, h);
         let (x0, y0) = (x.floor(), y.floor());
         let (fx, fy) = ((x - x0) as f32, (y - y0) as f32);
         let (x0, y0) = (x0 as i64, y0 as i64);
@@ -251,33 +248,29 @@ impl TextureImage {
     /// The texture at `uv` through `filter` and `wrap` (module conventions). Non-finite
     /// coordinates read texel `(0, 0)`.
     pub fn sample(&self, uv: Vec2, filter: Filter, wrap: [Wrap; 2]) -> Vec4 {
-        let uv = if uv.is_finite() { uv } else { Vec2::ZERO };
-        // Texel coordinates: texel centres at integers.
-        let x = f64::from(uv.x) * self.width as f64 - 0.5;
-        let y = f64::from(uv.y) * self.height as f64 - 0.5;
-        // Far outside the texture (|uv| beyond 2⁴⁰ periods) the index would overflow: clamp.
-        let lim = 1e12;
-        let (x, y) = (x.clamp(-lim, lim), y.clamp(-lim, lim));
         match filter {
             Filter::Nearest => {
+                let (x, y) = texel_coordinates(uv, self.width, self.height);
                 let i = wrap[0].index(x.round() as i64, self.width);
                 let j = wrap[1].index(y.round() as i64, self.height);
                 self.texel(i, j)
             }
-            Filter::Linear => {
-                let (x0, y0) = (x.floor(), y.floor());
-                let (fx, fy) = ((x - x0) as f32, (y - y0) as f32);
-                let (x0, y0) = (x0 as i64, y0 as i64);
-                let i0 = wrap[0].index(x0, self.width);
-                let i1 = wrap[0].index(x0 + 1, self.width);
-                let j0 = wrap[1].index(y0, self.height);
-                let j1 = wrap[1].index(y0 + 1, self.height);
-                let top = self.texel(i0, j0).lerp(self.texel(i1, j0), fx);
-                let bottom = self.texel(i0, j1).lerp(self.texel(i1, j1), fx);
-                top.lerp(bottom, fy)
-            }
+            Filter::Linear => self.bilinear(0, uv, wrap),
         }
     }
+}
+
+/// Texture coordinates `uv` in texels of a `w × h` image, texel centres at integers; non-finite
+/// coordinates read as `(0, 0)`, and far outside the texture (beyond 2⁴⁰ periods, where an index
+/// would overflow) they are clamped.
+#[inline]
+fn texel_coordinates(uv: Vec2, w: usize, h: usize) -> (f64, f64) {
+    let uv = if uv.is_finite() { uv } else { Vec2::ZERO };
+    let lim = 1e12;
+    (
+        (f64::from(uv.x) * w as f64 - 0.5).clamp(-lim, lim),
+        (f64::from(uv.y) * h as f64 - 0.5).clamp(-lim, lim),
+    )
 }
 
 /// An affine map of texture coordinates, `uv' = M·(u, v, 1)` (glTF `KHR_texture_transform`:
@@ -406,9 +399,20 @@ impl Material {
     /// Linear RGBA at texture coordinates `uv` (sets 0 and 1) with vertex colour `vertex`.
     #[inline]
     pub fn color(&self, uv: [Vec2; 2], vertex: Vec4) -> Vec4 {
+        self.color_with(uv, vertex, |t, s| t.sample(uv[s]))
+    }
+
+    /// The colour with the base-colour texture (`t`, of set `s`) read by `base`.
+    #[inline]
+    fn color_with(
+        &self,
+        uv: [Vec2; 2],
+        vertex: Vec4,
+        base: impl Fn(&TextureRef, usize) -> Vec4,
+    ) -> Vec4 {
         let mut c = self.base_color * vertex;
         if let Some((t, set)) = &self.base_texture {
-            c *= t.sample(uv[(*set as usize).min(1)]);
+            c *= base(t, (*set as usize).min(1));
         }
         if let Some(t) = &self.alpha_texture {
             let a = t.sample(uv[0]);
@@ -423,16 +427,7 @@ impl Material {
     /// as the alpha test reads them.
     #[inline]
     pub fn color_over(&self, uv: [Vec2; 2], axes: [[Vec2; 2]; 2], vertex: Vec4) -> Vec4 {
-        let mut c = self.base_color * vertex;
-        if let Some((t, set)) = &self.base_texture {
-            let s = (*set as usize).min(1);
-            c *= t.sample_footprint(uv[s], axes[s]);
-        }
-        if let Some(t) = &self.alpha_texture {
-            let a = t.sample(uv[0]);
-            c.w *= if a.w < 1.0 { a.w } else { a.x };
-        }
-        c
+        self.color_with(uv, vertex, |t, s| t.sample_footprint(uv[s], axes[s]))
     }
 
     /// Whether alpha can stop a ray from hitting this material.

@@ -72,6 +72,37 @@ pub fn render_truth(shape: &dyn Shape, params: &TruthParams) -> Result<RgbaImage
     })
 }
 
+/// [`render_truth`] with every ray cast on its own and every texture read at the ray's point,
+/// not over its cell (`docs/real-assets.md`): how captures and the truth read textures before
+/// footprints, kept to measure what footprints change. Cost: that of [`render_truth`], one BVH
+/// walk per ray.
+#[doc(hidden)]
+pub fn render_truth_at_points(
+    shape: &dyn Shape,
+    params: &TruthParams,
+) -> Result<RgbaImage, DataGenError> {
+    /// The shape traced ray by ray (the default tracers), each ray without its footprint.
+    struct AtPoints<'a>(&'a dyn Shape);
+    impl Shape for AtPoints<'_> {
+        fn name(&self) -> &str {
+            self.0.name()
+        }
+        fn intersect(&self, ray: &crate::Ray, t_min: f64, t_max: f64) -> Option<Hit> {
+            self.0.intersect(ray, t_min, t_max)
+        }
+        fn contains(&self, p: glam::DVec3) -> bool {
+            self.0.contains(p)
+        }
+        fn bounds(&self) -> (glam::DVec3, glam::DVec3) {
+            self.0.bounds()
+        }
+        fn albedo_at(&self, p: glam::DVec3) -> Vec3 {
+            self.0.albedo_at(p)
+        }
+    }
+    render_truth(&AtPoints(shape), params)
+}
+
 /// The ground truth's alpha alone: `alpha[j·width + i]` is bitwise the alpha of pixel `(i, j)`
 /// of [`render_truth`] with the same parameters (the light is not used). The rays are the
 /// same; each only asks whether it meets the shape ([`Shape::occluded`],

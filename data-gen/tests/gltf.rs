@@ -510,7 +510,7 @@ fn interior_psnr(a: &altrep_data_gen::RgbaImage, b: &altrep_data_gen::RgbaImage)
 /// 54.55 dB filtered, 21.65 dB point-sampled.
 #[test]
 fn a_capture_reads_fine_textures_over_its_pixel_as_the_truth_does() {
-    use altrep_data_gen::{Light, RgbaImage, TruthParams, direction, render_truth, screen_right};
+    use altrep_data_gen::{Light, TruthParams, render_truth, render_truth_at_points};
     let mesh = load_glb(&fine_quad(512, 3), &MeshLoadOptions::default()).unwrap();
     let angle = std::f64::consts::FRAC_PI_2;
     let (w, h, k) = (32usize, 64usize, 4usize);
@@ -526,42 +526,18 @@ fn a_capture_reads_fine_textures_over_its_pixel_as_the_truth_does() {
     )
     .unwrap()
     .shade(&light);
-    let truth = render_truth(
-        &mesh,
-        &TruthParams {
-            angle,
-            width: w,
-            height: h,
-            supersample: k,
-            light,
-            cylinder: Default::default(),
-        },
-    )
-    .unwrap();
-    let filtered = interior_psnr(&capture, &truth);
-    // One point lookup per ray, in the capture and in the truth alike.
-    let point = |k: usize| {
-        let (d, right) = (direction(angle), screen_right(angle));
-        let mut img = RgbaImage::new(w, h);
-        for j in 0..h {
-            for i in 0..w {
-                let mut acc = [0.0f32; 4];
-                for b in 0..k {
-                    for a in 0..k {
-                        let x = -1.0 + (i as f64 + (a as f64 + 0.5) / k as f64) * 2.0 / w as f64;
-                        let y = 2.0 - (j as f64 + (b as f64 + 0.5) / k as f64) * 2.0 / h as f64;
-                        let ray = Ray::new(x * right + y * DVec3::Y + 2.0 * d, -d);
-                        if let Some(hit) = mesh.intersect(&ray, 0.0, 4.0) {
-                            let c = light.shade(hit.albedo, hit.normal.as_vec3());
-                            acc = [acc[0] + c.x, acc[1] + c.y, acc[2] + c.z, acc[3] + 1.0];
-                        }
-                    }
-                }
-                img.pixels[i + w * j] = acc.map(|v| v / (k * k) as f32);
-            }
-        }
-        img
+    let params = |supersample: usize| TruthParams {
+        angle,
+        width: w,
+        height: h,
+        supersample,
+        light,
+        cylinder: Default::default(),
     };
+    let truth = render_truth(&mesh, &params(k)).unwrap();
+    let filtered = interior_psnr(&capture, &truth);
+    // One point lookup per ray, in the capture (one ray per pixel) and in the truth alike.
+    let point = |k: usize| render_truth_at_points(&mesh, &params(k)).unwrap();
     let point_sampled = interior_psnr(&point(1), &point(k));
     eprintln!("filtered {filtered:.2} dB, point-sampled {point_sampled:.2} dB");
     assert!(filtered >= FILTERED_FLOOR_DB, "{filtered:.2} dB");

@@ -309,23 +309,21 @@ pub struct AssetDescription {
 }
 
 impl AssetDescription {
-    /// The bytes of `asset.json` for this description without its own hash (pretty JSON), and
-    /// their BLAKE3 (hex): what [`AssetDescription::description_blake3`] records.
-    pub fn own_hash(&self) -> Result<(Vec<u8>, String), serde_json::Error> {
+    /// The BLAKE3 (hex) of `asset.json` for this description without its own hash (pretty
+    /// JSON): what [`AssetDescription::description_blake3`] records.
+    pub fn own_hash(&self) -> Result<String, serde_json::Error> {
         let bare = Self {
             description_blake3: None,
             ..self.clone()
         };
-        let bytes = serde_json::to_vec_pretty(&bare)?;
-        let hash = hash_hex(&bytes);
-        Ok((bytes, hash))
+        Ok(hash_hex(&serde_json::to_vec_pretty(&bare)?))
     }
 
     /// This description as `asset.json` bytes (pretty JSON) with `description_blake3` set to
     /// the hash of the rest ([`AssetDescription::own_hash`]): what every write of `asset.json`
     /// stores, so that a reader can tell an edit.
     pub fn sealed_json(&self) -> Result<Vec<u8>, serde_json::Error> {
-        let (_, hash) = self.own_hash()?;
+        let hash = self.own_hash()?;
         serde_json::to_vec_pretty(&Self {
             description_blake3: Some(hash),
             ..self.clone()

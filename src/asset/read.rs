@@ -67,7 +67,7 @@ impl AssetReader {
                 reason: e.to_string(),
             })?;
         if let Some(recorded) = &description.description_blake3 {
-            let (_, hash) = description.own_hash().map_err(|e| AssetError::Malformed {
+            let hash = description.own_hash().map_err(|e| AssetError::Malformed {
                 path: path.clone(),
                 reason: e.to_string(),
             })?;

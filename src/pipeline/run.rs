@@ -729,11 +729,17 @@ fn build_one<'a, R: Representation>(
     let key = cache_key::<R>(spec, &decisions, needs, input_hash, &source.light);
     let mut cache_note = None;
     if !options.force && dir.join(DESCRIPTION_FILE).exists() {
-        match AssetReader::open(&dir) {
-            Ok(r) if r.description().cache_key == key && !stray_files(&r).is_empty() => {
+        let opened = AssetReader::open(&dir);
+        // Read once: the files the folder holds that its asset.json does not list.
+        let stray = match &opened {
+            Ok(r) if r.description().cache_key == key => stray_files(r),
+            _ => Vec::new(),
+        };
+        match opened {
+            Ok(_) if !stray.is_empty() => {
                 cache_note = Some(format!(
                     "cached folder holds files asset.json does not list: {}",
-                    stray_files(&r).join(", ")
+                    stray.join(", ")
                 ));
             }
             Ok(r) if r.description().cache_key == key => {

@@ -65,6 +65,70 @@ pub fn check_writable(path: &Path) -> Result<(), String> {
     Ok(())
 }
 
+/// The run an interrupt (SIGINT, SIGTERM) reports on: the output folder and when the run began.
+static INTERRUPTED_RUN: std::sync::Mutex<Option<(PathBuf, std::time::SystemTime)>> =
+    std::sync::Mutex::new(None);
+
+/// The representations a run into `out` that began at `since` finished: asset folders holding an
+/// `asset.json` written since (folders are renamed into place complete, so every one listed is
+/// whole). Sorted `ASSET/REPR` names.
+pub fn finished_since(out: &Path, since: std::time::SystemTime) -> Vec<String> {
+    let mut done = Vec::new();
+    let Ok(assets) = std::fs::read_dir(out) else {
+        return done;
+    };
+    for asset in assets.filter_map(Result::ok) {
+        let name = asset.file_name().to_string_lossy().into_owned();
+        if name.starts_with('.') || !asset.file_type().is_ok_and(|t| t.is_dir()) {
+            continue;
+        }
+        let Ok(reprs) = std::fs::read_dir(asset.path()) else {
+            continue;
+        };
+        for repr in reprs.filter_map(Result::ok) {
+            let description = repr.path().join(crate::asset::DESCRIPTION_FILE);
+            let fresh = std::fs::symlink_metadata(&description)
+                .and_then(|m| m.modified())
+                .is_ok_and(|t| t >= since);
+            if fresh {
+                done.push(format!("{name}/{}", repr.file_name().to_string_lossy()));
+            }
+        }
+    }
+    done.sort();
+    done
+}
+
+/// Installs (once per process) the interrupt handler of a precompute into `out`: on SIGINT or
+/// SIGTERM it prints the representations finished so far and how to resume, then exits with
+/// status 130. What was being written stays in `OUT/.staging/`, never in an asset folder, and the
+/// next run clears it.
+fn report_interrupts(out: &Path) {
+    let since = std::time::SystemTime::now();
+    if let Ok(mut run) = INTERRUPTED_RUN.lock() {
+        *run = Some((out.to_path_buf(), since));
+    }
+    let _ = ctrlc::set_handler(|| {
+        let run = INTERRUPTED_RUN.lock().ok().and_then(|r| r.clone());
+        if let Some((out, since)) = run {
+            let done = finished_since(&out, since);
+            eprintln!(
+                "\ninterrupted: {} representation(s) finished and written in this run{}{}",
+                done.len(),
+                if done.is_empty() { "" } else { ": " },
+                done.join(", ")
+            );
+            eprintln!(
+                "to resume, run the same command again: what is finished (from this run or \
+                 earlier ones) is verified and reused from the cache, the rest is built; the \
+                 unfinished write in {} is cleared",
+                out.join(".staging").display()
+            );
+        }
+        std::process::exit(130);
+    });
+}
+
 /// Runs `altrep precompute`.
 pub fn run(args: PrecomputeArgs) -> CliResult {
     let manifest = Manifest::load(&args.manifest)?;
@@ -100,6 +164,7 @@ pub fn run_manifest(manifest: &Manifest, args: &PrecomputeArgs) -> CliResult {
         }
         return Ok(());
     }
+    report_interrupts(&args.out);
     let summary = run_scene(manifest, &options)?;
     print!("{}", summary.table());
     if let Some(p) = &summary.profile {

@@ -24,8 +24,8 @@ use crate::cylinder::{
     MarchBounds, coverage,
 };
 use crate::representation::{
-    Lighting, Measurement, Needs, Picture, PipelineError, Plan, Representation, Source, fold,
-    score, secs, truth,
+    Lighting, Measurement, Needs, Picture, PipelineError, Plan, Representation, Source, Window,
+    elevation_note, fold, measure_views, secs,
 };
 
 /// Manifest parameters of the cylindrical texture (`[asset.cylinder]`).
@@ -134,7 +134,8 @@ impl Representation for Cylinder {
     }
 
     fn relevant_needs(needs: &Needs) -> serde_json::Value {
-        json!({ "screen_px_max": needs.screen_px[1], "lighting": needs.lighting })
+        json!({ "screen_px_max": needs.screen_px[1], "lighting": needs.lighting,
+                "azimuth_deg": needs.azimuth_deg, "elevation_deg": needs.elevation_deg })
     }
 
     fn plan(
@@ -143,6 +144,13 @@ impl Representation for Cylinder {
         source: &Source,
     ) -> Result<(Plan, CylinderDecisions), PipelineError> {
         let mut plan = Plan::default();
+        crate::representation::plan_elevations(
+            &mut plan,
+            needs,
+            source,
+            48,
+            "cylindrical textures",
+        )?;
         // The preview: a quarter-size texture, point-sampled, against the silhouette.
         let preview = CylindricalTexture::capture(
             source.shape()?,
@@ -345,12 +353,11 @@ impl Representation for Cylinder {
         let mut scores = Vec::new();
         let mut pictures = Vec::new();
         let (mut steps, mut samples) = (0u64, 0u64);
-        for (i, &angle) in crate::representation::measure_angles(needs, 4)
-            .iter()
-            .enumerate()
-        {
-            let reference = truth(source, angle, size, 3)?;
-            let render = data.bounds.render(
+        let window = Window::for_needs(needs, size);
+        for (i, &view) in measure_views(needs, 4).iter().enumerate() {
+            let angle = view.azimuth;
+            let reference = window.truth(source, view, 3)?;
+            let mut render = data.bounds.render(
                 &data.texture,
                 &CylinderRenderParams {
                     angle,
@@ -360,25 +367,28 @@ impl Representation for Cylinder {
                     light: source.light,
                 },
             )?;
+            render.image = window.place(&render.image);
             steps += render.steps;
             samples += (render.sub_width * render.sub_height) as u64;
-            scores.push(score(&render.image, &reference)?);
+            scores.push(window.score(&render.image, &reference)?);
             if i == 0 {
                 pictures.push(Picture {
                     file: format!("{}-cylinder.png", source.name),
                     caption: format!(
-                        "{}: ground truth | cylindrical texture (bounded exact march), azimuth {:.0}°",
+                        "{}: ground truth | cylindrical texture (bounded exact march), azimuth {:.0}°, elevation {:.0}°",
                         source.name,
-                        angle.to_degrees()
+                        angle.to_degrees(),
+                        view.elevation.to_degrees()
                     ),
                     image: altrep_data_gen::RgbaImage::side_by_side(&[&reference, &render.image]),
                 });
             }
         }
         let method = format!(
-            "bounded exact march of the {} × {} texture, 1 ray per pixel at {size}², vs truth 3×3 supersampled; sector tests per pixel",
+            "bounded exact march of the {} × {} texture, 1 ray per pixel at {size}², vs truth 3×3 supersampled{}; sector tests per pixel",
             data.texture.columns(),
-            data.texture.rows()
+            data.texture.rows(),
+            elevation_note(needs, window)
         );
         let mean = (samples > 0).then(|| steps as f64 / samples as f64);
         Ok((fold(method, &scores, mean), pictures))

@@ -27,8 +27,8 @@ use crate::parallax::{
     RenderParams, ViewCodes, ViewStorage, WarpMethod, build_bounds, render, render_bounded_with,
 };
 use crate::representation::{
-    Lighting, Measurement, Needs, Picture, PipelineError, Plan, Representation, Source, fold,
-    score, secs, truth,
+    Lighting, Measurement, Needs, Picture, PipelineError, Plan, Representation, Source, Window,
+    elevation_note, fold, measure_views, secs,
 };
 
 /// Manifest parameters of images with parallax (`[asset.parallax]`).
@@ -182,7 +182,8 @@ impl Representation for Parallax {
     }
 
     fn relevant_needs(needs: &Needs) -> serde_json::Value {
-        json!({ "azimuth_deg": needs.azimuth_deg, "screen_px": needs.screen_px, "lighting": needs.lighting })
+        json!({ "azimuth_deg": needs.azimuth_deg, "elevation_deg": needs.elevation_deg,
+                "screen_px": needs.screen_px, "lighting": needs.lighting })
     }
 
     fn plan(
@@ -191,6 +192,13 @@ impl Representation for Parallax {
         source: &Source,
     ) -> Result<(Plan, ParallaxDecisions), PipelineError> {
         let mut plan = Plan::default();
+        crate::representation::plan_elevations(
+            &mut plan,
+            needs,
+            source,
+            48,
+            "images with parallax",
+        )?;
         let max_px = needs.screen_px[1].ceil() as usize;
         // The size the largest screen size needs (a power of two at or above it); nothing is
         // skipped when that is the size asked for.
@@ -602,19 +610,18 @@ impl Representation for Parallax {
             .iter()
             .filter(|b| b.kind != BoundKind::Cylinder)
             .max_by_key(|b| BoundKind::ALL.iter().position(|&k| k == b.kind));
-        for (i, &angle) in crate::representation::measure_angles(needs, 4)
-            .iter()
-            .enumerate()
-        {
-            let reference = truth(source, angle, size, 3)?;
+        let window = Window::for_needs(needs, size);
+        for (i, &view) in measure_views(needs, 4).iter().enumerate() {
+            let angle = view.azimuth;
+            let reference = window.truth(source, view, 3)?;
             let screen = RenderParams {
                 supersample: 1,
                 light: source.light,
                 mip: false,
                 ..RenderParams::native(images)
             };
-            let img = render(images, angle, WarpMethod::Inverse, &screen)?;
-            scores.push(score(&img, &reference)?);
+            let img = window.place(&render(images, angle, WarpMethod::Inverse, &screen)?);
+            scores.push(window.score(&img, &reference)?);
             if let Some(b) = bounded {
                 let r =
                     render_bounded_with(images, b, angle, &source.light, &Reconstruction::DEFAULT)?;
@@ -626,17 +633,19 @@ impl Representation for Parallax {
                 pictures.push(Picture {
                     file: format!("{}-parallax.png", source.name),
                     caption: format!(
-                        "{}: ground truth | images with parallax, azimuth {:.0}°",
+                        "{}: ground truth | images with parallax, azimuth {:.0}°, elevation {:.0}°",
                         source.name,
-                        angle.to_degrees()
+                        angle.to_degrees(),
+                        view.elevation.to_degrees()
                     ),
                     image: altrep_data_gen::RgbaImage::side_by_side(&[&reference, &img]),
                 });
             }
         }
         let method = format!(
-            "inverse warp of {} views of {size}², 1 ray per pixel, vs truth 3×3 supersampled; steps per warped view with {}{}",
+            "inverse warp of {} views of {size}², 1 ray per pixel, vs truth 3×3 supersampled{}; steps per warped view with {}{}",
             images.params.views,
+            elevation_note(needs, window),
             bounded.map_or("no stored bound", |b| b.kind.name()),
             if fragments > 0 {
                 format!(

@@ -13,7 +13,10 @@
 //! # node = "Tree_01"           # glTF: load this node's subtree instead of the default scene
 //! [asset.needs]
 //! azimuth_deg = [0, 360]       # range of view azimuths α (degrees)
-//! elevation_deg = [0, 0]       # range of view elevations (degrees; horizontal captures hold 0)
+//! elevation_deg = [0, 0]       # range of view elevations (degrees); off the horizontal, parallax
+//!                              # and cylinder are refused where their horizontal views miss the
+//!                              # quality target (the sphere frames hold every elevation)
+//! quality_db = 20              # PSNR target against the ray-cast truth; below it: flagged, exit ≠ 0
 //! screen_px = [16, 128]        # range of on-screen sizes of the object (pixels)
 //! lighting = "dynamic"         # or "baked"
 //! [asset.parallax]             # presence = wanted; every key optional (documented defaults)

@@ -523,7 +523,7 @@ pub fn octree(quick: bool) -> Result<RepresentationReport, ReportError> {
             },
         ],
         notes: vec![
-            "PSNR of the volume rendering of level 0 against the ray-cast truth at 90°, at the leaves' resolution (so the error of each resolution is at its own pixel size). `error` in the CSV is the compression 1 − nodes/voxels.".into(),
+            "PSNR of the volume rendering of level 0 against the ray-cast truth, mean over 4 azimuths around the object, at the leaves' resolution (so the error of each resolution is at its own pixel size). `error` in the CSV is the compression 1 − nodes/voxels.".into(),
         ],
         seconds: 0.0,
     })

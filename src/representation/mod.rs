@@ -12,7 +12,11 @@
 use std::path::PathBuf;
 use std::time::Instant;
 
-use altrep_data_gen::{Light, RgbaImage, Shape, TruthParams, render_truth};
+use altrep_data_gen::{
+    Light, OrthoFrame, RgbaImage, Shape, TruthParams, render_truth, render_truth_frame,
+    screen_right,
+};
+use glam::DVec3;
 use serde::{Deserialize, Serialize};
 
 use crate::asset::{AssetReader, AssetWriter};
@@ -349,6 +353,241 @@ pub fn truth(
     Ok(img)
 }
 
+/// A direction the scene needs the object from: the camera lies toward
+/// `(cos e cos α, sin e, cos e sin α)` for azimuth `α` and elevation `e` (radians), the azimuth
+/// convention of [`Needs::azimuth_deg`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ViewDir {
+    /// Azimuth `α` (radians).
+    pub azimuth: f64,
+    /// Elevation `e` above the horizontal (radians).
+    pub elevation: f64,
+}
+
+/// Whether the needs ask for any view off the horizontal.
+pub fn needs_elevation(needs: &Needs) -> bool {
+    needs.elevation_deg != [0.0, 0.0]
+}
+
+/// `count` directions at which to measure: the azimuths of [`measure_angles`], paired in order
+/// with elevations running from the lowest needed to the highest (both ends when `count ≥ 2`).
+pub fn measure_views(needs: &Needs, count: usize) -> Vec<ViewDir> {
+    let [e0, e1] = needs.elevation_deg;
+    measure_angles(needs, count)
+        .into_iter()
+        .enumerate()
+        .map(|(k, azimuth)| {
+            let u = if count > 1 {
+                k as f64 / (count - 1) as f64
+            } else {
+                0.5
+            };
+            ViewDir {
+                azimuth,
+                elevation: (e0 + (e1 - e0) * u).to_radians(),
+            }
+        })
+        .collect()
+}
+
+/// The square window in which a representation's drawing and the ground truth are compared.
+///
+/// For horizontal needs it is the view window of the bounding cylinder (`x ∈ [−1, 1]` across,
+/// `y ∈ [0, 2]`), `size` pixels square: the truth of [`truth`]. For needs off the horizontal the
+/// same pixel grid is widened by `pad` pixels on every side, to a window at least as wide as the
+/// sphere of radius `√2` around `(0, 1, 0)` that holds the cylinder: every view of the object
+/// falls inside it, and a drawing confined to the cylinder's window is charged for what it
+/// leaves out.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Window {
+    /// The representation's own image size (pixels).
+    pub size: usize,
+    /// Pixels added on every side (0 for horizontal needs).
+    pub pad: usize,
+}
+
+impl Window {
+    /// The window for `needs` around a drawing of `size²` pixels.
+    pub fn for_needs(needs: &Needs, size: usize) -> Self {
+        let pad = if needs_elevation(needs) {
+            (size as f64 * (std::f64::consts::SQRT_2 - 1.0) / 2.0).ceil() as usize
+        } else {
+            0
+        };
+        Self { size, pad }
+    }
+
+    /// Side of the compared images (pixels).
+    pub fn side(&self) -> usize {
+        self.size + 2 * self.pad
+    }
+
+    /// The orthographic frame of the window along `view` (object frame): centre `(0, 1, 0)`,
+    /// screen right horizontal (`screen_right(α)`, also straight above or below), up completing
+    /// the frame. At elevation 0 it is the frame of [`truth`].
+    pub fn frame(&self, view: ViewDir) -> OrthoFrame {
+        let (a, e) = (view.azimuth, view.elevation);
+        let dir = DVec3::new(e.cos() * a.cos(), e.sin(), e.cos() * a.sin());
+        let right = screen_right(a);
+        OrthoFrame {
+            centre: DVec3::Y,
+            radius: self.side() as f64 / self.size as f64,
+            dir,
+            right,
+            up: dir.cross(right),
+        }
+    }
+
+    /// Ground truth along `view` in this window, `k × k` rays per pixel. For the horizontal
+    /// window at elevation 0 it is exactly [`truth`]. Errors: nothing of the object is visible.
+    /// Cost: `side² · k²` rays.
+    pub fn truth(
+        &self,
+        source: &Source,
+        view: ViewDir,
+        k: usize,
+    ) -> Result<RgbaImage, PipelineError> {
+        if self.pad == 0 && view.elevation == 0.0 {
+            return truth(source, view.azimuth, self.size, k);
+        }
+        let side = self.side();
+        let img = render_truth_frame(
+            source.shape()?,
+            &self.frame(view),
+            side,
+            side,
+            k,
+            &source.light,
+        )?;
+        if img.pixels.iter().all(|p| p[3] <= 0.0) {
+            return Err(PipelineError::Invisible {
+                asset: source.name.to_string(),
+                what: format!(
+                    "the ground truth at azimuth {:.1}°, elevation {:.1}°",
+                    view.azimuth.to_degrees(),
+                    view.elevation.to_degrees()
+                ),
+            });
+        }
+        Ok(img)
+    }
+
+    /// PSNR and IoU of `image` against `reference` (both `side²`), with the PSNR's squared error
+    /// summed over the whole window but divided by the pixel count of the cylinder's window
+    /// (`size²`): a horizontal view, empty outside the cylinder's window, scores exactly as in
+    /// [`score`], and error outside it still counts.
+    pub fn score(
+        &self,
+        image: &RgbaImage,
+        reference: &RgbaImage,
+    ) -> Result<(f64, f64), PipelineError> {
+        let (psnr, iou) = score(image, reference)?;
+        Ok((
+            psnr - 20.0 * (self.side() as f64 / self.size as f64).log10(),
+            iou,
+        ))
+    }
+
+    /// A drawing of the cylinder's window (`size²`) placed at the centre of this window, empty
+    /// around: how a renderer shows a representation that draws horizontal views only, facing
+    /// the camera.
+    pub fn place(&self, image: &RgbaImage) -> RgbaImage {
+        if self.pad == 0 {
+            return image.clone();
+        }
+        let side = self.side();
+        let mut out = RgbaImage::new(side, side);
+        let n = image.width.min(self.size);
+        for (j, row) in image.pixels.chunks(image.width).take(self.size).enumerate() {
+            let start = (j + self.pad) * side + self.pad;
+            out.pixels[start..start + n].copy_from_slice(&row[..n]);
+        }
+        out
+    }
+}
+
+/// The words a measurement's method adds for needs off the horizontal: the elevations and the
+/// window (empty for horizontal needs).
+pub fn elevation_note(needs: &Needs, window: Window) -> String {
+    if !needs_elevation(needs) {
+        return String::new();
+    }
+    let [e0, e1] = needs.elevation_deg;
+    format!(
+        ", at elevations {e0}° to {e1}° in a {0}² window holding every view ({1} px added on each side)",
+        window.side(),
+        window.pad
+    )
+}
+
+/// For a representation that draws horizontal views only (images with parallax, the
+/// cylindrical texture), shown facing the camera at other elevations: the worst PSNR (dB), over
+/// 4 needed azimuths, between the object's horizontal view and its view from the needed
+/// elevation farthest from the horizontal, with that elevation (degrees). No such
+/// representation can do much better there, since it holds only the horizontal view. `None`
+/// for horizontal needs. Cost: 8 truth images of the window of [`Window::for_needs`] around
+/// `size²`, 2 × 2 rays per pixel.
+pub fn horizontal_ceiling(
+    needs: &Needs,
+    source: &Source,
+    size: usize,
+) -> Result<Option<(f64, f64)>, PipelineError> {
+    if !needs_elevation(needs) {
+        return Ok(None);
+    }
+    let [e0, e1] = needs.elevation_deg;
+    let worst = if e0.abs() > e1.abs() { e0 } else { e1 };
+    let window = Window::for_needs(needs, size);
+    let mut ceiling = f64::INFINITY;
+    for azimuth in measure_angles(needs, 4) {
+        let flat = window.truth(
+            source,
+            ViewDir {
+                azimuth,
+                elevation: 0.0,
+            },
+            2,
+        )?;
+        let view = ViewDir {
+            azimuth,
+            elevation: worst.to_radians(),
+        };
+        let tilted = window.truth(source, view, 2)?;
+        ceiling = ceiling.min(window.score(&tilted, &flat)?.0);
+    }
+    Ok(Some((ceiling, worst)))
+}
+
+/// The plan's decision for a representation that draws horizontal views only: refused, naming
+/// the frames over the sphere, when [`horizontal_ceiling`] is below the quality target; else a
+/// plan item saying how the elevated views are drawn and measured. Nothing for horizontal needs.
+pub fn plan_elevations(
+    plan: &mut Plan,
+    needs: &Needs,
+    source: &Source,
+    size: usize,
+    what: &str,
+) -> Result<(), PipelineError> {
+    let Some((ceiling, worst)) = horizontal_ceiling(needs, source, size)? else {
+        return Ok(());
+    };
+    let [e0, e1] = needs.elevation_deg;
+    if ceiling < needs.quality_db {
+        plan.refuse(format!(
+            "{what} hold horizontal views only: seen from {worst}° of elevation the object differs \
+             from its horizontal view by {ceiling:.1} dB, below the quality target of {} dB; the \
+             frames over the sphere ([asset.sphere]) hold every elevation",
+            needs.quality_db
+        ));
+    } else {
+        plan.build(format!(
+            "views from {e0}° to {e1}° of elevation: the horizontal view facing the camera \
+             ({ceiling:.1} dB at {worst}° at best), measured there"
+        ));
+    }
+    Ok(())
+}
+
 /// PSNR and IoU of `image` against `reference`.
 pub fn score(image: &RgbaImage, reference: &RgbaImage) -> Result<(f64, f64), PipelineError> {
     let psnr = crate::metrics::psnr(image, reference)?;
@@ -379,4 +618,75 @@ pub fn lighting_note(needs: &Needs) -> &'static str {
 /// Seconds since `t0`.
 pub fn secs(t0: Instant) -> f64 {
     t0.elapsed().as_secs_f64()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use approx::assert_abs_diff_eq;
+
+    /// The widened window's grid continues the cylinder's: the horizontal truth placed in it
+    /// equals the truth rendered along the window's frame, pixel for pixel, and scores as in the
+    /// narrow window.
+    #[test]
+    fn the_widened_window_continues_the_cylinder_window() {
+        let shape = altrep_data_gen::scene_shape("chair").unwrap();
+        let source = Source {
+            name: "chair",
+            geometry: Some(&shape),
+            texture: None,
+            light: Light::default(),
+            placement: None,
+        };
+        let tilted = Needs {
+            elevation_deg: [0.0, 40.0],
+            ..Needs::default()
+        };
+        let window = Window::for_needs(&tilted, 24);
+        assert_eq!((window.pad, window.side()), (5, 34));
+        for azimuth in [0.3, 2.0, 4.4] {
+            let narrow = truth(&source, azimuth, 24, 2).unwrap();
+            let view = ViewDir {
+                azimuth,
+                elevation: 0.0,
+            };
+            let wide = window.truth(&source, view, 2).unwrap();
+            let placed = window.place(&narrow);
+            for (p, q) in placed.pixels.iter().zip(&wide.pixels) {
+                for c in 0..4 {
+                    assert_abs_diff_eq!(p[c], q[c], epsilon = 1e-5);
+                }
+            }
+            let flat = truth(&source, azimuth + 0.2, 24, 2).unwrap();
+            let (a, _) = score(&flat, &narrow).unwrap();
+            let (b, _) = window.score(&window.place(&flat), &placed).unwrap();
+            assert_abs_diff_eq!(a, b, epsilon = 1e-9);
+        }
+        // Straight above, the frame stays a right-handed basis with a horizontal right.
+        let f = window.frame(ViewDir {
+            azimuth: 1.0,
+            elevation: std::f64::consts::FRAC_PI_2,
+        });
+        assert_abs_diff_eq!(f.right.cross(f.up).distance(f.dir), 0.0, epsilon = 1e-12);
+        assert_abs_diff_eq!(f.right.y, 0.0);
+    }
+
+    #[test]
+    fn measured_views_span_the_needed_elevations() {
+        let needs = Needs {
+            elevation_deg: [-10.0, 50.0],
+            ..Needs::default()
+        };
+        let e: Vec<f64> = measure_views(&needs, 4)
+            .iter()
+            .map(|v| v.elevation.to_degrees())
+            .collect();
+        assert_abs_diff_eq!(e[0], -10.0, epsilon = 1e-9);
+        assert_abs_diff_eq!(e[3], 50.0, epsilon = 1e-9);
+        assert!(
+            measure_views(&Needs::default(), 4)
+                .iter()
+                .all(|v| v.elevation == 0.0)
+        );
+    }
 }

@@ -608,5 +608,6 @@ fn the_library_the_manifest_and_the_command_accept_the_same_view_counts() {
     assert_eq!(accepted, [3, 4, 8, 1023, 1024]);
 }
 
+mod needs;
 mod real_assets;
 mod runs;

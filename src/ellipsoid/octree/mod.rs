@@ -37,7 +37,7 @@
 //! - `storage`: the stored nodes ([`OctreeNode`], [`PackedEllipsoid`]), the [`Octree`] and
 //!   [`Octree::from_nodes`], and what a lookup returns ([`NodeSample`]);
 //! - `build`: [`Octree::build`] with its [`OctreeParams`] and [`OctreeReport`];
-//! - `render`: level choice, [`Octree::lookup`] and [`Octree::render_level`] ([`OctreeRenderParams`]);
+//! - `render`: level choice, [`Octree::lookup`], [`Octree::render_level`] and [`Octree::render_view`] ([`OctreeRenderParams`], [`OctreeView`]);
 //!
 //! The analytic test volumes ([`AnalyticShape`], [`AnalyticVolume`]) live in `altrep_data_gen`
 //! with the other shapes; they are re-exported here at their old paths, and `voxels` makes an
@@ -50,6 +50,6 @@ mod voxels;
 
 pub use altrep_data_gen::{AnalyticShape, AnalyticVolume};
 pub use build::{OctreeParams, OctreeReport};
-pub use render::OctreeRenderParams;
+pub use render::{OctreeRenderParams, OctreeView};
 pub use storage::{NodeSample, Octree, OctreeNode, PackedEllipsoid};
 pub use voxels::{Voxel, VoxelGrid, VoxelSource};

@@ -84,6 +84,39 @@ impl Octree {
         level: u32,
         params: &OctreeRenderParams,
     ) -> Result<altrep_data_gen::RgbaImage, EllipsoidError> {
+        let side = (1u64 << self.depth) as f64;
+        let half = 0.5 * side;
+        self.render_view(
+            level,
+            params,
+            &OctreeView {
+                dir: [0.0, 0.0, 1.0],
+                right: [1.0, 0.0, 0.0],
+                up: [0.0, 1.0, 0.0],
+                centre: [half; 3],
+                half_width: half,
+                width: 1 << self.depth,
+                height: 1 << self.depth,
+            },
+        )
+    }
+
+    /// Renders the volume as seen at `level` along any orthographic view (the shading and
+    /// compositing of [`Self::render_level`], with the view direction `view.dir` in the
+    /// micro-primitives' projected area and reflectance). Each pixel's ray enters the cube
+    /// `[0, 2^depth]³` on the camera's side and takes `steps_per_voxel` samples per voxel length
+    /// at half-step offsets until it leaves; [`Self::render_level`] is the view along +z.
+    ///
+    /// Returns a premultiplied linear-RGB image `view.width × view.height`. Errors: bad
+    /// parameters or a view whose vectors are not finite, unit and orthogonal. Cost: one
+    /// reflectance per stored node plus up to `√3 · 2^depth · steps_per_voxel` lookups per pixel
+    /// (rayon over rows).
+    pub fn render_view(
+        &self,
+        level: u32,
+        params: &OctreeRenderParams,
+        view: &OctreeView,
+    ) -> Result<altrep_data_gen::RgbaImage, EllipsoidError> {
         let light = params.light;
         let ln = light.norm();
         if !ln.is_finite() || ln == 0.0 {
@@ -104,7 +137,9 @@ impl Octree {
                 reason: "must be ≥ 1".into(),
             });
         }
-        let view = Vector3::z();
+        view.validate()?;
+        let [dir, right, up] = [view.dir, view.right, view.up].map(Vector3::from);
+        let centre = Vector3::from(view.centre);
         let lambert = crate::ellipsoid::primitive::Phong {
             diffuse: 1.0,
             specular: 0.0,
@@ -117,10 +152,10 @@ impl Octree {
             .par_iter()
             .map(|n| match n.ellipsoid.and_then(|e| e.unpack().ok()) {
                 Some(e) if n.density > 0.0 => {
-                    let sigma = params.tau * f64::from(n.density) * e.projected_area(&view)
+                    let sigma = params.tau * f64::from(n.density) * e.projected_area(&dir)
                         / std::f64::consts::PI;
                     let rho = e
-                        .reflectance_apparent_ellipse(&light, &view, &lambert, 6)
+                        .reflectance_apparent_ellipse(&light, &dir, &lambert, 6)
                         .unwrap_or(0.0);
                     let k = ambient + (1.0 - ambient) * std::f64::consts::PI * rho;
                     (sigma, n.color.map(|c| f64::from(c) * k))
@@ -128,23 +163,42 @@ impl Octree {
                 _ => (0.0, [0.0; 3]),
             })
             .collect();
-        let side = 1usize << self.depth;
-        let steps = side * params.steps_per_voxel;
+        let side = (1u64 << self.depth) as f64;
         let ds = 1.0 / params.steps_per_voxel as f64;
-        let mut image = altrep_data_gen::RgbaImage::new(side, side);
+        let (w, h) = (view.width, view.height);
+        let mut image = altrep_data_gen::RgbaImage::new(w, h);
         image
             .pixels
-            .par_chunks_mut(side)
+            .par_chunks_mut(w)
             .enumerate()
             .for_each(|(j, row)| {
-                let y = side as f64 - j as f64 - 0.5;
+                let y = 1.0 - 2.0 * (j as f64 + 0.5) / h as f64;
                 for (i, px) in row.iter_mut().enumerate() {
-                    let x = i as f64 + 0.5;
+                    let x = -1.0 + 2.0 * (i as f64 + 0.5) / w as f64;
+                    let p0 = centre + view.half_width * (x * right + y * up);
+                    // The points p0 + s·dir inside the cube, s ∈ [s_min, s_max]; the camera is at +s.
+                    let (mut s_min, mut s_max) = (f64::NEG_INFINITY, f64::INFINITY);
+                    for a in 0..3 {
+                        if dir[a] == 0.0 {
+                            if !(0.0..=side).contains(&p0[a]) {
+                                (s_min, s_max) = (1.0, 0.0);
+                            }
+                            continue;
+                        }
+                        let (t0, t1) = (-p0[a] / dir[a], (side - p0[a]) / dir[a]);
+                        s_min = s_min.max(t0.min(t1));
+                        s_max = s_max.min(t0.max(t1));
+                    }
+                    let steps = if s_max > s_min {
+                        ((s_max - s_min) / ds - 0.5).ceil().max(0.0) as usize
+                    } else {
+                        0
+                    };
                     let mut t = 1.0f64;
                     let mut c = [0.0f64; 3];
                     for k in 0..steps {
-                        let z = side as f64 - (k as f64 + 0.5) * ds;
-                        let Some((index, _)) = self.find([x, y, z], level) else {
+                        let p = p0 + (s_max - (k as f64 + 0.5) * ds) * dir;
+                        let Some((index, _)) = self.find([p.x, p.y, p.z], level) else {
                             continue;
                         };
                         let (sigma, emit) = shading[index];
@@ -172,7 +226,65 @@ impl Octree {
     }
 }
 
-/// Parameters of [`Octree::render_level`].
+/// An orthographic view of an octree's cube `[0, 2^depth]³` (voxel units) for
+/// [`Octree::render_view`]. The cube is a uniform scaling of the box it was voxelised from, so a
+/// direction in that box's frame serves unchanged. Pixel `(i, j)` of the `width × height` image
+/// is centred on `centre + half_width · (X·right + Y·up)` with `X = −1 + 2(i + ½)/width` and
+/// `Y = 1 − 2(j + ½)/height` (row 0 at the top), the screen convention of
+/// [`altrep_data_gen::OrthoFrame`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct OctreeView {
+    /// Unit direction toward the camera; rays run along `−dir`.
+    pub dir: [f64; 3],
+    /// Unit screen right, orthogonal to `dir`.
+    pub right: [f64; 3],
+    /// Unit screen up, orthogonal to `dir` and `right`.
+    pub up: [f64; 3],
+    /// Centre of the window (voxel coordinates).
+    pub centre: [f64; 3],
+    /// Half the window's width and height (voxel units, > 0).
+    pub half_width: f64,
+    /// Image width (pixels, ≥ 1).
+    pub width: usize,
+    /// Image height (pixels, ≥ 1).
+    pub height: usize,
+}
+
+impl OctreeView {
+    /// Checks the view: finite values, unit orthogonal vectors (to 1e-6), a positive window and
+    /// a non-empty image. Errors name the field.
+    pub fn validate(&self) -> Result<(), EllipsoidError> {
+        let bad =
+            |name: &'static str, reason: String| Err(EllipsoidError::BadParameter { name, reason });
+        let v = [self.dir, self.right, self.up].map(Vector3::from);
+        for (name, x) in ["dir", "right", "up"].into_iter().zip(&v) {
+            if !x.iter().all(|c| c.is_finite()) || (x.norm() - 1.0).abs() > 1e-6 {
+                return bad(name, format!("must be a finite unit vector, got {x:?}"));
+            }
+        }
+        if v[0].dot(&v[1]).abs() > 1e-6
+            || v[0].dot(&v[2]).abs() > 1e-6
+            || v[1].dot(&v[2]).abs() > 1e-6
+        {
+            return bad("dir, right, up", "must be orthogonal".into());
+        }
+        if !self.centre.iter().all(|c| c.is_finite()) {
+            return bad("centre", format!("must be finite, got {:?}", self.centre));
+        }
+        if !(self.half_width.is_finite() && self.half_width > 0.0) {
+            return bad(
+                "half_width",
+                format!("must be finite and > 0, got {}", self.half_width),
+            );
+        }
+        if self.width == 0 || self.height == 0 {
+            return bad("width, height", "must be ≥ 1".into());
+        }
+        Ok(())
+    }
+}
+
+/// Parameters of [`Octree::render_level`] and [`Octree::render_view`].
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct OctreeRenderParams {
     /// Direction toward the light (object frame, any length).

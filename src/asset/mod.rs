@@ -24,6 +24,7 @@ use std::path::PathBuf;
 use serde::{Deserialize, Serialize};
 
 pub use read::{AssetReader, PngDecode};
+pub(crate) use write::encode_png;
 pub use write::{
     AssetWriter, PngCode, STAGING_DIR, check_owned, replace_dir, valid_name, write_atomic,
 };

@@ -526,7 +526,7 @@ impl PngCode for u16 {
 }
 
 /// Encodes codes of `u8` or `u16` as a PNG of 1–4 channels.
-fn encode_png<T: PngCode>(image: &CodeImage<T>) -> Result<Vec<u8>, String> {
+pub(crate) fn encode_png<T: PngCode>(image: &CodeImage<T>) -> Result<Vec<u8>, String> {
     use image::ImageEncoder;
     let color = T::color(image.channels).ok_or_else(|| format!("{} channels", image.channels))?;
     let mut out = Vec::new();

@@ -821,7 +821,22 @@ fn build_one<'a, R: Representation>(
         let mut written = Vec::new();
         for p in pictures {
             let rel = format!("pictures/{}", p.file);
-            magnify(&p.image.over([1.0, 1.0, 1.0]), 192).write_png(&options.out.join(&rel))?;
+            // Written beside and renamed into place, as every file of the run: a link or a
+            // hard link at the picture's name is replaced, never written through.
+            let image = magnify(&p.image.over([1.0, 1.0, 1.0]), 192);
+            let codes = crate::asset::CodeImage {
+                width: image.width,
+                height: image.height,
+                channels: 4,
+                data: image.srgb8_codes(),
+            };
+            let png = crate::asset::encode_png(&codes).map_err(|reason| {
+                crate::asset::AssetError::BadData {
+                    role: rel.clone(),
+                    reason,
+                }
+            })?;
+            write_atomic(&options.out.join(&rel), &png)?;
             written.push((rel, p.caption));
         }
         desc.report["measurement"] = serde_json::to_value(&measurement).unwrap_or_default();

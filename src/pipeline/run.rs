@@ -297,7 +297,39 @@ fn prepare_output(out: &Path) -> Result<OutputLock, PipelineError> {
     if staging.exists() {
         std::fs::remove_dir_all(&staging).map_err(io(&staging))?;
     }
+    if ran_here {
+        clear_temporaries(out)?;
+    }
     Ok(OutputLock { _file: file })
+}
+
+/// Removes the temporary files a run killed while it wrote the report or a picture left in
+/// `out` (`.report.md.tmpPID`, `pictures/.NAME.png.tmpPID`): files or links, never followed.
+fn clear_temporaries(out: &Path) -> Result<(), PipelineError> {
+    for dir in [out.to_path_buf(), out.join("pictures")] {
+        let top = dir == out;
+        let Ok(entries) = std::fs::read_dir(&dir) else {
+            continue;
+        };
+        for e in entries.flatten() {
+            let name = e.file_name();
+            let temporary = name
+                .to_str()
+                .and_then(crate::asset::temporary_of)
+                .is_some_and(|t| {
+                    if top {
+                        t == "report.md" || t == "report.json"
+                    } else {
+                        t.ends_with(".png")
+                    }
+                });
+            if temporary && e.file_type().is_ok_and(|t| !t.is_dir()) {
+                let path = e.path();
+                std::fs::remove_file(&path).map_err(io(&path))?;
+            }
+        }
+    }
+    Ok(())
 }
 
 /// What an asset is made of, once loaded.

@@ -243,7 +243,9 @@ fn prepare_output(out: &Path) -> Result<OutputLock, PipelineError> {
     std::fs::create_dir_all(out).map_err(io(out))?;
     let lock_path = out.join(LOCK_FILE);
     // A folder altrep has run in holds its lock file. In any other folder, the names altrep
-    // writes at the top must be free; and a symbolic link is never written through.
+    // writes at the top must be free; and a symbolic link is never written through. Whether the
+    // lock file exists is asked again when a name is found: a run that started beside this one
+    // since (it will hold the lock) creates its lock file before any other name.
     let ran_here = lock_path.exists();
     for name in [
         "report.md",
@@ -258,7 +260,7 @@ fn prepare_output(out: &Path) -> Result<OutputLock, PipelineError> {
         };
         let reason = if meta.file_type().is_symlink() {
             "is a symbolic link, which altrep does not follow"
-        } else if !ran_here {
+        } else if !ran_here && !lock_path.exists() {
             "exists in a folder altrep has not written into (no lock file)"
         } else if (name == "pictures" || name == STAGING_DIR) != meta.is_dir() {
             "is not what altrep writes under this name"

@@ -51,17 +51,26 @@ impl RgbaImage {
         self.pixels[j * self.width + i]
     }
 
-    /// Writes the image as an 8-bit sRGB PNG with straight (un-premultiplied) alpha.
-    pub fn write_png(&self, path: &Path) -> Result<(), DataGenError> {
-        let mut buf = image::RgbaImage::new(self.width as u32, self.height as u32);
-        for (px, p) in buf.pixels_mut().zip(&self.pixels) {
+    /// The image as 8-bit codes, four per pixel (sRGB colour, straight (un-premultiplied)
+    /// alpha), row-major: what [`Self::write_png`] stores.
+    pub fn srgb8_codes(&self) -> Vec<u8> {
+        let mut codes = Vec::with_capacity(self.pixels.len() * 4);
+        for p in &self.pixels {
             let a = p[3].clamp(0.0, 1.0);
             let q = |c: f32| {
                 let straight = if a > 0.0 { c / a } else { 0.0 };
                 (linear_to_srgb(straight.clamp(0.0, 1.0)) * 255.0).round() as u8
             };
-            *px = image::Rgba([q(p[0]), q(p[1]), q(p[2]), (a * 255.0).round() as u8]);
+            codes.extend([q(p[0]), q(p[1]), q(p[2]), (a * 255.0).round() as u8]);
         }
+        codes
+    }
+
+    /// Writes the image as an 8-bit sRGB PNG with straight (un-premultiplied) alpha.
+    pub fn write_png(&self, path: &Path) -> Result<(), DataGenError> {
+        let (w, h) = (self.width as u32, self.height as u32);
+        let buf = image::RgbaImage::from_raw(w, h, self.srgb8_codes())
+            .expect("four codes per pixel of a width × height image");
         write_image(path, &image::DynamicImage::ImageRgba8(buf))
     }
 

@@ -24,8 +24,10 @@ use std::path::PathBuf;
 use serde::{Deserialize, Serialize};
 
 pub use read::{AssetReader, PngDecode};
+pub(crate) use write::encode_png;
 pub use write::{
-    AssetWriter, PngCode, STAGING_DIR, check_owned, replace_dir, valid_name, write_atomic,
+    AssetWriter, PngCode, STAGING_DIR, check_owned, replace_dir, temporary_of, valid_name,
+    write_atomic,
 };
 
 /// Major version of the asset format. A reader refuses a file of a newer major version; minor

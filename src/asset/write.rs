@@ -53,15 +53,43 @@ fn io(path: &Path) -> impl FnOnce(std::io::Error) -> AssetError + '_ {
     }
 }
 
+/// The name of [`write_atomic`]'s temporary file for a file named `name`, in this process.
+fn temporary_name(name: &str) -> String {
+    format!(".{name}.tmp{}", std::process::id())
+}
+
+/// The name of the file that `name` is a temporary file of, when `name` is one of
+/// [`write_atomic`]'s temporary names (of any process): what a run killed while it wrote leaves.
+pub fn temporary_of(name: &str) -> Option<&str> {
+    let (target, pid) = name.strip_prefix('.')?.rsplit_once(".tmp")?;
+    let ours = !target.is_empty() && !pid.is_empty() && pid.bytes().all(|b| b.is_ascii_digit());
+    ours.then_some(target)
+}
+
 /// Writes `bytes` to `path` through a temporary sibling and a rename, so a reader never sees a
-/// partial file. Cost: one write, one rename.
+/// partial file, and a link or another name of the file at `path` (a hard link) is replaced, not
+/// written through. The temporary file is created new (an entry left at its name, a file or a
+/// link, is removed first, never followed) and removed when the write fails. Cost: one write,
+/// one rename.
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), AssetError> {
+    use std::io::Write;
     let name = path
         .file_name()
         .map(|n| n.to_string_lossy().into_owned())
         .unwrap_or_else(|| "out".into());
-    let tmp = path.with_file_name(format!(".{name}.tmp{}", std::process::id()));
-    std::fs::write(&tmp, bytes).map_err(io(&tmp))?;
+    let tmp = path.with_file_name(temporary_name(&name));
+    let _ = std::fs::remove_file(&tmp);
+    let mut file = std::fs::File::options()
+        .write(true)
+        .create_new(true)
+        .open(&tmp)
+        .map_err(io(&tmp))?;
+    if let Err(e) = file.write_all(bytes) {
+        drop(file);
+        let _ = std::fs::remove_file(&tmp);
+        return Err(io(path)(e));
+    }
+    drop(file);
     std::fs::rename(&tmp, path).map_err(|e| {
         let _ = std::fs::remove_file(&tmp);
         AssetError::Io {
@@ -526,7 +554,7 @@ impl PngCode for u16 {
 }
 
 /// Encodes codes of `u8` or `u16` as a PNG of 1–4 channels.
-fn encode_png<T: PngCode>(image: &CodeImage<T>) -> Result<Vec<u8>, String> {
+pub(crate) fn encode_png<T: PngCode>(image: &CodeImage<T>) -> Result<Vec<u8>, String> {
     use image::ImageEncoder;
     let color = T::color(image.channels).ok_or_else(|| format!("{} channels", image.channels))?;
     let mut out = Vec::new();

@@ -46,7 +46,9 @@ pub struct PrecomputeArgs {
     pub allow_below_quality: bool,
 }
 
-/// Fails unless a file can be created at `path` (checked before any work, then removed).
+/// Fails unless a file can be written at `path`, checked before any work: an existing file is
+/// opened for appending (nothing is written), elsewhere a probe file is created and removed. A
+/// folder at `path` fails.
 pub fn check_writable(path: &Path) -> Result<(), String> {
     let parent = match path.parent() {
         Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
@@ -58,6 +60,16 @@ pub fn check_writable(path: &Path) -> Result<(), String> {
             path.display(),
             parent.display()
         ));
+    }
+    if path.is_dir() {
+        return Err(format!("cannot write {}: it is a folder", path.display()));
+    }
+    if path.exists() {
+        std::fs::File::options()
+            .append(true)
+            .open(path)
+            .map_err(|e| format!("cannot write {}: {e}", path.display()))?;
+        return Ok(());
     }
     let probe = parent.join(format!(".altrep-probe-{}", std::process::id()));
     std::fs::write(&probe, b"").map_err(|e| format!("cannot write {}: {e}", path.display()))?;

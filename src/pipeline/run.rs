@@ -243,7 +243,9 @@ fn prepare_output(out: &Path) -> Result<OutputLock, PipelineError> {
     std::fs::create_dir_all(out).map_err(io(out))?;
     let lock_path = out.join(LOCK_FILE);
     // A folder altrep has run in holds its lock file. In any other folder, the names altrep
-    // writes at the top must be free; and a symbolic link is never written through.
+    // writes at the top must be free; and a symbolic link is never written through. Whether the
+    // lock file exists is asked again when a name is found: a run that started beside this one
+    // since (it will hold the lock) creates its lock file before any other name.
     let ran_here = lock_path.exists();
     for name in [
         "report.md",
@@ -258,7 +260,7 @@ fn prepare_output(out: &Path) -> Result<OutputLock, PipelineError> {
         };
         let reason = if meta.file_type().is_symlink() {
             "is a symbolic link, which altrep does not follow"
-        } else if !ran_here {
+        } else if !ran_here && !lock_path.exists() {
             "exists in a folder altrep has not written into (no lock file)"
         } else if (name == "pictures" || name == STAGING_DIR) != meta.is_dir() {
             "is not what altrep writes under this name"
@@ -297,7 +299,39 @@ fn prepare_output(out: &Path) -> Result<OutputLock, PipelineError> {
     if staging.exists() {
         std::fs::remove_dir_all(&staging).map_err(io(&staging))?;
     }
+    if ran_here {
+        clear_temporaries(out)?;
+    }
     Ok(OutputLock { _file: file })
+}
+
+/// Removes the temporary files a run killed while it wrote the report or a picture left in
+/// `out` (`.report.md.tmpPID`, `pictures/.NAME.png.tmpPID`): files or links, never followed.
+fn clear_temporaries(out: &Path) -> Result<(), PipelineError> {
+    for dir in [out.to_path_buf(), out.join("pictures")] {
+        let top = dir == out;
+        let Ok(entries) = std::fs::read_dir(&dir) else {
+            continue;
+        };
+        for e in entries.flatten() {
+            let name = e.file_name();
+            let temporary = name
+                .to_str()
+                .and_then(crate::asset::temporary_of)
+                .is_some_and(|t| {
+                    if top {
+                        t == "report.md" || t == "report.json"
+                    } else {
+                        t.ends_with(".png")
+                    }
+                });
+            if temporary && e.file_type().is_ok_and(|t| !t.is_dir()) {
+                let path = e.path();
+                std::fs::remove_file(&path).map_err(io(&path))?;
+            }
+        }
+    }
+    Ok(())
 }
 
 /// What an asset is made of, once loaded.
@@ -821,7 +855,22 @@ fn build_one<'a, R: Representation>(
         let mut written = Vec::new();
         for p in pictures {
             let rel = format!("pictures/{}", p.file);
-            magnify(&p.image.over([1.0, 1.0, 1.0]), 192).write_png(&options.out.join(&rel))?;
+            // Written beside and renamed into place, as every file of the run: a link or a
+            // hard link at the picture's name is replaced, never written through.
+            let image = magnify(&p.image.over([1.0, 1.0, 1.0]), 192);
+            let codes = crate::asset::CodeImage {
+                width: image.width,
+                height: image.height,
+                channels: 4,
+                data: image.srgb8_codes(),
+            };
+            let png = crate::asset::encode_png(&codes).map_err(|reason| {
+                crate::asset::AssetError::BadData {
+                    role: rel.clone(),
+                    reason,
+                }
+            })?;
+            write_atomic(&options.out.join(&rel), &png)?;
             written.push((rel, p.caption));
         }
         desc.report["measurement"] = serde_json::to_value(&measurement).unwrap_or_default();

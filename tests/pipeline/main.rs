@@ -1,5 +1,6 @@
 //! The precompute pipeline end to end: files read back bit for bit, loaders refuse damaged or
-//! newer files, the planner's skips, the cache, the lock, interrupted runs, manifest errors.
+//! newer files, the planner's skips, the cache, the lock, interrupted runs, manifest errors,
+//! and the faults around the output folder that must do no harm.
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -608,6 +609,8 @@ fn the_library_the_manifest_and_the_command_accept_the_same_view_counts() {
     assert_eq!(accepted, [3, 4, 8, 1023, 1024]);
 }
 
+#[cfg(unix)]
+mod faults;
 mod needs;
 mod real_assets;
 mod runs;

@@ -718,7 +718,9 @@ fn interrupt(
     if err.contains("panicked") || matches!(o.status.code(), Some(101 | 134)) {
         return Err(format!("the run panicked: {err}"));
     }
-    let landed = o.status.signal().is_some();
+    // SIGINT and SIGTERM are caught: the run says what it finished and exits with 130.
+    let landed = o.status.signal().is_some()
+        || (o.status.code() == Some(130) && err.contains("interrupted: "));
     if landed {
         LANDED.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
     }

@@ -98,6 +98,7 @@ pub fn run(args: DemoArgs) -> CliResult {
             // The bundled scene holds two stand-ins below the default 20 dB target (a flat
             // sign, the truck's cylinder): the demo shows them flagged in its report.
             allow_below_quality: true,
+            max_memory: None,
         },
     )?;
     let ctx = DemoContext {

@@ -44,6 +44,11 @@ pub struct PrecomputeArgs {
     /// way).
     #[arg(long)]
     pub allow_below_quality: bool,
+    /// Refuse the run before any work when its estimated peak memory exceeds SIZE (for example
+    /// `2GiB`, `512M`; binary units). Default: three quarters of the memory the system reports
+    /// available. `--dry-run` prints the estimates.
+    #[arg(long, value_name = "SIZE", value_parser = crate::pipeline::memory::parse_size)]
+    pub max_memory: Option<u64>,
 }
 
 /// Fails unless a file can be written at `path`, checked before any work: an existing file is
@@ -160,6 +165,9 @@ pub fn run_manifest(manifest: &Manifest, args: &PrecomputeArgs) -> CliResult {
         progress: true,
         profile: args.profile,
         measure: !args.no_measure,
+        max_memory: args
+            .max_memory
+            .or_else(crate::pipeline::memory::default_max_memory),
     };
     if args.dry_run {
         for (asset, repr, plan) in plan_scene(manifest, &options)? {
@@ -174,6 +182,12 @@ pub fn run_manifest(manifest: &Manifest, args: &PrecomputeArgs) -> CliResult {
                 }
             }
         }
+        let memory = crate::pipeline::plan_memory(manifest, &options)?;
+        println!("memory plan (estimates):");
+        for line in memory.lines() {
+            println!("  {line}");
+        }
+        memory.check()?;
         return Ok(());
     }
     report_interrupts(&args.out);

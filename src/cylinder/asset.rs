@@ -24,8 +24,8 @@ use crate::cylinder::{
     MarchBounds, coverage,
 };
 use crate::representation::{
-    Lighting, Measurement, Needs, Picture, PipelineError, Plan, Representation, Source, Window,
-    elevation_note, fold, measure_views, secs,
+    Estimate, InputSize, Lighting, Measurement, Needs, Picture, PipelineError, Plan,
+    Representation, Source, Window, elevation_note, fold, linear_bytes, measure_views, secs,
 };
 
 /// Manifest parameters of the cylindrical texture (`[asset.cylinder]`).
@@ -122,6 +122,23 @@ fn texture_params(columns: usize, rows: usize) -> CylinderParams {
     }
 }
 
+/// The texture size the largest screen size needs: rows a power of two at or above it, at most
+/// those asked for, columns in proportion (nothing is skipped when the rows are those asked for).
+fn needed_texels(spec: &CylinderSpec, needs: &Needs) -> (usize, usize) {
+    let max_px = needs.screen_px[1].ceil() as usize;
+    let needed = max_px.next_power_of_two().clamp(2, spec.rows);
+    if needed < spec.rows {
+        (
+            (spec.columns * needed / spec.rows)
+                .max(4)
+                .next_multiple_of(2),
+            needed,
+        )
+    } else {
+        (spec.columns, spec.rows)
+    }
+}
+
 impl Representation for Cylinder {
     const NAME: &'static str = "cylinder";
     const CASTS_RAYS: bool = true;
@@ -136,6 +153,18 @@ impl Representation for Cylinder {
     fn relevant_needs(needs: &Needs) -> serde_json::Value {
         json!({ "screen_px_max": needs.screen_px[1], "lighting": needs.lighting,
                 "azimuth_deg": needs.azimuth_deg, "elevation_deg": needs.elevation_deg })
+    }
+
+    fn estimate(spec: &CylinderSpec, needs: &Needs, _input: &InputSize) -> Estimate {
+        // ~610 B per texel (capture, offsets, bounds, the preview, the read-back copy) measured
+        // from 64 × 16 to 1024 × 256.
+        let (columns, rows) = needed_texels(spec, needs);
+        let texels = (columns * rows) as f64;
+        let per_texel = 4.0 + 2.0 + 4.0 * f64::from(needs.lighting == Lighting::Dynamic) + 4.0;
+        Estimate {
+            peak_bytes: linear_bytes(1.5e6, 610.0, texels),
+            output_bytes: linear_bytes(0.0, per_texel, texels),
+        }
     }
 
     fn plan(
@@ -175,13 +204,8 @@ impl Representation for Cylinder {
                 100.0 * cov
             ));
         }
-        let max_px = needs.screen_px[1].ceil() as usize;
-        let (mut columns, mut rows) = (spec.columns, spec.rows);
-        // Nothing is skipped when the rows the largest screen size needs are those asked for.
-        let needed = max_px.next_power_of_two().clamp(2, spec.rows);
-        if needed < spec.rows {
-            rows = needed;
-            columns = (spec.columns * rows / spec.rows).max(4).next_multiple_of(2);
+        let (columns, rows) = needed_texels(spec, needs);
+        if rows < spec.rows {
             plan.skip(
                 format!("texels above {columns} × {rows}"),
                 format!(

@@ -19,8 +19,8 @@ use crate::asset::{AssetReader, AssetWriter, Channel, Encoding};
 use crate::ellipsoid::octree::{OctreeNode, OctreeRenderParams, OctreeView, PackedEllipsoid};
 use crate::ellipsoid::{FilterRule, Octree, OctreeParams as BuildParams};
 use crate::representation::{
-    Measurement, Needs, Picture, PipelineError, Plan, Representation, Source, Window,
-    elevation_note, fold, measure_views, secs,
+    Estimate, InputSize, Measurement, Needs, Picture, PipelineError, Plan, Representation, Source,
+    Window, elevation_note, fold, linear_bytes, measure_views, secs,
 };
 
 /// Bytes per stored node.
@@ -88,6 +88,14 @@ pub struct OctreeDecisions {
 /// The ellipsoid octree for the pipeline.
 pub struct OctreeRepr;
 
+/// The leaf resolution the closest footprint needs: the largest screen size rounded up to a
+/// power of two, at least 4.
+fn closest_resolution(needs: &Needs) -> usize {
+    (needs.screen_px[1].ceil() as usize)
+        .next_power_of_two()
+        .max(4)
+}
+
 impl Representation for OctreeRepr {
     const NAME: &'static str = "octree";
     const CASTS_RAYS: bool = false;
@@ -104,15 +112,25 @@ impl Representation for OctreeRepr {
                 "elevation_deg": needs.elevation_deg })
     }
 
+    fn estimate(spec: &OctreeSpec, needs: &Needs, _input: &InputSize) -> Estimate {
+        // ~60 B per leaf voxel at 128³ (the voxelised volume, the tree, the read-back copy), and
+        // a few MB of fixed cost that dominate below 32³.
+        let n = closest_resolution(needs).min(spec.resolution) as f64;
+        let ss = spec.supersample as f64 / 2.0;
+        Estimate {
+            peak_bytes: linear_bytes(3e6, 58.0 * ss.max(1.0), n * n * n),
+            // At most one node per voxel of every level, NODE_BYTES each.
+            output_bytes: linear_bytes(0.0, NODE_BYTES as f64 * 8.0 / 7.0, n * n * n),
+        }
+    }
+
     fn plan(
         spec: &OctreeSpec,
         needs: &Needs,
         _source: &Source,
     ) -> Result<(Plan, OctreeDecisions), PipelineError> {
         let mut plan = Plan::default();
-        let closest = (needs.screen_px[1].ceil() as usize)
-            .next_power_of_two()
-            .max(4);
+        let closest = closest_resolution(needs);
         let resolution = if closest < spec.resolution {
             let mut l = spec.resolution;
             let mut level = 0;

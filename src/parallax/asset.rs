@@ -27,8 +27,8 @@ use crate::parallax::{
     RenderParams, ViewCodes, ViewStorage, WarpMethod, build_bounds, render, render_bounded_with,
 };
 use crate::representation::{
-    Lighting, Measurement, Needs, Picture, PipelineError, Plan, Representation, Source, Window,
-    elevation_note, fold, measure_views, secs,
+    Estimate, InputSize, Lighting, Measurement, Needs, Picture, PipelineError, Plan,
+    Representation, Source, Window, elevation_note, fold, linear_bytes, measure_views, secs,
 };
 
 /// Manifest parameters of images with parallax (`[asset.parallax]`).
@@ -144,6 +144,13 @@ pub struct ParallaxData {
 
 /// Whether view `k` of `n` is used by some azimuth in the needed range: a display angle uses
 /// the two views that bracket it, so view `k` serves `(α_k − Δ, α_k + Δ)`, `Δ = 2π/n`.
+/// The view size the largest screen size needs: a power of two at or above it, at most `size`
+/// (nothing is skipped when that is the size asked for).
+fn needed_size(size: usize, needs: &Needs) -> usize {
+    let max_px = needs.screen_px[1].ceil() as usize;
+    max_px.next_power_of_two().clamp(2, size)
+}
+
 fn view_needed(k: usize, n: usize, needs: &Needs) -> bool {
     if needs.all_azimuths() {
         return true;
@@ -186,6 +193,23 @@ impl Representation for Parallax {
                 "screen_px": needs.screen_px, "lighting": needs.lighting })
     }
 
+    fn estimate(spec: &ParallaxSpec, needs: &Needs, _input: &InputSize) -> Estimate {
+        // Every view's grid is held during the capture, needed or not; ~730 B per view texel
+        // (samples, images, mips, bounds, the read-back copy) measured at 32²–256², 4–16 views.
+        let size = needed_size(spec.size, needs) as f64;
+        let texels = spec.views as f64 * size * size;
+        let kinds = spec.bounds.len().saturating_sub(1) as f64;
+        let needed = (0..spec.views)
+            .filter(|&k| view_needed(k, spec.views, needs))
+            .count() as f64;
+        let per_texel =
+            6.0 + 4.0 * f64::from(needs.lighting == Lighting::Dynamic) + 4.0 * (kinds + 1.0);
+        Estimate {
+            peak_bytes: linear_bytes(1e6, 740.0 + 150.0 * kinds, texels),
+            output_bytes: linear_bytes(0.0, per_texel * 4.0 / 3.0, needed * size * size),
+        }
+    }
+
     fn plan(
         spec: &ParallaxSpec,
         needs: &Needs,
@@ -199,10 +223,7 @@ impl Representation for Parallax {
             48,
             "images with parallax",
         )?;
-        let max_px = needs.screen_px[1].ceil() as usize;
-        // The size the largest screen size needs (a power of two at or above it); nothing is
-        // skipped when that is the size asked for.
-        let needed = max_px.next_power_of_two().clamp(2, spec.size);
+        let needed = needed_size(spec.size, needs);
         let size = if needed < spec.size {
             let s = needed;
             plan.skip(

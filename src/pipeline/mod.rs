@@ -12,12 +12,14 @@
 //! `DIR/pictures/*.png`. Format: `docs/asset-format.md`.
 
 pub mod manifest;
+pub mod memory;
 mod run;
 
 pub use crate::representation::{
     Lighting, Measurement, Needs, PipelineError, Plan, PlanItem, Representation, Source,
 };
 pub use manifest::{AssetSpec, Manifest, SceneSettings, SourceSpec, TestTexture};
+pub use memory::{MemoryPlan, plan_memory};
 pub use run::{
     AssetOutcome, LOCK_FILE, Outcome, RunOptions, RunSummary, Shard, plan_scene, run_scene,
 };

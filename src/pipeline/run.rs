@@ -80,11 +80,15 @@ pub struct RunOptions {
     /// precompute matters and the error figures are not needed; a cached folder without
     /// figures is then reused, and a later run with measuring rebuilds it.
     pub measure: bool,
+    /// Refuse the run before any work when the memory plan's estimate of its peak exceeds this
+    /// many bytes ([`crate::pipeline::memory`]); `None`: no limit.
+    pub max_memory: Option<u64>,
 }
 
 impl RunOptions {
     /// A quiet run into `out` that uses the cache and the needs and measures what it builds:
-    /// no forced rebuild, every shard, no progress bars, no profile.
+    /// no forced rebuild, every shard, no progress bars, no profile, and the memory limit of
+    /// [`crate::pipeline::memory::default_max_memory`].
     pub fn new(out: impl Into<PathBuf>) -> Self {
         Self {
             out: out.into(),
@@ -94,6 +98,7 @@ impl RunOptions {
             progress: false,
             profile: false,
             measure: true,
+            max_memory: super::memory::default_max_memory(),
         }
     }
 }
@@ -155,6 +160,8 @@ pub struct RunSummary {
     /// normal maps, emission, skins…; an OBJ's assumed up axis), by asset name.
     #[serde(skip_serializing_if = "std::collections::BTreeMap::is_empty")]
     pub source_notes: std::collections::BTreeMap<String, Vec<String>>,
+    /// The memory plan the run was checked against before any work (estimates).
+    pub memory: super::memory::MemoryPlan,
 }
 
 impl RunSummary {
@@ -445,7 +452,7 @@ fn scene_light(manifest: &Manifest) -> Light {
 }
 
 /// The needs a run uses: the asset's, or everything for `--everything`.
-fn effective_needs(spec: &AssetSpec, everything: bool) -> Needs {
+pub(crate) fn effective_needs(spec: &AssetSpec, everything: bool) -> Needs {
     if everything {
         Needs {
             azimuth_deg: [0.0, 360.0],
@@ -496,6 +503,8 @@ pub fn plan_scene(
 /// the others go on.
 pub fn run_scene(manifest: &Manifest, options: &RunOptions) -> Result<RunSummary, PipelineError> {
     let t0 = Instant::now();
+    let memory = super::memory::plan_memory(manifest, options)?;
+    memory.check()?;
     let _lock = prepare_output(&options.out)?;
     let light = scene_light(manifest);
     let (mine, other_shards): (Vec<&AssetSpec>, Vec<&AssetSpec>) = manifest
@@ -617,6 +626,7 @@ pub fn run_scene(manifest: &Manifest, options: &RunOptions) -> Result<RunSummary
             .map(|a| (a.name.clone(), a.needs.quality_db))
             .collect(),
         source_notes: source_notes.into_inner().unwrap_or_default(),
+        memory,
     };
     write_report(&summary, options)?;
     Ok(summary)
@@ -919,6 +929,11 @@ fn write_report(summary: &RunSummary, options: &RunOptions) -> Result<(), Pipeli
         for (asset, notes) in &summary.source_notes {
             md += &format!("- {asset}: {}\n", notes.join("; "));
         }
+    }
+    md += "\n## Memory plan (estimated before the run)\n\n";
+    md += "Peak memory and files (uncompressed, at most) per representation, from the parameters and the needs; the run's peak counts the assets that run at once. Files written: the bytes column of the table above.\n\n";
+    for line in summary.memory.lines() {
+        md += &format!("- {line}\n");
     }
     for o in &summary.outcomes {
         md += &format!("\n## {} — {}\n\n", o.asset, o.representation);

@@ -42,7 +42,8 @@ use crate::pyramid::{
     shear_prefix,
 };
 use crate::representation::{
-    Measurement, Needs, Picture, PipelineError, Plan, Representation, Source, fold, secs,
+    Estimate, InputSize, Measurement, Needs, Picture, PipelineError, Plan, Representation, Source,
+    fold, linear_bytes, secs,
 };
 
 /// Side of the measured images (pixels).
@@ -227,6 +228,27 @@ impl Representation for PyramidRepr {
 
     fn relevant_needs(needs: &Needs) -> serde_json::Value {
         json!({ "screen_px": needs.screen_px, "grazing_deg": needs.grazing_deg })
+    }
+
+    fn estimate(spec: &PyramidParams, needs: &Needs, input: &InputSize) -> Estimate {
+        // ~45–55 B per texel and channel (the texture, the pyramid, the measuring, the read-back
+        // copy) measured on one-channel textures of 64² to 1024², mipmaps to fipmaps.
+        let Some((w, h, c)) = input.texture else {
+            return Estimate::default();
+        };
+        let texels = (w * h * c.max(1)) as f64;
+        let g = needs.grazing_deg;
+        let layers = if g <= spec.mip_max_tilt_deg {
+            4.0 / 3.0
+        } else if spec.kind == PyramidKind::Fip || g >= spec.fip_min_tilt_deg {
+            4.0 * (1 + shear_set(spec.fip_shear_steps).len()) as f64
+        } else {
+            4.0
+        };
+        Estimate {
+            peak_bytes: linear_bytes(1.5e6, 55.0, texels),
+            output_bytes: linear_bytes(0.0, 4.0 * layers, texels),
+        }
     }
 
     fn plan(

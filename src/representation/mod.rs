@@ -51,6 +51,21 @@ pub enum PipelineError {
         /// The lock file.
         path: PathBuf,
     },
+    /// The memory plan's estimate exceeds the run's limit (`--max-memory`): refused before
+    /// any work.
+    #[error(
+        "the run needs about {estimate} of memory (estimate; the largest part: {largest}), above the limit of {limit}: \
+         lower the largest representation's sizes (views, size, columns/rows, resolution, grid) or the asset's \
+         screen_px, run fewer assets at once (--shard i/n), or raise --max-memory"
+    )]
+    Memory {
+        /// The estimated peak.
+        estimate: String,
+        /// The limit.
+        limit: String,
+        /// The representation with the largest estimate, with it.
+        largest: String,
+    },
     /// Nothing of the object is visible where the representation looks.
     #[error("asset '{asset}': the object is not visible in {what}: nothing to represent")]
     Invisible {
@@ -149,6 +164,35 @@ impl Needs {
     /// Whether the azimuth range covers every direction.
     pub fn all_azimuths(&self) -> bool {
         self.azimuth_deg[1] - self.azimuth_deg[0] >= 360.0
+    }
+}
+
+/// What a representation is expected to cost before it is built (see
+/// [`Representation::estimate`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub struct Estimate {
+    /// Peak memory while it is built, written, read back and measured (bytes): a linear model in
+    /// the texels, voxels or frames it holds, fitted to the peaks a counting allocator measured
+    /// (`tests/memory.rs` checks it within 2×).
+    pub peak_bytes: u64,
+    /// Bytes of its files, at most: every data file uncompressed (PNG compresses them).
+    pub output_bytes: u64,
+}
+
+/// What the estimates know of an asset's source before loading it.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct InputSize {
+    /// A texture's `(width, height, channels)`, from its file's header (or the procedural size).
+    pub texture: Option<(usize, usize, usize)>,
+}
+
+/// `bytes_per · count` plus a fixed `base`, saturating, as an [`Estimate`] field.
+pub fn linear_bytes(base: f64, bytes_per: f64, count: f64) -> u64 {
+    let b = base + bytes_per * count;
+    if b.is_finite() && b < u64::MAX as f64 {
+        b.ceil() as u64
+    } else {
+        u64::MAX
     }
 }
 
@@ -282,6 +326,11 @@ pub trait Representation {
 
     /// The parts of `needs` that change the output (hashed into the cache key).
     fn relevant_needs(needs: &Needs) -> serde_json::Value;
+
+    /// What building, writing, reading back and measuring the representation will cost, from
+    /// the parameters, the needs and what is known of the source before loading it: no ray is
+    /// cast. The memory plan refuses a run whose estimate exceeds its limit before any work.
+    fn estimate(spec: &Self::Spec, needs: &Needs, input: &InputSize) -> Estimate;
 
     /// Decides what to compute and what to skip, each with its reason. May capture a little to
     /// decide (e.g. a coverage check); a representation that cannot hold the object returns a

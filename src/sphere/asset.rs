@@ -18,7 +18,8 @@ use serde_json::json;
 
 use crate::asset::{AssetReader, AssetWriter, Channel, CodeImage, Encoding};
 use crate::representation::{
-    Measurement, Needs, Picture, PipelineError, Plan, Representation, Source,
+    Estimate, InputSize, Measurement, Needs, Picture, PipelineError, Plan, Representation, Source,
+    linear_bytes,
 };
 use crate::sphere::{
     ConeBounds, Coverage, FrameCodes, SphereError, SphereImages, SphereMeasureParams, SphereParams,
@@ -91,6 +92,11 @@ pub struct SphereDecisions {
 
 /// Images with parallax from any direction, for the pipeline.
 pub struct SphereRepr;
+
+/// The frame size the closest footprint needs: the largest screen size, at least 4.
+fn closest_size(needs: &Needs) -> usize {
+    (needs.screen_px[1].ceil() as usize).max(4)
+}
 
 /// Whether `d` lies in the needed azimuth and elevation ranges.
 fn needed(needs: &Needs, d: DVec3) -> bool {
@@ -165,6 +171,18 @@ impl Representation for SphereRepr {
         })
     }
 
+    fn estimate(spec: &SphereSpec, needs: &Needs, _input: &InputSize) -> Estimate {
+        // ~80 B per frame texel (the frames, their bounds, the measuring, the read-back copy)
+        // measured from 4² frames of 32² to 16² frames of 64².
+        let size = closest_size(needs).min(spec.size) as f64;
+        let texels = (spec.grid * spec.grid) as f64 * size * size;
+        Estimate {
+            peak_bytes: linear_bytes(2e6, 82.0, texels),
+            // Albedo 4 B, normal 4 B, depth 2 B, bounds 2 B per texel.
+            output_bytes: linear_bytes(0.0, 12.0, texels),
+        }
+    }
+
     fn plan(
         spec: &SphereSpec,
         needs: &Needs,
@@ -183,7 +201,7 @@ impl Representation for SphereRepr {
         } else {
             Coverage::Sphere
         };
-        let closest = (needs.screen_px[1].ceil() as usize).max(4);
+        let closest = closest_size(needs);
         let size = if closest < spec.size {
             plan.skip(
                 format!("frame texels beyond {closest}²"),

@@ -622,9 +622,8 @@ impl Representation for Parallax {
         let size = images.params.width;
         let mut scores = Vec::new();
         let mut pictures = Vec::new();
-        let mut steps = 0u64;
-        let mut miss_steps = 0u64;
-        let mut fragments = 0u64;
+        // Steps of the two bracketing views, the fallback views and hole filling, and pixels.
+        let (mut steps, mut fallback, mut holes, mut pixels) = (0u64, 0u64, 0u64, 0u64);
         // Steps are counted with the tightest stored bound (the kinds are ordered (a)–(e)).
         let bounded = data
             .bounds
@@ -647,8 +646,9 @@ impl Representation for Parallax {
                 let r =
                     render_bounded_with(images, b, angle, &source.light, &Reconstruction::DEFAULT)?;
                 steps += r.steps;
-                miss_steps += r.fallback_steps + r.hole_steps;
-                fragments += 2 * (size * images.params.height) as u64;
+                fallback += r.fallback_steps;
+                holes += r.hole_steps;
+                pixels += (size * images.params.height) as u64;
             }
             if i == 0 {
                 pictures.push(Picture {
@@ -664,21 +664,22 @@ impl Representation for Parallax {
             }
         }
         let method = format!(
-            "inverse warp of {} views of {size}², 1 ray per pixel, vs truth 3×3 supersampled{}; steps per warped view with {}{}",
+            "inverse warp of {} views of {size}², 1 ray per pixel, vs truth 3×3 supersampled{}; march steps per pixel with {}: the two bracketing views, the fallback views and hole filling where they miss",
             images.params.views,
             elevation_note(needs, window),
             bounded.map_or("no stored bound", |b| b.kind.name()),
-            if fragments > 0 {
-                format!(
-                    " (plus {:.3} per pixel for the fallback views and hole filling where the bracketing views miss)",
-                    2.0 * miss_steps as f64 / fragments as f64
-                )
-            } else {
-                String::new()
-            }
         );
-        let mean_steps = (fragments > 0).then(|| steps as f64 / fragments as f64);
-        Ok((fold(method, &scores, mean_steps), pictures))
+        let per_pixel = |n: u64| n as f64 / pixels as f64;
+        let mean_steps = (pixels > 0).then(|| per_pixel(steps + fallback + holes));
+        let mut m = fold(method, &scores, mean_steps);
+        if pixels > 0 {
+            m.steps_split = vec![
+                ("bracketing views".into(), per_pixel(steps)),
+                ("fallback views".into(), per_pixel(fallback)),
+                ("hole filling".into(), per_pixel(holes)),
+            ];
+        }
+        Ok((m, pictures))
     }
 }
 

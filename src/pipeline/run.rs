@@ -192,7 +192,7 @@ impl RunSummary {
     /// The summary table (Markdown).
     pub fn table(&self) -> String {
         let mut s = String::from(
-            "| asset | representation | outcome | skipped | seconds (build) | bytes | PSNR dB (worst) | IoU | steps |\n|---|---|---|---|---|---|---|---|---|\n",
+            "| asset | representation | outcome | skipped | seconds (build) | bytes | PSNR dB (worst) | IoU | steps per pixel |\n|---|---|---|---|---|---|---|---|---|\n",
         );
         for o in &self.outcomes {
             let outcome = match (&o.outcome, self.below(o)) {
@@ -213,7 +213,18 @@ impl RunSummary {
                     (
                         format!("{:.2} ({:.2})", m.psnr_db, m.worst_psnr_db),
                         format!("{:.3}", m.iou),
-                        m.mean_steps.map_or("–".into(), |s| format!("{s:.2}")),
+                        m.mean_steps.map_or("–".into(), |s| {
+                            if m.steps_split.is_empty() {
+                                format!("{s:.2}")
+                            } else {
+                                let parts: Vec<String> = m
+                                    .steps_split
+                                    .iter()
+                                    .map(|(_, v)| format!("{v:.2}"))
+                                    .collect();
+                                format!("{s:.2} ({})", parts.join(" + "))
+                            }
+                        }),
                     )
                 },
             );
@@ -227,6 +238,19 @@ impl RunSummary {
                 o.build_seconds,
                 o.bytes
             );
+        }
+        let splits: std::collections::BTreeSet<String> = self
+            .outcomes
+            .iter()
+            .filter_map(|o| o.measurement.as_ref())
+            .filter(|m| !m.steps_split.is_empty())
+            .map(|m| {
+                let names: Vec<&str> = m.steps_split.iter().map(|(n, _)| n.as_str()).collect();
+                names.join(" + ")
+            })
+            .collect();
+        for split in splits {
+            s += &format!("\nSteps per pixel count every march; in parentheses: {split}.\n");
         }
         s
     }

@@ -288,8 +288,12 @@ pub struct Measurement {
     pub worst_psnr_db: f64,
     /// Mean silhouette IoU.
     pub iou: f64,
-    /// Mean shader steps per fragment, where the representation marches.
+    /// Mean shader steps per pixel, where the representation marches: every march counted.
     pub mean_steps: Option<f64>,
+    /// Where those steps go, per pixel (for example the bracketing views, the fallback views and
+    /// hole filling of images with parallax); empty when there is one kind of march.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub steps_split: Vec<(String, f64)>,
 }
 
 /// A picture for the report: the representation beside its ground truth.
@@ -653,6 +657,7 @@ pub fn fold(method: String, scores: &[(f64, f64)], steps: Option<f64>) -> Measur
         worst_psnr_db: scores.iter().map(|s| s.0).fold(f64::INFINITY, f64::min),
         iou: scores.iter().map(|s| s.1).sum::<f64>() / n,
         mean_steps: steps,
+        steps_split: Vec::new(),
     }
 }
 

@@ -476,6 +476,7 @@ impl Representation for SphereRepr {
                 worst_psnr_db: m.ours.psnr_min,
                 iou: m.ours.iou_mean,
                 mean_steps: Some(m.ours.steps_mean),
+                steps_split: Vec::new(),
             },
             pictures,
         ))

@@ -150,6 +150,7 @@ fn remeasure_pear_parallax(m: &Manifest, folder: &Path) -> altrep::pipeline::Mea
         worst_psnr_db: worst,
         iou,
         mean_steps: None,
+        steps_split: Vec::new(),
     }
 }
 

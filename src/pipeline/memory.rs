@@ -72,7 +72,7 @@ impl MemoryPlan {
         let mut out = Vec::new();
         for a in &self.assets {
             if a.source_bytes > 0 {
-                out.push(format!("{}: source {}", a.asset, bytes(a.source_bytes)));
+                out.push(format!("{}/source: {}", a.asset, bytes(a.source_bytes)));
             }
             for (r, e) in &a.representations {
                 out.push(format!(

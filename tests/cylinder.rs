@@ -417,9 +417,9 @@ fn horizontal_square() -> altrep::data_gen::Mesh {
 
 /// A flat cut-out whose plane holds the axis is met by every radial capture ray at the axis
 /// only: its texture is almost fully "defined" (radius 0) yet reproduces almost none of the
-/// true silhouette (measured 0.0 %; the six evaluation shapes reproduce at least 80 %). The
-/// check refuses it with a typed error that names the cause and the alternative, from the
-/// library, from `evaluate` and from `altrep cylinder`.
+/// true silhouette (measured 0.0 %), and the capture rays hold almost none of its visible
+/// surface (they graze it). The check refuses it with a typed error that names the cause and
+/// the alternative, from the library, from `evaluate` and from `altrep cylinder`.
 #[test]
 fn flat_cut_out_holding_the_axis_is_refused() {
     use altrep::cylinder::{CoverageParams, CylinderError, EvalParams, check_coverage, coverage};
@@ -430,11 +430,11 @@ fn flat_cut_out_holding_the_axis_is_refused() {
     assert!(c.share < 0.05, "share {}", c.share);
     assert_eq!(c.per_angle.len(), 8);
     assert!(c.per_angle.iter().all(|a| a.truth_px > 10.0));
-    let err = check_coverage(&shape, &tex, &CoverageParams::default()).unwrap_err();
-    assert!(
-        matches!(err, CylinderError::NotRepresentable { .. }),
-        "{err}"
-    );
+    let err = check_coverage(&shape, tex.cylinder(), &CoverageParams::default()).unwrap_err();
+    let CylinderError::NotRepresentable { share, .. } = err else {
+        panic!("{err}")
+    };
+    assert!(share < 0.1, "held share {share}");
     let msg = err.to_string();
     assert!(
         msg.contains("cannot represent") && msg.contains("parallax"),
@@ -512,19 +512,20 @@ fn horizontal_square_is_nothing_visible() {
     }
 }
 
-/// Objects the texture can hold pass: the pear (star-shaped slices) reproduces almost all of its
-/// silhouette (measured 0.99), the chair, whose legs stand in line with the axis, much less
-/// (measured 0.80) but above the default threshold of one half.
+/// Objects the texture can hold pass: the pear (star-shaped slices) has almost all of its visible
+/// surface held by the capture rays (measured 0.99), the chair, whose legs stand in line with
+/// the axis, much less (measured 0.60) but above the default threshold of one half. The share
+/// answers for the object: it is the same whatever texture is captured later.
 #[test]
 fn star_shaped_objects_pass_the_coverage_check() {
     use altrep::cylinder::{CoverageParams, check_coverage};
     let p = CoverageParams::default();
     let pear = scene_shape("pear").unwrap();
-    let c = check_coverage(&pear, &texture(&pear), &p).unwrap();
+    let c = check_coverage(&pear, texture(&pear).cylinder(), &p).unwrap();
     assert!(c.share > 0.97, "pear {}", c.share);
     let chair = scene_shape("chair").unwrap();
-    let c = check_coverage(&chair, &texture(&chair), &p).unwrap();
-    assert!(c.share > 0.6 && c.share < 0.95, "chair {}", c.share);
+    let c = check_coverage(&chair, texture(&chair).cylinder(), &p).unwrap();
+    assert!(c.share > 0.55 && c.share < 0.9, "chair {}", c.share);
 }
 
 /// The bounded march is exact: fragment for fragment the same visible point as exact inverse

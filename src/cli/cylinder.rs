@@ -140,6 +140,7 @@ pub fn run(args: CylinderArgs) -> CliResult {
                 "capture_ms": report.capture_ms,
                 "bytes": report.texture_bytes,
             },
+            "held": report.held,
             "silhouette": report.silhouette,
             "bounds": report.bounds,
             "offset": report.offset,

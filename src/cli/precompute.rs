@@ -40,8 +40,8 @@ pub struct PrecomputeArgs {
     #[arg(long)]
     pub no_measure: bool,
     /// End with success even when a representation measures below its asset's quality target
-    /// (`needs.quality_db`); without it such a run ends non-zero (the report flags them either
-    /// way).
+    /// (`needs.quality_db`) or far below its own exact renderer at the same views; without it
+    /// such a run ends non-zero (the report flags them either way).
     #[arg(long)]
     pub allow_below_quality: bool,
     /// Refuse the run before any work when its estimated peak memory exceeds SIZE (for example
@@ -228,18 +228,39 @@ pub fn run_manifest(manifest: &Manifest, args: &PrecomputeArgs) -> CliResult {
         return Err("some representations failed (see the table above)".into());
     }
     let below = summary.below_quality();
-    if !below.is_empty() {
+    let below_exact = summary.below_exact();
+    if !below.is_empty() || !below_exact.is_empty() {
         let list: Vec<String> = below
             .iter()
             .map(|(o, (db, target))| {
                 format!("{}/{} {db:.2} dB < {target} dB", o.asset, o.representation)
             })
             .collect();
-        let message = format!(
-            "{} representation(s) below their asset's quality target (needs.quality_db): {}",
-            below.len(),
-            list.join(", ")
-        );
+        let exact: Vec<String> = below_exact
+            .iter()
+            .map(|(o, (db, exact))| {
+                format!(
+                    "{}/{} {db:.2} dB, its exact renderer {exact:.2} dB",
+                    o.asset, o.representation
+                )
+            })
+            .collect();
+        let mut parts = Vec::new();
+        if !below.is_empty() {
+            parts.push(format!(
+                "{} representation(s) below their asset's quality target (needs.quality_db): {}",
+                below.len(),
+                list.join(", ")
+            ));
+        }
+        if !below_exact.is_empty() {
+            parts.push(format!(
+                "{} representation(s) measured far below their own exact renderer at the same views (the renderer a display runs does not draw what was stored): {}",
+                below_exact.len(),
+                exact.join(", ")
+            ));
+        }
+        let message = parts.join("; ");
         if !args.allow_below_quality {
             return Err(
                 format!("{message}; rerun with --allow-below-quality to accept them").into(),

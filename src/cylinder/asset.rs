@@ -8,9 +8,10 @@
 //! [`crate::cylinder::MarchBounds::start`]). Column `c` of the texture is captured at
 //! `α_c = 2πc/L`; row `j` at height `y_j = H − (j + ½)H/Ly`.
 //!
-//! The planner refuses an object the texture cannot hold: the share of the true silhouette that
-//! a preview texture reproduces ([`crate::cylinder::coverage`]) below `min_coverage` skips the
-//! representation with that reason (use images with parallax instead).
+//! The planner refuses an object the texture cannot hold: the share of the visible surface that
+//! radial capture rays hold ([`crate::cylinder::radial_visibility`], the check of `altrep
+//! cylinder`, the same at every texture size) below `min_coverage` skips the representation
+//! with that reason (use images with parallax instead).
 
 use std::time::Instant;
 
@@ -21,11 +22,12 @@ use serde_json::json;
 use crate::asset::{AssetReader, AssetWriter, Channel, CodeImage, Encoding};
 use crate::cylinder::{
     BoundsParams, CoverageParams, CylinderError, CylinderRenderParams, CylindricalTexture,
-    MarchBounds, coverage,
+    ExactMethod, MarchBounds, RadiusModel, radial_visibility, render_exact,
 };
 use crate::representation::{
     Estimate, InputSize, Lighting, Measurement, Needs, Picture, PipelineError, Plan,
-    Representation, Source, Window, elevation_note, fold, linear_bytes, measure_views, secs,
+    Representation, Source, Window, elevation_note, fold, linear_bytes, mean_psnr, measure_views,
+    secs,
 };
 
 /// Manifest parameters of the cylindrical texture (`[asset.cylinder]`).
@@ -40,8 +42,8 @@ pub struct CylinderSpec {
     pub prefilter: usize,
     /// Cells of the march bounds.
     pub bounds: BoundsParams,
-    /// Smallest share of the true silhouette a preview texture must reproduce, `[0, 1]`.
-    /// Default 0.5 (see [`CoverageParams::min_share`]).
+    /// Smallest share of the object's visible surface the radial capture rays must hold,
+    /// `[0, 1]`, whatever the texture size. Default 0.5 (see [`CoverageParams::min_share`]).
     pub min_coverage: f64,
 }
 
@@ -97,7 +99,8 @@ pub struct CylinderDecisions {
     pub rows: usize,
     /// Whether normals are stored (dynamic lighting).
     pub normals: bool,
-    /// Share of the true silhouette the preview reproduced.
+    /// Share of the object's visible surface the radial capture rays hold (the coverage check,
+    /// [`crate::cylinder::radial_visibility`]).
     pub coverage: f64,
     /// Light direction and ambient share (baked colour; relighting of loaded baked data).
     pub light: [f32; 4],
@@ -156,7 +159,7 @@ impl Representation for Cylinder {
     }
 
     fn estimate(spec: &CylinderSpec, needs: &Needs, _input: &InputSize) -> Estimate {
-        // ~610 B per texel (capture, offsets, bounds, the preview, the read-back copy) measured
+        // ~610 B per texel (capture, offsets, bounds, the read-back copy) measured
         // from 64 × 16 to 1024 × 256.
         let (columns, rows) = needed_texels(spec, needs);
         let texels = (columns * rows) as f64;
@@ -180,27 +183,27 @@ impl Representation for Cylinder {
             48,
             "cylindrical textures",
         )?;
-        // The preview: a quarter-size texture, point-sampled, against the silhouette.
-        let preview = CylindricalTexture::capture(
+        // The coverage check answers for the object, not for a texture: the same share at
+        // every size, and the same as `altrep cylinder`'s.
+        let cov = match radial_visibility(
             source.shape()?,
-            &texture_params((spec.columns / 4).max(16) & !1, (spec.rows / 4).max(8)),
-            1,
-        )?;
-        let cov = match coverage(source.shape()?, &preview, &CoverageParams::default()) {
+            BoundingCylinder::default(),
+            &CoverageParams::default(),
+        ) {
             Ok(c) => c.share,
             Err(CylinderError::NothingVisible { .. }) => 0.0,
             Err(e) => return Err(e.into()),
         };
         if cov < spec.min_coverage {
             plan.refuse(format!(
-                "a cylindrical texture reproduces {:.1} % of the object's silhouette (minimum {:.0} %): \
-                 radial rays miss most of it; use images with parallax",
+                "radial capture rays hold {:.1} % of the surface the views see (minimum {:.0} %): \
+                 the object is not star-shaped around its axis; use images with parallax",
                 100.0 * cov,
                 100.0 * spec.min_coverage
             ));
         } else {
             plan.build(format!(
-                "coverage check: {:.1} % of the silhouette reproduced",
+                "coverage check: capture rays hold {:.1} % of the visible surface",
                 100.0 * cov
             ));
         }
@@ -377,6 +380,7 @@ impl Representation for Cylinder {
         let mut scores = Vec::new();
         let mut pictures = Vec::new();
         let (mut steps, mut samples) = (0u64, 0u64);
+        let mut exact = Vec::new();
         let window = Window::for_needs(needs, size);
         for (i, &view) in measure_views(needs, 4).iter().enumerate() {
             let angle = view.azimuth;
@@ -395,6 +399,19 @@ impl Representation for Cylinder {
             steps += render.steps;
             samples += (render.sub_width * render.sub_height) as u64;
             scores.push(window.score(&render.image, &reference)?);
+            let exact_image = render_exact(
+                &data.texture,
+                ExactMethod::Inverse(RadiusModel::General),
+                &CylinderRenderParams {
+                    angle,
+                    width: size,
+                    height: size,
+                    supersample: 1,
+                    light: source.light,
+                },
+            )?
+            .image;
+            exact.push(window.score(&window.place(&exact_image), &reference)?);
             if i == 0 {
                 pictures.push(Picture {
                     file: format!("{}-cylinder.png", source.name),
@@ -409,12 +426,14 @@ impl Representation for Cylinder {
             }
         }
         let method = format!(
-            "bounded exact march of the {} × {} texture, 1 ray per pixel at {size}², vs truth 3×3 supersampled{}; sector tests per pixel",
+            "bounded exact march of the {} × {} texture, 1 ray per pixel at {size}², vs truth 3×3 supersampled{}; sector tests per pixel; exact inverse warping at the same views beside it",
             data.texture.columns(),
             data.texture.rows(),
             elevation_note(needs, window)
         );
         let mean = (samples > 0).then(|| steps as f64 / samples as f64);
-        Ok((fold(method, &scores, mean), pictures))
+        let mut m = fold(method, &scores, mean);
+        m.exact_psnr_db = mean_psnr(&exact);
+        Ok((m, pictures))
     }
 }

@@ -20,7 +20,7 @@ use serde::Serialize;
 
 use super::CylinderError;
 use super::bounds::{BoundsParams, BoundsReport, MarchBounds};
-use super::coverage::{CoverageParams, CoverageReport, coverage};
+use super::coverage::{CoverageParams, CoverageReport, check_coverage, coverage};
 use super::offset::{
     OffsetMode, OffsetParams, OffsetReport, OffsetSamples, OffsetTexture, sample_offsets,
 };
@@ -40,8 +40,8 @@ pub struct EvalParams {
     pub prefilter: usize,
     /// The offset fit. Default [`OffsetParams::default`].
     pub offset: OffsetParams,
-    /// The coverage check run before anything else ([`coverage`]); below its threshold
-    /// [`evaluate`] refuses the object. Default [`CoverageParams::default`].
+    /// The coverage check run before anything else ([`check_coverage`]); below its threshold
+    /// [`evaluate`] refuses the object (the same parameters give the silhouette figure). Default [`CoverageParams::default`].
     pub coverage: CoverageParams,
     /// The march bounds of the `bounded` row. Default [`BoundsParams::default`].
     pub bounds: BoundsParams,
@@ -190,7 +190,10 @@ pub struct EvalReport {
     pub negative_share: f64,
     /// Capture time (ms).
     pub capture_ms: f64,
-    /// Share of the true silhouette the texture reproduces ([`coverage`]).
+    /// The coverage check: share of the visible surface the radial capture rays hold
+    /// ([`super::radial_visibility`]), whatever the texture size.
+    pub held: CoverageReport,
+    /// Share of the true silhouette this texture reproduces ([`coverage`]; a figure).
     pub silhouette: CoverageReport,
     /// The march bounds of the `bounded` row.
     pub bounds: BoundsReport,
@@ -286,14 +289,16 @@ impl EvalReport {
     /// A Markdown table of the rows.
     pub fn markdown(&self) -> String {
         let mut s = format!(
-            "**{}** — texture {}×{} ({:.1} % defined, {:.1} % negative radii, {:.1} % of the true \
-             silhouette reproduced), capture {:.0} ms; \
+            "**{}** — capture rays hold {:.1} % of the visible surface; texture {}×{} ({:.1} % \
+             defined, {:.1} % negative radii, {:.1} % of the true silhouette reproduced), \
+             capture {:.0} ms; \
              offsets {}×{}×{} cells ({} coefficients, {} B with the mask): sampling {:.0} ms, \
              assembly {:.1} ms, solve {:.1} ms, quantisation {:.1} ms, {} of {} samples fitted; \
              λ = {:.1e} ({} tried), coefficients {:.1}…{:.1} for data {:.1}…{:.1} ({:.2}× the \
              half range), offset RMS {:.2} float / {:.2} stored / {:.2} at 8 bits; march bounds \
              {}×{}×{} cells, {} B, mean span {:.1}, built in {:.0} ms\n\n",
             self.shape,
+            100.0 * self.held.share,
             self.texture_size[0],
             self.texture_size[1],
             100.0 * self.coverage,
@@ -561,17 +566,18 @@ fn near_discontinuity(
         .collect()
 }
 
-/// Captures `shape`, checks that the texture reproduces enough of its silhouette ([`coverage`];
-/// [`CylinderError::NotRepresentable`] or [`CylinderError::NothingVisible`] otherwise), fits
+/// Checks that radial capture rays hold enough of `shape`'s visible surface ([`check_coverage`];
+/// [`CylinderError::NotRepresentable`] or [`CylinderError::NothingVisible`] otherwise; the
+/// planner's check, with the same answer), captures it, fits
 /// its offsets, builds its march bounds and measures every renderer against the ground truth
 /// (see the module docs). Cost: the capture (`L·Ly·prefilter²` rays), `angles` ground-truth images,
 /// the offset sampling and fit, and `angles` images per renderer.
 pub fn evaluate(shape: &dyn Shape, params: &EvalParams) -> Result<EvalReport, CylinderError> {
+    let held = check_coverage(shape, params.texture.cylinder, &params.coverage)?;
     let t0 = Instant::now();
     let texture = CylindricalTexture::capture(shape, &params.texture, params.prefilter)?;
     let capture_ms = t0.elapsed().as_secs_f64() * 1e3;
     let silhouette = coverage(shape, &texture, &params.coverage)?;
-    silhouette.check(params.coverage.min_share)?;
     let offsets = OffsetTexture::fit(&texture, &params.offset)?;
     let (bounds, bounds_report) = MarchBounds::build(&texture, &params.bounds)?;
     let refs = References::new(shape, &texture, params)?;
@@ -623,6 +629,7 @@ pub fn evaluate(shape: &dyn Shape, params: &EvalParams) -> Result<EvalReport, Cy
         coverage: texture.coverage(),
         negative_share: texture.negative_share(),
         capture_ms,
+        held,
         silhouette,
         bounds: bounds_report,
         texture_bytes: tex_bytes,

@@ -75,7 +75,9 @@ mod texture;
 mod warp;
 
 pub use bounds::{BoundsParams, BoundsReport, MarchBounds};
-pub use coverage::{AngleCoverage, CoverageParams, CoverageReport, check_coverage, coverage};
+pub use coverage::{
+    AngleCoverage, CoverageParams, CoverageReport, check_coverage, coverage, radial_visibility,
+};
 pub use eval::{
     CylinderSweepRow, EvalParams, EvalReport, MethodRow, MinificationRow, OffsetError, SWEEP_GRIDS,
     evaluate, minification, sweep, sweep_markdown,
@@ -134,15 +136,16 @@ pub enum CylinderError {
         /// Which size.
         what: &'static str,
     },
-    /// The texture reproduces too little of the object's true silhouette ([`coverage`]): radial
-    /// rays see only the parts whose slices are star-shaped around the axis.
+    /// Radial capture rays hold too little of the object's visible surface
+    /// ([`radial_visibility`]): they see only the parts whose slices are star-shaped around the
+    /// axis.
     #[error(
-        "the cylindrical texture cannot represent this object: it reproduces {:.1} % of the true silhouette (threshold {:.0} %); radial capture rays see a slice only where it is star-shaped around the axis (a flat cut-out holding the axis is seen only at the axis). Use images with parallax instead (`altrep parallax`)",
+        "the cylindrical texture cannot represent this object: radial capture rays hold {:.1} % of the surface the views see (threshold {:.0} %); they see a slice only where it is star-shaped around the axis (a flat cut-out holding the axis is seen only at the axis). Use images with parallax instead (`altrep parallax`)",
         100.0 * share,
         100.0 * min_share
     )]
     NotRepresentable {
-        /// Reproduced share of the true silhouette, `[0, 1]`.
+        /// Share of the visible surface the capture rays hold, `[0, 1]`.
         share: f64,
         /// The threshold it fell below.
         min_share: f64,

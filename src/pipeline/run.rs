@@ -182,6 +182,26 @@ impl RunSummary {
             .collect()
     }
 
+    /// `(measured mean PSNR, exact renderer's mean PSNR)` when `o`'s figures lie more than
+    /// [`crate::representation::EXACT_GAP_DB`] below its own exact renderer's at the same views.
+    fn below_exact_of(o: &AssetOutcome) -> Option<(f64, f64)> {
+        let m = o.measurement.as_ref()?;
+        let exact = m.exact_psnr_db?;
+        (m.psnr_db < exact - crate::representation::EXACT_GAP_DB).then_some((m.psnr_db, exact))
+    }
+
+    /// The measured representations whose figures lie far below what their own exact renderer
+    /// reaches at the same views ([`Measurement::exact_psnr_db`]), with `(measured, exact)` in
+    /// dB: the renderer a display runs does not draw what the representation holds (a broken
+    /// bound, damaged data). Flagged in the table; `altrep precompute` ends non-zero on them
+    /// unless `--allow-below-quality`.
+    pub fn below_exact(&self) -> Vec<(&AssetOutcome, (f64, f64))> {
+        self.outcomes
+            .iter()
+            .filter_map(|o| Some((o, Self::below_exact_of(o)?)))
+            .collect()
+    }
+
     /// Whether every representation was built or cached.
     pub fn ok(&self) -> bool {
         self.outcomes
@@ -202,8 +222,19 @@ impl RunSummary {
                 (Outcome::Cached, Some((_, target))) => {
                     format!("cached, below the {target} dB quality target")
                 }
-                (Outcome::Built, None) => "built".to_string(),
-                (Outcome::Cached, None) => "cached".to_string(),
+                (Outcome::Built | Outcome::Cached, None) => {
+                    let word = if o.outcome == Outcome::Built {
+                        "built"
+                    } else {
+                        "cached"
+                    };
+                    match Self::below_exact_of(o) {
+                        Some((_, exact)) => {
+                            format!("{word}, below its exact renderer's {exact:.2} dB")
+                        }
+                        None => word.to_string(),
+                    }
+                }
                 (Outcome::Refused(r), _) => format!("skipped: {r}"),
                 (Outcome::Failed(m), _) => format!("FAILED: {m}"),
             };

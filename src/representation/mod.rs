@@ -294,7 +294,19 @@ pub struct Measurement {
     /// hole filling of images with parallax); empty when there is one kind of march.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub steps_split: Vec<(String, f64)>,
+    /// Mean PSNR (dB) of the representation's exact renderer over the same views, where the
+    /// figures above come from the renderer a display runs (a bounded march): the two draw the
+    /// same image by design, so a gap of more than [`EXACT_GAP_DB`] flags a broken renderer or
+    /// damaged data ([`crate::pipeline::RunSummary::below_exact`]). `None` where the measured
+    /// renderer is the only one (octree, frames over the sphere, pyramids).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub exact_psnr_db: Option<f64>,
 }
+
+/// Largest gap (dB) accepted between a representation's exact renderer and the renderer its
+/// figures come from ([`Measurement::exact_psnr_db`]): they draw the same image by design, so
+/// anything beyond rounding is a defect to flag, not a figure to report as a success.
+pub const EXACT_GAP_DB: f64 = 0.5;
 
 /// A picture for the report: the representation beside its ground truth.
 pub struct Picture {
@@ -658,7 +670,13 @@ pub fn fold(method: String, scores: &[(f64, f64)], steps: Option<f64>) -> Measur
         iou: scores.iter().map(|s| s.1).sum::<f64>() / n,
         mean_steps: steps,
         steps_split: Vec::new(),
+        exact_psnr_db: None,
     }
+}
+
+/// The mean of the PSNRs in `scores` (`(psnr, iou)` pairs), for [`Measurement::exact_psnr_db`].
+pub fn mean_psnr(scores: &[(f64, f64)]) -> Option<f64> {
+    (!scores.is_empty()).then(|| scores.iter().map(|s| s.0).sum::<f64>() / scores.len() as f64)
 }
 
 /// The light a baked asset was shaded with, or the scene's light for dynamic lighting.

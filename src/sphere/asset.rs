@@ -477,6 +477,7 @@ impl Representation for SphereRepr {
                 iou: m.ours.iou_mean,
                 mean_steps: Some(m.ours.steps_mean),
                 steps_split: Vec::new(),
+                exact_psnr_db: None,
             },
             pictures,
         ))

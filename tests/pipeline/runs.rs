@@ -151,6 +151,7 @@ fn remeasure_pear_parallax(m: &Manifest, folder: &Path) -> altrep::pipeline::Mea
         iou,
         mean_steps: None,
         steps_split: Vec::new(),
+        exact_psnr_db: None,
     }
 }
 
@@ -982,4 +983,132 @@ fn the_plan_lists_no_skip_that_changes_nothing() {
             }
         }
     }
+}
+
+/// The planner's coverage check answers for the object, as `altrep cylinder` does: the same
+/// share at every texture size asked for (the old preview check answered 13 % at one size and
+/// 74 % at another for the same object), equal to the share `evaluate` checks, and the same
+/// refusal for a flat card holding the axis at every size.
+#[test]
+fn the_cylinder_coverage_check_answers_for_the_object_at_every_size() {
+    use altrep::cylinder::{EvalParams, evaluate};
+    let card = altrep_data_gen::Mesh::from_raw_triangles(
+        "card",
+        vec![
+            [[-1.0, 0.0, 0.0], [1.0, 0.0, 0.0], [1.0, 2.0, 0.0]],
+            [[-1.0, 0.0, 0.0], [1.0, 2.0, 0.0], [-1.0, 2.0, 0.0]],
+        ],
+        &altrep_data_gen::MeshLoadOptions::default(),
+    )
+    .unwrap();
+    let (truck, chair) = (scene_shape("truck").unwrap(), scene_shape("chair").unwrap());
+    let shapes: [(&str, &(dyn altrep_data_gen::Shape + Sync)); 3] =
+        [("truck", &truck), ("chair", &chair), ("card", &card)];
+    let needs = Needs {
+        screen_px: [4.0, 16.0],
+        ..Needs::default()
+    };
+    for (name, shape) in shapes {
+        let mut shares = Vec::new();
+        for (columns, rows) in [(32, 8), (128, 32), (256, 64)] {
+            let spec = CylinderSpec {
+                columns,
+                rows,
+                ..CylinderSpec::default()
+            };
+            let (plan, decisions) = Cylinder::plan(&spec, &needs, &source(name, shape)).unwrap();
+            assert_eq!(
+                plan.refused.is_some(),
+                decisions.coverage < spec.min_coverage,
+                "{name} {columns} × {rows}: {:?}",
+                plan.refused
+            );
+            shares.push(decisions.coverage);
+        }
+        assert!(shares.iter().all(|s| *s == shares[0]), "{name}: {shares:?}");
+        let params = EvalParams {
+            angles: 2,
+            size: 24,
+            ..EvalParams::default()
+        };
+        match evaluate(shape, &params) {
+            Ok(report) => assert_eq!(report.held.share, shares[0], "{name}"),
+            Err(altrep::cylinder::CylinderError::NotRepresentable { share, .. }) => {
+                assert_eq!(share, shares[0], "{name}");
+                assert!(share < 0.5, "{name}: {share}");
+            }
+            Err(e) => panic!("{name}: {e}"),
+        }
+    }
+    // Measured: truck 0.86, chair 0.60, the card 0.05 (refused).
+    assert!(shares_of(&truck) > 0.8 && shares_of(&card) < 0.1);
+}
+
+fn shares_of(shape: &(dyn altrep_data_gen::Shape + Sync)) -> f64 {
+    altrep::cylinder::radial_visibility(
+        shape,
+        altrep_data_gen::BoundingCylinder::default(),
+        &altrep::cylinder::CoverageParams::default(),
+    )
+    .unwrap()
+    .share
+}
+
+/// Images with parallax are measured with the bounded march a display runs, the exact inverse
+/// warp beside it: they draw the same image (measured: equal to the last bit on the truck and
+/// the pear). Bounds that do not belong to the views (the pear's on the truck's views, as a
+/// misbuilt or damaged bound would be) make the march miss what the views hold: the figures
+/// fall far below the exact renderer's, and the run's summary flags it in the table and in
+/// `below_exact` (which `altrep precompute` ends non-zero on).
+#[test]
+fn a_renderer_far_below_its_exact_renderer_is_flagged() {
+    let spec = ParallaxSpec {
+        views: 8,
+        size: 32,
+        bounds: vec!["zminmax".into()],
+        ..ParallaxSpec::default()
+    };
+    let needs = Needs {
+        screen_px: [4.0, 32.0],
+        ..Needs::default()
+    };
+    let (truck, pear) = (scene_shape("truck").unwrap(), scene_shape("pear").unwrap());
+    let build = |name: &str, shape: &(dyn altrep_data_gen::Shape + Sync)| {
+        let src = source(name, shape);
+        let (_, d) = Parallax::plan(&spec, &needs, &src).unwrap();
+        Parallax::build(&spec, &needs, &d, &src).unwrap().0
+    };
+    let (mut data, pear_data) = (build("truck", &truck), build("pear", &pear));
+    let (m, _) = Parallax::measure(&data, &needs, &source("truck", &truck)).unwrap();
+    assert_eq!(m.exact_psnr_db, Some(m.psnr_db));
+    data.bounds = pear_data.bounds;
+    let (broken, _) = Parallax::measure(&data, &needs, &source("truck", &truck)).unwrap();
+    let exact = broken.exact_psnr_db.unwrap();
+    eprintln!(
+        "truck: bounded march {:.2} dB = exact {:.2} dB; with the pear's bounds {:.2} dB",
+        m.psnr_db, exact, broken.psnr_db
+    );
+    assert_abs_diff_eq!(exact, m.psnr_db, epsilon = 1e-12);
+    assert!(
+        broken.psnr_db < exact - altrep::representation::EXACT_GAP_DB,
+        "{} vs {exact}",
+        broken.psnr_db
+    );
+
+    let dir = tempfile::tempdir().unwrap();
+    let scene = "[[asset]]\nname = \"pear\"\nshape = \"pear\"\n[asset.needs]\nscreen_px = [4, 16]\n[asset.parallax]\nviews = 4\nsize = 16\nbounds = [\"zminmax\"]\n";
+    let manifest = Manifest::parse(scene, &dir.path().join("scene.toml")).unwrap();
+    let mut summary = run_scene(&manifest, &options(&dir.path().join("out"))).unwrap();
+    assert!(summary.below_exact().is_empty());
+    let o = &mut summary.outcomes[0];
+    let measured = o.measurement.as_mut().unwrap();
+    assert_eq!(measured.exact_psnr_db, Some(measured.psnr_db));
+    measured.psnr_db = broken.psnr_db;
+    measured.exact_psnr_db = Some(exact);
+    assert_eq!(summary.below_exact().len(), 1);
+    let table = summary.table();
+    assert!(
+        table.contains(&format!("built, below its exact renderer's {exact:.2} dB")),
+        "{table}"
+    );
 }

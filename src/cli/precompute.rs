@@ -24,7 +24,9 @@ pub struct PrecomputeArgs {
     /// their name, the same on every machine.
     #[arg(long, value_parser = Shard::parse)]
     pub shard: Option<Shard>,
-    /// Ignore the scene's needs and compute everything (to measure what skipping saves).
+    /// Ignore the scene's needs when building and compute everything (to measure what skipping
+    /// saves); the figures are measured as a planned run measures them (the needs' directions,
+    /// the planned sizes), so the two runs' tables compare.
     #[arg(long)]
     pub everything: bool,
     /// Also write the run summary as JSON to this file.

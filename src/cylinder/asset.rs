@@ -371,12 +371,16 @@ impl Representation for Cylinder {
         Ok(CylinderData { texture, bounds })
     }
 
+    fn measure_size(d: &CylinderDecisions) -> usize {
+        d.rows.min(64)
+    }
+
     fn measure(
         data: &CylinderData,
         needs: &Needs,
+        size: usize,
         source: &Source,
     ) -> Result<(Measurement, Vec<Picture>), PipelineError> {
-        let size = data.texture.rows().min(64);
         let mut scores = Vec::new();
         let mut pictures = Vec::new();
         let (mut steps, mut samples) = (0u64, 0u64);
@@ -434,6 +438,7 @@ impl Representation for Cylinder {
         let mean = (samples > 0).then(|| steps as f64 / samples as f64);
         let mut m = fold(method, &scores, mean);
         m.exact_psnr_db = mean_psnr(&exact);
+        m.size = size;
         Ok((m, pictures))
     }
 }

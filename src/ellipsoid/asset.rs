@@ -279,15 +279,24 @@ impl Representation for OctreeRepr {
         Ok(Octree::from_nodes(nodes, depth, dims, rule)?)
     }
 
+    fn measure_size(d: &OctreeDecisions) -> usize {
+        d.resolution
+    }
+
     fn measure(
         tree: &Octree,
         needs: &Needs,
+        size: usize,
         source: &Source,
     ) -> Result<(Measurement, Vec<Picture>), PipelineError> {
         // The cube [0, 2^depth]³ is the voxelised box (−1, 0, −1)–(1, 2, 1) scaled by 2^depth / 2:
         // the window's centre (0, 1, 0) is the cube's centre, and directions carry over.
         let side = 1usize << tree.depth();
-        let window = Window::for_needs(needs, side);
+        // A tree finer than the measured size (a run that ignored the needs) is drawn at the
+        // level whose voxels are the size's pixels, as a display chooses by footprint.
+        let size = size.clamp(1, side);
+        let base = (side / size).ilog2();
+        let window = Window::for_needs(needs, size);
         let d = source.light.direction;
         let params = OctreeRenderParams {
             light: nalgebra::Vector3::new(f64::from(d.x), f64::from(d.y), f64::from(d.z)),
@@ -312,13 +321,13 @@ impl Representation for OctreeRepr {
         let views = measure_views(needs, 4);
         for (i, &v) in views.iter().enumerate() {
             let reference = window.truth(source, v, 3)?;
-            let img = tree.render_view(0, &params, &view_of(v))?;
+            let img = tree.render_view(base, &params, &view_of(v))?;
             scores.push(window.score(&img, &reference)?);
             if i == 0 {
                 images.push(reference);
                 images.push(img);
-                // Coarser levels, drawn at the leaves' resolution, for the picture.
-                for level in 1..=tree.depth().min(2) {
+                // Coarser levels, drawn at the same resolution, for the picture.
+                for level in base + 1..=tree.depth().min(base + 2) {
                     images.push(tree.render_view(level, &params, &view_of(v))?);
                 }
             }
@@ -328,19 +337,21 @@ impl Representation for OctreeRepr {
         let picture = Picture {
             file: format!("{}-octree.png", source.name),
             caption: format!(
-                "{}: ground truth | octree levels 0–{} (volume rendering of the micro-primitives), azimuth {:.0}°, elevation {:.0}°",
+                "{}: ground truth | octree levels {base}–{} (volume rendering of the micro-primitives), azimuth {:.0}°, elevation {:.0}°",
                 source.name,
-                images.len() - 2,
+                base as usize + images.len() - 2,
                 first.azimuth.to_degrees(),
                 first.elevation.to_degrees()
             ),
             image: altrep_data_gen::RgbaImage::side_by_side(&refs),
         };
         let method = format!(
-            "volume rendering of octree level 0 of {side}³ at {} needed directions, vs truth 3×3 supersampled{}",
+            "volume rendering of octree level {base} of {side}³ leaves ({size}³ voxels) at {} needed directions, vs truth 3×3 supersampled{}",
             scores.len(),
             elevation_note(needs, window)
         );
-        Ok((fold(method, &scores, None), vec![picture]))
+        let mut m = fold(method, &scores, None);
+        m.size = size;
+        Ok((m, vec![picture]))
     }
 }

@@ -614,13 +614,22 @@ impl Representation for Parallax {
         })
     }
 
+    fn measure_size(d: &ParallaxDecisions) -> usize {
+        d.size
+    }
+
     fn measure(
         data: &ParallaxData,
         needs: &Needs,
+        size: usize,
         source: &Source,
     ) -> Result<(Measurement, Vec<Picture>), PipelineError> {
         let images = &data.images;
-        let size = images.params.width;
+        let native = images.params.width;
+        // Views larger than the measured size (a run that ignored the needs) are drawn minified
+        // through their mip levels, as a display draws them at that screen size; the bounded
+        // march runs at the views' own size only, so its steps are counted there.
+        let minified = size != native;
         let mut scores = Vec::new();
         let mut pictures = Vec::new();
         // Steps of the two bracketing views, the fallback views and hole filling, and pixels.
@@ -636,11 +645,22 @@ impl Representation for Parallax {
         for (i, &view) in measure_views(needs, 4).iter().enumerate() {
             let angle = view.azimuth;
             let reference = window.truth(source, view, 3)?;
-            let screen = RenderParams {
-                supersample: 1,
-                light: source.light,
-                mip: false,
-                ..RenderParams::native(images)
+            let screen = if minified {
+                RenderParams {
+                    width: size,
+                    height: size,
+                    supersample: 1,
+                    light: source.light,
+                    mip: true,
+                    ..RenderParams::native(images)
+                }
+            } else {
+                RenderParams {
+                    supersample: 1,
+                    light: source.light,
+                    mip: false,
+                    ..RenderParams::native(images)
+                }
             };
             // The exact inverse warp; where a bound is stored, the figures come from the
             // bounded march a display runs (the same image by design) and the warp's beside it.
@@ -657,9 +677,13 @@ impl Representation for Parallax {
                     steps += r.steps;
                     fallback += r.fallback_steps;
                     holes += r.hole_steps;
-                    pixels += (size * images.params.height) as u64;
-                    exact.push(window.score(&warped, &reference)?);
-                    window.place(&r.image)
+                    pixels += (native * images.params.height) as u64;
+                    if minified {
+                        warped
+                    } else {
+                        exact.push(window.score(&warped, &reference)?);
+                        window.place(&r.image)
+                    }
                 }
                 None => warped,
             };
@@ -678,20 +702,31 @@ impl Representation for Parallax {
             }
         }
         let method = format!(
-            "{} of {} views of {size}², 1 ray per pixel, vs truth 3×3 supersampled{}; march steps per pixel with {}: the two bracketing views, the fallback views and hole filling where they miss",
-            if bounded.is_some() {
+            "{} of {} views of {native}²{}, 1 ray per pixel, vs truth 3×3 supersampled{}; march steps per pixel with {}{}: the two bracketing views, the fallback views and hole filling where they miss",
+            if bounded.is_some() && !minified {
                 "bounded march (exact inverse warp beside it)"
             } else {
                 "inverse warp"
             },
             images.params.views,
+            if minified {
+                format!(" drawn at {size}² through their mip levels")
+            } else {
+                String::new()
+            },
             elevation_note(needs, window),
             bounded.map_or("no stored bound", |b| b.kind.name()),
+            if minified {
+                format!(" at {native}²")
+            } else {
+                String::new()
+            },
         );
         let per_pixel = |n: u64| n as f64 / pixels as f64;
         let mean_steps = (pixels > 0).then(|| per_pixel(steps + fallback + holes));
         let mut m = fold(method, &scores, mean_steps);
         m.exact_psnr_db = mean_psnr(&exact);
+        m.size = size;
         if pixels > 0 {
             m.steps_split = vec![
                 ("bracketing views".into(), per_pixel(steps)),

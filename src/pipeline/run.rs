@@ -67,7 +67,9 @@ pub struct RunOptions {
     pub force: bool,
     /// Only the assets of this shard.
     pub shard: Option<Shard>,
-    /// Ignore the needs (every view, level and channel), to measure what skipping saves.
+    /// Ignore the needs when building (every view, level and channel), to measure what skipping
+    /// saves; measuring still follows the needs (their directions, the planned sizes:
+    /// [`Representation::measure_size`]), so the figures compare with a planned run's.
     pub everything: bool,
     /// Show progress bars.
     pub progress: bool,
@@ -626,7 +628,9 @@ pub fn run_scene(manifest: &Manifest, options: &RunOptions) -> Result<RunSummary
                     builds.push((
                         <$repr>::NAME,
                         <$repr>::CASTS_RAYS,
-                        Box::new(move || build_one::<$repr>(s, needs, source, hash, options, p)),
+                        Box::new(move || {
+                            build_one::<$repr>(s, needs, &spec.needs, source, hash, options, p)
+                        }),
                     ));
                 }
             )*};
@@ -792,12 +796,16 @@ enum Built<'a> {
     Committed(Box<dyn FnOnce() -> Result<AssetOutcome, PipelineError> + Send + 'a>),
 }
 
-/// Plans representation `R` of `source`, reuses its cached folder when valid, else builds and
-/// commits it; the returned closure then reads the committed files back, measures them and
-/// writes the report pictures.
+/// Plans representation `R` of `source` for `needs`, reuses its cached folder when valid, else
+/// builds and commits it; the returned closure then reads the committed files back, measures
+/// them at the conditions of the asset's own needs `measured` (their directions, and the size
+/// the plan for them chooses: with `--everything` the larger data is measured as a planned run
+/// would measure, so the two compare) and writes the report pictures.
+#[allow(clippy::too_many_arguments)]
 fn build_one<'a, R: Representation>(
     spec: &'a R::Spec,
     needs: &'a Needs,
+    measured: &'a Needs,
     source: &'a Source<'a>,
     input_hash: &str,
     options: &'a RunOptions,
@@ -825,7 +833,20 @@ fn build_one<'a, R: Representation>(
             pictures: Vec::new(),
         })));
     }
-    let key = cache_key::<R>(spec, &decisions, needs, input_hash, &source.light);
+    let mut key = cache_key::<R>(spec, &decisions, needs, input_hash, &source.light);
+    let measure_size = if options.everything {
+        // The size the plan for the asset's own needs chooses (its own if that plan refuses).
+        let planned = R::plan(spec, measured, source)
+            .ok()
+            .filter(|(p, _)| p.refused.is_none());
+        let size = planned.map_or(R::measure_size(&decisions), |(_, d)| R::measure_size(&d));
+        // The figures kept with the files depend on these conditions too.
+        let at = json!({ "key": key, "measured_at": R::relevant_needs(measured), "size": size });
+        key = crate::asset::hash_hex(at.to_string().as_bytes());
+        size
+    } else {
+        R::measure_size(&decisions)
+    };
     let mut cache_note = None;
     if !options.force && dir.join(DESCRIPTION_FILE).exists() {
         let opened = AssetReader::open(&dir);
@@ -914,7 +935,7 @@ fn build_one<'a, R: Representation>(
         // Measure what a renderer would load: the files just written.
         let measuring = crate::profile::timer("measure");
         let loaded = R::read(&AssetReader::open(&dir)?)?;
-        let (measurement, pictures) = R::measure(&loaded, needs, source)?;
+        let (measurement, pictures) = R::measure(&loaded, measured, measure_size, source)?;
         measuring.stop();
         let _reporting = crate::profile::timer("report");
         let mut written = Vec::new();
@@ -973,7 +994,7 @@ fn write_report(summary: &RunSummary, options: &RunOptions) -> Result<(), Pipeli
         env!("CARGO_PKG_VERSION"),
         summary.wall_seconds,
         if options.everything {
-            " (needs ignored: everything computed)"
+            " (needs ignored when building: everything computed; measured as the plan for the needs measures, at their directions and the sizes it chooses, so the figures compare with a planned run's)"
         } else {
             ""
         },

@@ -524,9 +524,14 @@ impl Representation for PyramidRepr {
         })
     }
 
+    fn measure_size(_: &PyramidDecisions) -> usize {
+        0
+    }
+
     fn measure(
         data: &PyramidAsset,
         needs: &Needs,
+        _size: usize,
         source: &Source,
     ) -> Result<(Measurement, Vec<Picture>), PipelineError> {
         let tex = source.texture()?;

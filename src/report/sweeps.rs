@@ -488,7 +488,9 @@ pub fn octree(quick: bool) -> Result<RepresentationReport, ReportError> {
         };
         let (_, decisions) = OctreeRepr::plan(&spec, &needs, &source).map_err(&e)?;
         let (tree, build) = OctreeRepr::build(&spec, &needs, &decisions, &source).map_err(&e)?;
-        let (m, _) = OctreeRepr::measure(&tree, &needs, &source).map_err(&e)?;
+        let (m, _) =
+            OctreeRepr::measure(&tree, &needs, OctreeRepr::measure_size(&decisions), &source)
+                .map_err(&e)?;
         let secs =
             build["voxelize_s"].as_f64().unwrap_or(0.0) + build["build_s"].as_f64().unwrap_or(0.0);
         let mut p = Point::new(R, rule, format!("{n}³"));

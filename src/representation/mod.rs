@@ -294,6 +294,11 @@ pub struct Measurement {
     /// hole filling of images with parallax); empty when there is one kind of march.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub steps_split: Vec<(String, f64)>,
+    /// Picture side (pixels) the figures were measured at, before any widening for views off the
+    /// horizontal ([`Representation::measure_size`]; 0 for pyramids, measured at the needs'
+    /// screen sizes).
+    #[serde(default)]
+    pub size: usize,
     /// Mean PSNR (dB) of the representation's exact renderer over the same views, where the
     /// figures above come from the renderer a display runs (a bounded march): the two draw the
     /// same image by design, so a gap of more than [`EXACT_GAP_DB`] flags a broken renderer or
@@ -371,11 +376,21 @@ pub trait Representation {
     /// Reads the data back from a verified asset folder.
     fn read(r: &AssetReader) -> Result<Self::Data, PipelineError>;
 
-    /// Measures the (loaded) data against the ray-cast ground truth at angles the scene needs,
-    /// returning the figures and pictures for the report.
+    /// The picture side (pixels) at which data built with `decisions` is measured: the view,
+    /// texture or voxel size the plan chose, as [`Representation::measure`] draws it. A run
+    /// that ignores the needs (`--everything`) measures its larger data at the size the plan
+    /// for the needs would have chosen, so the two runs' figures compare. Pyramids, measured at
+    /// the needs' screen sizes, return 0.
+    fn measure_size(decisions: &Self::Decisions) -> usize;
+
+    /// Measures the (loaded) data against the ray-cast ground truth at the directions `needs`
+    /// asks for, drawn `size` pixels across ([`Representation::measure_size`]; data larger than
+    /// that is drawn minified, as a display would at that screen size), returning the figures
+    /// and pictures for the report.
     fn measure(
         data: &Self::Data,
         needs: &Needs,
+        size: usize,
         source: &Source,
     ) -> Result<(Measurement, Vec<Picture>), PipelineError>;
 }
@@ -670,6 +685,7 @@ pub fn fold(method: String, scores: &[(f64, f64)], steps: Option<f64>) -> Measur
         iou: scores.iter().map(|s| s.1).sum::<f64>() / n,
         mean_steps: steps,
         steps_split: Vec::new(),
+        size: 0,
         exact_psnr_db: None,
     }
 }

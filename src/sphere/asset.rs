@@ -421,14 +421,19 @@ impl Representation for SphereRepr {
             .map_err(|e| r.content(format!("stored frames: {e}")).into())
     }
 
+    fn measure_size(d: &SphereDecisions) -> usize {
+        d.size.clamp(32, 256)
+    }
+
     fn measure(
         data: &SphereImages,
         needs: &Needs,
+        size: usize,
         source: &Source,
     ) -> Result<(Measurement, Vec<Picture>), PipelineError> {
         let shape = source.shape()?;
         let dirs = measure_directions(needs, data.params.set.coverage, 8);
-        let size = data.params.size.clamp(32, 256);
+        let size = size.clamp(1, 4096);
         let params = SphereMeasureParams {
             directions: dirs.len(),
             render: SphereRenderParams {
@@ -477,6 +482,7 @@ impl Representation for SphereRepr {
                 iou: m.ours.iou_mean,
                 mean_steps: Some(m.ours.steps_mean),
                 steps_split: Vec::new(),
+                size,
                 exact_psnr_db: None,
             },
             pictures,

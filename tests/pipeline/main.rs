@@ -166,7 +166,7 @@ fn pyramid_files_read_back_bit_for_bit_and_measure_well() {
         // The levels kept still serve every needed view: against the supersampled truth at
         // tilts up to the grazing angle, at least 20 dB (an RMS error of 0.1 on values in
         // [0, 1]; the texture's own standard deviation is about 0.25).
-        let (m, _) = PyramidRepr::measure(&loaded, &needs, &src).unwrap();
+        let (m, _) = PyramidRepr::measure(&loaded, &needs, 0, &src).unwrap();
         assert!(m.worst_psnr_db > 20.0, "{kind:?}: {m:?}");
         assert!(m.psnr_db.is_finite());
     }

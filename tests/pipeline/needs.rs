@@ -18,7 +18,7 @@ fn measured<R: Representation>(
         return (plan, None);
     }
     let (data, _) = R::build(spec, needs, &dec, src).unwrap();
-    let (m, _) = R::measure(&data, needs, src).unwrap();
+    let (m, _) = R::measure(&data, needs, R::measure_size(&dec), src).unwrap();
     (plan, Some(m))
 }
 

@@ -63,9 +63,11 @@ fn second_run_is_cached_and_one_changed_parameter_rebuilds_one_asset() {
     assert_abs_diff_eq!(stored.iou, pear.iou, epsilon = 1e-12);
     let chair_shape = scene_shape("chair").unwrap();
     let chair_files = AssetReader::open(&dir.path().join("chair/octree")).unwrap();
+    let chair_tree = OctreeRepr::read(&chair_files).unwrap();
     let (chair, _) = OctreeRepr::measure(
-        &OctreeRepr::read(&chair_files).unwrap(),
+        &chair_tree,
         &m.assets[1].needs,
+        1 << chair_tree.depth(),
         &source("chair", &chair_shape),
     )
     .unwrap();
@@ -151,6 +153,7 @@ fn remeasure_pear_parallax(m: &Manifest, folder: &Path) -> altrep::pipeline::Mea
         iou,
         mean_steps: None,
         steps_split: Vec::new(),
+        size: 0,
         exact_psnr_db: None,
     }
 }
@@ -1078,11 +1081,12 @@ fn a_renderer_far_below_its_exact_renderer_is_flagged() {
         let (_, d) = Parallax::plan(&spec, &needs, &src).unwrap();
         Parallax::build(&spec, &needs, &d, &src).unwrap().0
     };
+    let size = 32;
     let (mut data, pear_data) = (build("truck", &truck), build("pear", &pear));
-    let (m, _) = Parallax::measure(&data, &needs, &source("truck", &truck)).unwrap();
+    let (m, _) = Parallax::measure(&data, &needs, size, &source("truck", &truck)).unwrap();
     assert_eq!(m.exact_psnr_db, Some(m.psnr_db));
     data.bounds = pear_data.bounds;
-    let (broken, _) = Parallax::measure(&data, &needs, &source("truck", &truck)).unwrap();
+    let (broken, _) = Parallax::measure(&data, &needs, size, &source("truck", &truck)).unwrap();
     let exact = broken.exact_psnr_db.unwrap();
     eprintln!(
         "truck: bounded march {:.2} dB = exact {:.2} dB; with the pear's bounds {:.2} dB",
@@ -1111,4 +1115,40 @@ fn a_renderer_far_below_its_exact_renderer_is_flagged() {
         table.contains(&format!("built, below its exact renderer's {exact:.2} dB")),
         "{table}"
     );
+}
+
+/// `--everything` builds every view, level and channel the needs would skip, but measures as the
+/// plan for the needs would: at the needs' directions, drawn at the sizes the plan chooses
+/// (larger data drawn minified, as a display draws it there). The two runs' figures therefore
+/// compare, representation by representation: the same size, the same directions; what differs
+/// is only what was built.
+#[test]
+fn everything_is_measured_at_the_planned_conditions() {
+    let scene = "[[asset]]\nname = \"pear\"\nshape = \"pear\"\n[asset.needs]\nazimuth_deg = [0, 120]\nscreen_px = [4, 16]\nlighting = \"baked\"\n[asset.parallax]\nviews = 8\nsize = 64\nbounds = [\"zminmax\"]\n[asset.cylinder]\ncolumns = 128\nrows = 64\n[asset.octree]\nresolution = 64\n\n[[asset]]\nname = \"truck\"\nshape = \"truck\"\n[asset.needs]\nelevation_deg = [20, 60]\nscreen_px = [4, 32]\n[asset.sphere]\ngrid = 4\nsize = 64\n\n[[asset]]\nname = \"grain\"\ntest_texture = { size = 64, seed = 2 }\n[asset.needs]\nscreen_px = [4, 16]\ngrazing_deg = 60\n[asset.pyramid]\nwrap = [\"Repeat\", \"Repeat\"]\n";
+    let dir = tempfile::tempdir().unwrap();
+    let m = Manifest::parse(scene, &dir.path().join("scene.toml")).unwrap();
+    let planned = run_scene(&m, &options(&dir.path().join("planned"))).unwrap();
+    let mut all = options(&dir.path().join("all"));
+    all.everything = true;
+    let everything = run_scene(&m, &all).unwrap();
+    let mut compared = 0;
+    for (p, e) in planned.outcomes.iter().zip(&everything.outcomes) {
+        assert_eq!((&p.asset, &p.representation), (&e.asset, &e.representation));
+        let (Some(mp), Some(me)) = (&p.measurement, &e.measurement) else {
+            panic!("{}/{}: not measured", p.asset, p.representation);
+        };
+        eprintln!(
+            "{}/{}: planned {:.2} dB ({} B), everything {:.2} dB ({} B), at {}²",
+            p.asset, p.representation, mp.psnr_db, p.bytes, me.psnr_db, e.bytes, mp.size
+        );
+        assert_eq!(mp.size, me.size, "{}/{}", p.asset, p.representation);
+        assert!(e.bytes > p.bytes, "{}/{}", p.asset, p.representation);
+        assert!(mp.psnr_db.is_finite() && me.psnr_db.is_finite());
+        compared += 1;
+    }
+    assert_eq!(compared, 5);
+    // The sizes are those a planned run picks, below what `--everything` built.
+    let size = |o: &altrep::pipeline::AssetOutcome| o.measurement.as_ref().unwrap().size;
+    let sizes: Vec<usize> = planned.outcomes.iter().map(size).collect();
+    assert_eq!(sizes, [16, 16, 16, 32, 0]);
 }

@@ -652,7 +652,6 @@ impl Representation for Parallax {
                     supersample: 1,
                     light: source.light,
                     mip: true,
-                    ..RenderParams::native(images)
                 }
             } else {
                 RenderParams {

@@ -389,16 +389,14 @@ impl Representation for Cylinder {
         for (i, &view) in measure_views(needs, 4).iter().enumerate() {
             let angle = view.azimuth;
             let reference = window.truth(source, view, 3)?;
-            let mut render = data.bounds.render(
-                &data.texture,
-                &CylinderRenderParams {
-                    angle,
-                    width: size,
-                    height: size,
-                    supersample: 1,
-                    light: source.light,
-                },
-            )?;
+            let params = CylinderRenderParams {
+                angle,
+                width: size,
+                height: size,
+                supersample: 1,
+                light: source.light,
+            };
+            let mut render = data.bounds.render(&data.texture, &params)?;
             render.image = window.place(&render.image);
             steps += render.steps;
             samples += (render.sub_width * render.sub_height) as u64;
@@ -406,13 +404,7 @@ impl Representation for Cylinder {
             let exact_image = render_exact(
                 &data.texture,
                 ExactMethod::Inverse(RadiusModel::General),
-                &CylinderRenderParams {
-                    angle,
-                    width: size,
-                    height: size,
-                    supersample: 1,
-                    light: source.light,
-                },
+                &params,
             )?
             .image;
             exact.push(window.score(&window.place(&exact_image), &reference)?);

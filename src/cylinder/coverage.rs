@@ -33,14 +33,15 @@
 //! the table is in docs/design.md §6.6): the 7 below one half are flat cards, their
 //! arrangements and a cluster of trees, each with a worst view at or below 16.7 dB.
 //!
-//! Cost: the check casts `2 · angles · size² · k²` single rays; the figure `angles` silhouettes
+//! Cost: the check traces `angles` views of `size² · k²` rays and one capture ray per hit; the
+//! figure `angles` silhouettes
 //! (`size²·k²` occlusion rays each) and `angles` direct warps.
 
 use std::f64::consts::TAU;
 
 use altrep_data_gen::{
-    BoundingCylinder, Light, PixelGrid, Ray, RgbaImage, Shape, TruthParams, direction,
-    render_silhouette, screen_right,
+    BoundingCylinder, Light, PixelGrid, Ray, RgbaImage, Shape, TruthParams, ViewParams,
+    capture_view, direction, render_silhouette, screen_right,
 };
 use glam::DVec3;
 use serde::{Deserialize, Serialize};
@@ -278,8 +279,8 @@ pub fn coverage(
 /// size or prefilter: the planner and `altrep cylinder` check the object with it and agree.
 ///
 /// Errors: invalid parameters or cylinder, [`CylinderError::NothingVisible`] when no angle
-/// sees the object. Cost: `2 · angles · size² · k²` single rays ([`Shape::intersect`]), rows in
-/// parallel.
+/// sees the object. Cost: `angles · size² · k²` view rays, traced together
+/// ([`capture_view`]), and as many single capture rays ([`Shape::intersect`]), in parallel.
 /// Smallest `|cos|` between a capture ray and the surface it holds: a capture ray meeting the
 /// surface within ~11.5° of grazing (a face nearly holding the axis) samples it too thinly to
 /// count.
@@ -295,51 +296,57 @@ pub fn radial_visibility(
     cylinder.validate()?;
     let (k, size) = (params.supersample, params.size);
     let radius = cylinder.radius;
-    let grid = PixelGrid {
-        width: size,
-        height: size,
+    // One check pixel: the tolerance on where a capture ray meets the surface.
+    let tol = 2.0 * radius / size as f64;
+    // Whether the capture ray through `p` holds it: its first hit is `p`, not grazing.
+    let holds = |p: DVec3| {
+        let r_p = p.x.hypot(p.z);
+        if r_p <= tol {
+            return true;
+        }
+        let outward = DVec3::new(p.x / r_p, 0.0, p.z / r_p);
+        let capture = Ray::new(DVec3::new(0.0, p.y, 0.0) + 2.0 * radius * outward, -outward);
+        // The capture ray passes through `p` at `t = 2R − r_p`: a first hit before it is an
+        // outer surface hiding `p`; none near it, a ray grazing the surface (a face holding the
+        // axis), which the texture does not hold either.
+        shape
+            .intersect(&capture, 0.0, 4.0 * radius)
+            .is_some_and(|f| {
+                (f.t - (2.0 * radius - r_p)).abs() <= tol
+                    && f.normal.dot(outward).abs() >= MIN_CAPTURE_COSINE
+            })
+    };
+    // The `k × k` sub-sample rays of a `size²` view are the pixel-centre rays of a view `k`
+    // times finer: the truth's rays, captured together.
+    let fine = PixelGrid {
+        width: size * k,
+        height: size * k,
         cylinder,
     };
-    let tol = grid.pitch_x();
-    let sub = |i: usize| (i / k) as f64 + ((i % k) as f64 + 0.5) / k as f64;
     let mut per_angle = Vec::with_capacity(params.angles);
     let (mut seen, mut held) = (0u64, 0u64);
     for n in 0..params.angles {
         let angle = params.angle(n);
+        let view = capture_view(
+            shape,
+            &ViewParams {
+                angle,
+                width: fine.width,
+                height: fine.height,
+                cylinder,
+            },
+        )?;
         let (d, right) = (direction(angle), screen_right(angle));
-        let (s, h) = (0..size * k)
-            .into_par_iter()
-            .map(|r| {
-                let y = grid.y_at(sub(r));
-                let (mut s, mut h) = (0u64, 0u64);
-                for c in 0..size * k {
-                    let start = grid.x_at(sub(c)) * right + DVec3::Y * y;
-                    let ray = Ray::new(start + 2.0 * radius * d, -d);
-                    let Some(hit) = shape.intersect(&ray, 0.0, 4.0 * radius) else {
-                        continue;
-                    };
-                    s += 1;
-                    let p = ray.at(hit.t);
-                    let r_p = p.x.hypot(p.z);
-                    if r_p <= tol {
-                        h += 1;
-                        continue;
-                    }
-                    let outward = DVec3::new(p.x / r_p, 0.0, p.z / r_p);
-                    let capture =
-                        Ray::new(DVec3::new(0.0, p.y, 0.0) + 2.0 * radius * outward, -outward);
-                    // The capture ray passes through `p` at `t = 2R − r_p`: a first hit before
-                    // it is an outer surface hiding `p`; none near it, a ray grazing the surface
-                    // (a face holding the axis), which the texture does not hold either.
-                    let first = shape.intersect(&capture, 0.0, 4.0 * radius);
-                    if first.is_some_and(|f| {
-                        (f.t - (2.0 * radius - r_p)).abs() <= tol
-                            && f.normal.dot(outward).abs() >= MIN_CAPTURE_COSINE
-                    }) {
-                        h += 1;
-                    }
-                }
-                (s, h)
+        let (s, h) = view
+            .samples
+            .par_iter()
+            .enumerate()
+            .filter_map(|(m, sample)| {
+                let sample = sample.as_ref()?;
+                let (x, y) = fine.center(m % fine.width, m / fine.width);
+                // The hit point: the sample's depth is its distance toward the camera over R.
+                let p = x * right + DVec3::Y * y + f64::from(sample.depth) * radius * d;
+                Some((1u64, u64::from(holds(p))))
             })
             .reduce(|| (0, 0), |a, b| (a.0 + b.0, a.1 + b.1));
         seen += s;

@@ -645,21 +645,13 @@ impl Representation for Parallax {
         for (i, &view) in measure_views(needs, 4).iter().enumerate() {
             let angle = view.azimuth;
             let reference = window.truth(source, view, 3)?;
-            let screen = if minified {
-                RenderParams {
-                    width: size,
-                    height: size,
-                    supersample: 1,
-                    light: source.light,
-                    mip: true,
-                }
-            } else {
-                RenderParams {
-                    supersample: 1,
-                    light: source.light,
-                    mip: false,
-                    ..RenderParams::native(images)
-                }
+            // At the views' own size this is `RenderParams::native`, point-sampled.
+            let screen = RenderParams {
+                width: size,
+                height: size * images.params.height / native,
+                supersample: 1,
+                light: source.light,
+                mip: minified,
             };
             // The exact inverse warp; where a bound is stored, the figures come from the
             // bounded march a display runs (the same image by design) and the warp's beside it.

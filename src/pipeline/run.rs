@@ -230,12 +230,9 @@ impl RunSummary {
                     } else {
                         "cached"
                     };
-                    match Self::below_exact_of(o) {
-                        Some((_, exact)) => {
-                            format!("{word}, below its exact renderer's {exact:.2} dB")
-                        }
-                        None => word.to_string(),
-                    }
+                    Self::below_exact_of(o).map_or(word.to_string(), |(_, exact)| {
+                        format!("{word}, below its exact renderer's {exact:.2} dB")
+                    })
                 }
                 (Outcome::Refused(r), _) => format!("skipped: {r}"),
                 (Outcome::Failed(m), _) => format!("FAILED: {m}"),

@@ -13,7 +13,9 @@
 
 pub mod manifest;
 pub mod memory;
+mod output;
 mod run;
+mod source;
 
 pub use crate::representation::{
     Lighting, Measurement, Needs, PipelineError, Plan, PlanItem, Representation, Source,

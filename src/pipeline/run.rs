@@ -1,19 +1,19 @@
 //! Running a scene: lock, plan, cache, build, write, read back, measure, report.
 
-use std::fs::File;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::time::Instant;
 
-use altrep_data_gen::{Light, Mesh, MeshLoadOptions, Shape, scene_shape};
+use altrep_data_gen::Light;
 use glam::Vec3;
 use rayon::prelude::*;
 use serde::Serialize;
 use serde_json::json;
 
-use super::manifest::{AssetSpec, Manifest, SourceSpec};
+use super::manifest::{AssetSpec, Manifest};
+use super::output::{io, prepare_output};
+use super::source::load_source;
 use crate::asset::{
-    AssetReader, AssetWriter, Conventions, DESCRIPTION_FILE, FORMAT_MAJOR, STAGING_DIR,
-    write_atomic,
+    AssetReader, AssetWriter, Conventions, DESCRIPTION_FILE, FORMAT_MAJOR, write_atomic,
 };
 use crate::representation::registry::for_each_representation;
 use crate::representation::{
@@ -24,7 +24,7 @@ use crate::representation::{
 pub const LOCK_FILE: &str = ".altrep.lock";
 
 /// How long a run waits for an output folder's lock before it reports the folder locked.
-const LOCK_PATIENCE: std::time::Duration = std::time::Duration::from_millis(500);
+pub(super) const LOCK_PATIENCE: std::time::Duration = std::time::Duration::from_millis(500);
 
 /// `--shard i/n`: this run handles the assets whose name hashes to `i` modulo `n`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -283,217 +283,6 @@ impl RunSummary {
             s += &format!("\nSteps per pixel count every march; in parentheses: {split}.\n");
         }
         s
-    }
-}
-
-/// Holds the output folder's lock for the run.
-struct OutputLock {
-    _file: File,
-}
-
-fn io(path: &Path) -> impl FnOnce(std::io::Error) -> PipelineError + '_ {
-    move |source| PipelineError::Io {
-        path: path.to_path_buf(),
-        source,
-    }
-}
-
-/// Creates `out`, takes its lock and clears leftovers of interrupted runs. Errors: the folder
-/// cannot be created or written, another run holds the lock.
-fn prepare_output(out: &Path) -> Result<OutputLock, PipelineError> {
-    std::fs::create_dir_all(out).map_err(io(out))?;
-    let lock_path = out.join(LOCK_FILE);
-    // A folder altrep has run in holds its lock file. In any other folder, the names altrep
-    // writes at the top must be free; and a symbolic link is never written through. Whether the
-    // lock file exists is asked again when a name is found: a run that started beside this one
-    // since (it will hold the lock) creates its lock file before any other name.
-    let ran_here = lock_path.exists();
-    for name in [
-        "report.md",
-        "report.json",
-        "pictures",
-        STAGING_DIR,
-        LOCK_FILE,
-    ] {
-        let path = out.join(name);
-        let Ok(meta) = std::fs::symlink_metadata(&path) else {
-            continue;
-        };
-        let reason = if meta.file_type().is_symlink() {
-            "is a symbolic link, which altrep does not follow"
-        } else if !ran_here && !lock_path.exists() {
-            "exists in a folder altrep has not written into (no lock file)"
-        } else if (name == "pictures" || name == STAGING_DIR) != meta.is_dir() {
-            "is not what altrep writes under this name"
-        } else {
-            continue;
-        };
-        return Err(crate::asset::AssetError::NotOurs {
-            path,
-            reason: reason.into(),
-        }
-        .into());
-    }
-    let file = File::options()
-        .create(true)
-        .truncate(false)
-        .write(true)
-        .open(&lock_path)
-        .map_err(io(&lock_path))?;
-    // A process spawned by another thread of this program holds copies of its descriptors,
-    // and with them a lock this program just released, until it execs (microseconds, more on a
-    // loaded machine): a lock still held after `LOCK_PATIENCE` is another run's.
-    let waited = Instant::now();
-    loop {
-        match file.try_lock() {
-            Ok(()) => break,
-            Err(std::fs::TryLockError::WouldBlock) if waited.elapsed() < LOCK_PATIENCE => {
-                std::thread::sleep(std::time::Duration::from_millis(10));
-            }
-            Err(std::fs::TryLockError::WouldBlock) => {
-                return Err(PipelineError::Locked { path: lock_path });
-            }
-            Err(std::fs::TryLockError::Error(e)) => return Err(io(&lock_path)(e)),
-        }
-    }
-    let staging = out.join(STAGING_DIR);
-    if staging.exists() {
-        std::fs::remove_dir_all(&staging).map_err(io(&staging))?;
-    }
-    if ran_here {
-        clear_temporaries(out)?;
-    }
-    Ok(OutputLock { _file: file })
-}
-
-/// Removes the temporary files a run killed while it wrote the report or a picture left in
-/// `out` (`.report.md.tmpPID`, `pictures/.NAME.png.tmpPID`): files or links, never followed.
-fn clear_temporaries(out: &Path) -> Result<(), PipelineError> {
-    for dir in [out.to_path_buf(), out.join("pictures")] {
-        let top = dir == out;
-        let Ok(entries) = std::fs::read_dir(&dir) else {
-            continue;
-        };
-        for e in entries.flatten() {
-            let name = e.file_name();
-            let temporary = name
-                .to_str()
-                .and_then(crate::asset::temporary_of)
-                .is_some_and(|t| {
-                    if top {
-                        t == "report.md" || t == "report.json"
-                    } else {
-                        t.ends_with(".png")
-                    }
-                });
-            if temporary && e.file_type().is_ok_and(|t| !t.is_dir()) {
-                let path = e.path();
-                std::fs::remove_file(&path).map_err(io(&path))?;
-            }
-        }
-    }
-    Ok(())
-}
-
-/// What an asset is made of, once loaded.
-enum Loaded {
-    /// A shape or mesh, with a mesh's placement and the notes of its loader.
-    Geometry(
-        Box<dyn Shape + Send + Sync>,
-        Option<altrep_data_gen::Placement>,
-        Vec<String>,
-    ),
-    /// A texture.
-    Texture(crate::pyramid::Texture),
-}
-
-impl Loaded {
-    /// The [`Source`] of asset `name` lit by `light`.
-    fn source<'a>(&'a self, name: &'a str, light: Light) -> Source<'a> {
-        let (geometry, texture, placement) = match self {
-            Self::Geometry(g, p, _) => (Some(g.as_ref() as &(dyn Shape + Sync)), None, *p),
-            Self::Texture(t) => (None, Some(t), None),
-        };
-        Source {
-            name,
-            geometry,
-            texture,
-            light,
-            placement,
-        }
-    }
-
-    /// What the source's loader noted (features of the file not read).
-    fn notes(&self) -> &[String] {
-        match self {
-            Self::Geometry(_, _, n) => n,
-            Self::Texture(_) => &[],
-        }
-    }
-}
-
-/// Reads a texture file (PNG or EXR) as RGBA f32: 8- and 16-bit codes scaled to `[0, 1]`,
-/// values as stored (no colour conversion).
-fn load_texture(path: &Path) -> Result<(crate::pyramid::Texture, Vec<u8>), PipelineError> {
-    let bytes = std::fs::read(path).map_err(io(path))?;
-    let bad = |reason: String| PipelineError::TextureFile {
-        path: path.to_path_buf(),
-        reason,
-    };
-    let img = image::load_from_memory(&bytes)
-        .map_err(|e| bad(e.to_string()))?
-        .into_rgba32f();
-    let (w, h) = (img.width() as usize, img.height() as usize);
-    let tex =
-        crate::pyramid::Texture::new(w, h, 4, img.into_raw()).map_err(|e| bad(e.to_string()))?;
-    Ok((tex, bytes))
-}
-
-/// The geometry or texture of an asset and the hash of its input bytes.
-fn load_source(spec: &AssetSpec) -> Result<(Loaded, String), PipelineError> {
-    match &spec.source {
-        SourceSpec::Shape(name) => Ok((
-            Loaded::Geometry(Box::new(scene_shape(name)?), None, Vec::new()),
-            crate::asset::hash_hex(format!("shape:{name}").as_bytes()),
-        )),
-        SourceSpec::Mesh { path, up, node } => {
-            let bytes = std::fs::read(path).map_err(io(path))?;
-            let options = MeshLoadOptions {
-                up: *up,
-                node: node.clone(),
-                ..MeshLoadOptions::default()
-            };
-            let mesh = Mesh::from_bytes(&bytes, path, &options)?;
-            // The key covers the mesh file, every file it read (materials, buffers, images)
-            // and how it was read. A plain y-up OBJ without other files keeps the key of the
-            // mesh bytes alone.
-            let hash = if mesh.inputs().is_empty() && *up == Default::default() && node.is_none() {
-                crate::asset::hash_hex(&bytes)
-            } else {
-                let mut h = blake3::Hasher::new();
-                h.update(blake3::hash(&bytes).as_bytes());
-                h.update(format!("up:{up};node:{node:?}").as_bytes());
-                for (file, digest) in mesh.inputs() {
-                    let name = file
-                        .strip_prefix(path.parent().unwrap_or(path))
-                        .unwrap_or(file);
-                    h.update(name.to_string_lossy().as_bytes());
-                    h.update(digest.as_bytes());
-                }
-                h.finalize().to_hex().to_string()
-            };
-            let placement = Some(*mesh.placement());
-            let notes = mesh.notes().to_vec();
-            Ok((Loaded::Geometry(Box::new(mesh), placement, notes), hash))
-        }
-        SourceSpec::Texture(path) => {
-            let (tex, bytes) = load_texture(path)?;
-            Ok((Loaded::Texture(tex), crate::asset::hash_hex(&bytes)))
-        }
-        SourceSpec::TestTexture(t) => Ok((
-            Loaded::Texture(crate::pyramid::truth::test_texture(t.size, t.seed)),
-            crate::asset::hash_hex(format!("test_texture:{}:{}", t.size, t.seed).as_bytes()),
-        )),
     }
 }
 

@@ -20,35 +20,20 @@
 //! the second slot is 0: one march per fragment).
 
 use std::f64::consts::TAU;
-use std::path::Path;
 use std::time::Instant;
 
-use altrep::asset::AssetReader;
-use altrep::cylinder::asset::{Cylinder, CylinderData};
+use altrep::cylinder::asset::CylinderData;
 use altrep::cylinder::frame::{angular_pitch, ray_sectors, row_coordinate};
 use altrep::cylinder::{
     CylinderRenderParams, CylindricalTexture, MarchBounds, OffsetMode, OffsetTexture,
 };
 use altrep::fit::axis_weight;
-use altrep::representation::Representation;
 use altrep_data_gen::{Light, PixelGrid};
 
 use crate::offscreen::{self, Pipeline, storage};
 use crate::parallax::reals;
 use crate::shader::{Precision, Shader};
 use crate::{DisplayError, DrawnFrame, Gpu, invalid};
-
-/// Loads a cylindrical-texture asset folder (e.g. `out/pear/cylinder`) through the library's
-/// loader: `AssetReader::open` (checks the description and every file's hash) then
-/// `Cylinder::read`. Errors: [`DisplayError::Asset`] with the loader's message.
-pub fn load_cylinder(dir: &Path) -> Result<CylinderData, DisplayError> {
-    let err = |e: &dyn std::fmt::Display| DisplayError::Asset {
-        path: dir.display().to_string(),
-        reason: e.to_string(),
-    };
-    let reader = AssetReader::open(dir).map_err(|e| err(&e))?;
-    Cylinder::read(&reader).map_err(|e| err(&e))
-}
 
 /// How each fragment finds its surface point.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

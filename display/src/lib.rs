@@ -1,10 +1,11 @@
 //! # altrep-display: the thin wgpu display (docs/design.md §11)
 //!
 //! Draws what the precompute pipeline wrote, on the GPU, headless by default: an asset folder is
-//! loaded **only** through the library's loader ([`load_parallax`]: `AssetReader::open` then
-//! `Parallax::read`), uploaded, drawn into an offscreen texture and read back. The module fits
-//! nothing and reads no mesh. Each shader is the GPU twin of a CPU renderer of the library and
-//! can write its per-fragment march steps to a storage buffer, read back by the tests.
+//! loaded **only** through the library's loader ([`load`]: `AssetReader::open` then the
+//! representation's `read`; [`open`] for any folder), uploaded, drawn into an offscreen texture
+//! and read back. The module fits nothing and reads no mesh. Each shader is the GPU twin of a CPU
+//! renderer of the library and can write its per-fragment march steps to a storage buffer, read
+//! back by the tests.
 //!
 //! Representations drawn: images with parallax ([`parallax::ParallaxDisplay`], the twin of
 //! `altrep::parallax::{render, render_bounded}`), cylindrical impostors
@@ -45,8 +46,7 @@ use std::path::Path;
 use std::sync::{Arc, Mutex};
 
 use altrep::asset::AssetReader;
-use altrep::parallax::asset::{Parallax, ParallaxData};
-use altrep::representation::Representation;
+use altrep::representation::{AnyAsset, Representation};
 pub use altrep_data_gen::RgbaImage;
 pub use shader::Precision;
 pub use wgpu;
@@ -235,16 +235,28 @@ impl Gpu {
     }
 }
 
-/// Loads an images-with-parallax asset folder (e.g. `out/truck/parallax`) through the library's
-/// loader: `AssetReader::open` (checks the description and every file's hash) then
-/// `Parallax::read`. Errors: [`DisplayError::Asset`] with the loader's message.
-pub fn load_parallax(dir: &Path) -> Result<ParallaxData, DisplayError> {
-    let err = |e: &dyn std::fmt::Display| DisplayError::Asset {
+/// Loads an asset folder of representation `R` (e.g. `load::<Parallax>("out/truck/parallax")`)
+/// through the library's loader: [`AssetReader::open`] checks the description and every file's
+/// hash, then [`Representation::read`] decodes the data the display draws. Errors:
+/// [`DisplayError::Asset`] naming the folder, with the loader's message (a missing or altered
+/// file, another representation's folder, a newer format). Cost: one read of every file.
+pub fn load<R: Representation>(dir: &Path) -> Result<R::Data, DisplayError> {
+    let reader = AssetReader::open(dir).map_err(|e| asset_error(dir, &e))?;
+    R::read(&reader).map_err(|e| asset_error(dir, &e))
+}
+
+/// Loads any asset folder, whatever representation its `asset.json` names
+/// ([`altrep::representation::open`], the library's one list of representations). Errors and
+/// cost as [`load`].
+pub fn open(dir: &Path) -> Result<AnyAsset, DisplayError> {
+    altrep::representation::open(dir).map_err(|e| asset_error(dir, &e))
+}
+
+fn asset_error(dir: &Path, e: &dyn std::fmt::Display) -> DisplayError {
+    DisplayError::Asset {
         path: dir.display().to_string(),
         reason: e.to_string(),
-    };
-    let reader = AssetReader::open(dir).map_err(|e| err(&e))?;
-    Parallax::read(&reader).map_err(|e| err(&e))
+    }
 }
 
 /// One drawn frame read back from the GPU.

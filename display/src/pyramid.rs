@@ -12,21 +12,18 @@
 //! lookups to a storage buffer ([`PyramidFrame::scheme`], [`PyramidFrame::lookups`]).
 //!
 //! Data: mipmaps and ripmaps come from pyramid asset folders written by the pipeline, loaded only
-//! through the library's loader ([`load_pyramid`]: `AssetReader::open` + `PyramidRepr::read`).
+//! through the library's loader ([`load`](crate::load): `AssetReader::open` + `PyramidRepr::read`).
 //! The pipeline does not write fipmaps yet (its asset format has no sheared levels), so the fip
 //! panel takes an in-memory `FipMap` built by the caller with the library
 //! (`FipMap::build`); the display itself builds and fits nothing.
 
-use std::path::Path;
 use std::time::Instant;
 
-use altrep::asset::AssetReader;
-use altrep::pyramid::asset::{PyramidAsset, PyramidRepr};
+use altrep::pyramid::asset::PyramidAsset;
 use altrep::pyramid::truth::{PIXEL_ANGLE, PlaneView};
 use altrep::pyramid::{
     FipMap, Pyramid, PyramidData, PyramidParams, RipMap, Scheme, ShearAxis, WrapMode,
 };
-use altrep::representation::Representation;
 use altrep_data_gen::RgbaImage;
 use glam::DVec3;
 
@@ -78,18 +75,6 @@ pub struct PyramidFrame {
     pub lookups: Vec<u32>,
     /// Wall time of the draw and read-back (milliseconds; on lavapipe this is CPU emulation).
     pub millis: f64,
-}
-
-/// Loads a pyramid asset folder (e.g. `out/grain/pyramid`) through the library's loader:
-/// `AssetReader::open` (checks the description and every file's hash) then
-/// `PyramidRepr::read`. Errors: [`DisplayError::Asset`] with the loader's message.
-pub fn load_pyramid(dir: &Path) -> Result<PyramidAsset, DisplayError> {
-    let err = |e: &dyn std::fmt::Display| DisplayError::Asset {
-        path: dir.display().to_string(),
-        reason: e.to_string(),
-    };
-    let reader = AssetReader::open(dir).map_err(|e| err(&e))?;
-    PyramidRepr::read(&reader).map_err(|e| err(&e))
 }
 
 /// `pixels × pixels` lookup values (`channels` per pixel, row-major, as

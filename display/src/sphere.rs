@@ -21,12 +21,8 @@
 //! sphere, 1 at its back), and per fragment the texel fetches and flags are read back
 //! ([`SphereFrame`]).
 
-use std::path::Path;
 use std::time::Instant;
 
-use altrep::asset::AssetReader;
-use altrep::representation::Representation;
-use altrep::sphere::asset::SphereRepr;
 use altrep::sphere::{MAX_EXTRA_FRAMES, SphereImages, enclosing_frames, extra_frames};
 use altrep_data_gen::{Light, RgbaImage};
 use glam::DVec3;
@@ -35,18 +31,6 @@ use crate::offscreen::{self, Pipeline, storage};
 use crate::parallax::reals;
 use crate::shader::{Precision, Shader};
 use crate::{DisplayError, Gpu, invalid};
-
-/// Loads an any-direction asset folder (e.g. `out/truck-from-above/sphere`) through the
-/// library's loader: `AssetReader::open` (checks the description and every file's hash) then
-/// `SphereRepr::read`. Errors: [`DisplayError::Asset`] with the loader's message.
-pub fn load_sphere(dir: &Path) -> Result<SphereImages, DisplayError> {
-    let err = |e: &dyn std::fmt::Display| DisplayError::Asset {
-        path: dir.display().to_string(),
-        reason: e.to_string(),
-    };
-    let reader = AssetReader::open(dir).map_err(|e| err(&e))?;
-    SphereRepr::read(&reader).map_err(|e| err(&e))
-}
 
 /// What to draw.
 #[derive(Clone, Copy, Debug, PartialEq)]

@@ -24,7 +24,8 @@ use altrep_data_gen::{
 };
 use altrep_display::Precision;
 use altrep_display::check::{pixel_errors, quantile, write_artefacts};
-use altrep_display::cylinder::{CylinderDisplay, CylinderDraw, CylinderMode, load_cylinder};
+use altrep_display::cylinder::{CylinderDisplay, CylinderDraw, CylinderMode};
+use altrep_display::load;
 use altrep_display::{DisplayError, Gpu};
 use approx::assert_abs_diff_eq;
 
@@ -76,7 +77,7 @@ fn asset(shape: &str, dir: &Path) -> (CylinderData, OffsetTexture) {
         serde_json::Value::Null,
     )
     .unwrap();
-    let loaded = load_cylinder(&dir.join(shape).join(Cylinder::NAME)).unwrap();
+    let loaded = load::<Cylinder>(&dir.join(shape).join(Cylinder::NAME)).unwrap();
     let offsets = OffsetTexture::fit(
         &loaded.texture,
         &OffsetParams {
@@ -427,7 +428,7 @@ fn bad_draw_parameters_are_typed_errors() {
         Err(DisplayError::InvalidParameter { .. })
     ));
     assert!(matches!(
-        load_cylinder(&dir.path().join("nothing-here")),
+        load::<Cylinder>(&dir.path().join("nothing-here")),
         Err(DisplayError::Asset { .. })
     ));
     // The full turn: α and α + 2π draw the same frame.

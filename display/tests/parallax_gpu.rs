@@ -20,8 +20,9 @@ use altrep::pipeline::{Needs, Representation, Source};
 use altrep_data_gen::{BoundingCylinder, Light, TruthParams, render_truth, scene_shape};
 use altrep_display::Precision;
 use altrep_display::check::{pixel_errors, quantile, write_artefacts};
+use altrep_display::load;
 use altrep_display::parallax::{DrawParams, ParallaxDisplay};
-use altrep_display::{DisplayError, Gpu, load_parallax};
+use altrep_display::{DisplayError, Gpu};
 use approx::assert_abs_diff_eq;
 
 mod common;
@@ -68,7 +69,7 @@ fn asset(shape: &str, dir: &Path) -> ParallaxData {
         serde_json::Value::Null,
     )
     .unwrap();
-    load_parallax(&dir.join(shape).join(Parallax::NAME)).unwrap()
+    load::<Parallax>(&dir.join(shape).join(Parallax::NAME)).unwrap()
 }
 
 fn draw(kind: BoundKind, alpha: f64) -> DrawParams {
@@ -450,7 +451,7 @@ fn bad_draw_parameters_are_typed_errors() {
         );
     }
     assert!(matches!(
-        load_parallax(&dir.path().join("nothing-here")),
+        load::<Parallax>(&dir.path().join("nothing-here")),
         Err(DisplayError::Asset { .. })
     ));
 }

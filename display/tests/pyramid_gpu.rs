@@ -19,7 +19,8 @@ use altrep::pyramid::{FipMap, PyramidData, PyramidParams, Scheme, Texture, WrapM
 use altrep_data_gen::{Light, RgbaImage};
 use altrep_display::DisplayError;
 use altrep_display::check::{pixel_errors, quantile, write_artefacts};
-use altrep_display::pyramid::{PyramidDisplay, Sampler, load_pyramid, value_psnr, values_to_image};
+use altrep_display::load;
+use altrep_display::pyramid::{PyramidDisplay, Sampler, value_psnr, values_to_image};
 use approx::assert_abs_diff_eq;
 
 mod common;
@@ -93,7 +94,7 @@ fn asset(tex: &Texture, grazing: f64, dir: &Path) -> PyramidAsset {
         serde_json::Value::Null,
     )
     .unwrap();
-    load_pyramid(&dir.join(&name).join(PyramidRepr::NAME)).unwrap()
+    load::<PyramidRepr>(&dir.join(&name).join(PyramidRepr::NAME)).unwrap()
 }
 
 struct Setup {
@@ -403,7 +404,7 @@ fn bad_pyramid_inputs_are_typed_errors() {
     // Loading needs no GPU.
     let dir = tempfile::tempdir().unwrap();
     assert!(matches!(
-        load_pyramid(&dir.path().join("nothing-here")),
+        load::<PyramidRepr>(&dir.path().join("nothing-here")),
         Err(DisplayError::Asset { .. })
     ));
     assert!(values_to_image(&[0.0; 5], 1, 2).is_err());

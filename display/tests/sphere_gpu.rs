@@ -21,7 +21,8 @@ use altrep_data_gen::{Light, RgbaImage, scene_shape};
 use altrep_display::DisplayError;
 use altrep_display::Precision;
 use altrep_display::check::{pixel_errors, quantile, write_artefacts};
-use altrep_display::sphere::{SphereDisplay, SphereDraw, SphereFrame, load_sphere};
+use altrep_display::load;
+use altrep_display::sphere::{SphereDisplay, SphereDraw, SphereFrame};
 use approx::assert_abs_diff_eq;
 use glam::DVec3;
 
@@ -42,7 +43,7 @@ const CASES: [(&str, Coverage, SurfaceModel); 3] = [
 const SIZE: usize = 64;
 
 /// Captures `shape`, writes it with the pipeline's writer and loads it back through
-/// [`load_sphere`].
+/// [`load`].
 fn asset(shape: &str, coverage: Coverage, model: SurfaceModel, dir: &Path) -> SphereImages {
     let s = scene_shape(shape).unwrap();
     let params = SphereParams {
@@ -62,7 +63,7 @@ fn asset(shape: &str, coverage: Coverage, model: SurfaceModel, dir: &Path) -> Sp
         serde_json::Value::Null,
     )
     .unwrap();
-    load_sphere(&dir.join(shape).join(SphereRepr::NAME)).unwrap()
+    load::<SphereRepr>(&dir.join(shape).join(SphereRepr::NAME)).unwrap()
 }
 
 /// Test directions: a spiral over the coverage, straight down from above, and one frame's own
@@ -329,7 +330,7 @@ fn bad_draw_parameters_are_typed_errors() {
     }
     assert!(disp.render(gpu, &ok).is_ok());
     assert!(matches!(
-        load_sphere(&dir.path().join("nothing-here")),
+        load::<SphereRepr>(&dir.path().join("nothing-here")),
         Err(DisplayError::Asset { .. })
     ));
 }

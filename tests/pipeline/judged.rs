@@ -244,4 +244,25 @@ fn everything_is_measured_at_the_planned_conditions() {
     let size = |o: &altrep::pipeline::AssetOutcome| o.measurement.as_ref().unwrap().size;
     let sizes: Vec<usize> = planned.outcomes.iter().map(size).collect();
     assert_eq!(sizes, [16, 16, 16, 32, 0]);
+    // Every folder opens as what it is through the one list of representations, whichever it
+    // holds; a folder of something else is refused, naming it.
+    let mut opened = Vec::new();
+    for o in &planned.outcomes {
+        let folder = dir
+            .path()
+            .join("planned")
+            .join(&o.asset)
+            .join(&o.representation);
+        let any = altrep::representation::open(&folder).unwrap();
+        assert_eq!(any.name(), o.representation);
+        opened.push(any.name());
+    }
+    opened.sort_unstable();
+    let mut names = altrep::representation::NAMES.to_vec();
+    names.sort_unstable();
+    assert_eq!(opened, names);
+    let e = altrep::representation::open(&dir.path().join("planned"))
+        .err()
+        .unwrap();
+    assert!(e.to_string().contains("asset.json"), "{e}");
 }

@@ -27,7 +27,8 @@ use altrep::cylinder::{OffsetParams, OffsetTexture};
 use altrep::representation::{Needs, Representation, Source};
 use altrep_data_gen::{BoundingCylinder, Light, RgbaImage, TruthParams, render_truth, scene_shape};
 use altrep_display::Precision;
-use altrep_display::cylinder::{CylinderDisplay, CylinderDraw, CylinderMode, load_cylinder};
+use altrep_display::cylinder::{CylinderDisplay, CylinderDraw, CylinderMode};
+use altrep_display::load;
 use altrep_display::{Gpu, to_srgb8};
 use altrep_examples::window;
 use clap::Parser;
@@ -108,7 +109,7 @@ fn precompute(args: &Args) -> Result<CylinderData, String> {
     )
     .map_err(err)?;
     // Drawn from the files, through the library's loader, as any user would.
-    load_cylinder(&dir.join(&args.shape).join(Cylinder::NAME)).map_err(err)
+    load::<Cylinder>(&dir.join(&args.shape).join(Cylinder::NAME)).map_err(err)
 }
 
 fn run(args: &Args) -> Result<(), String> {
@@ -122,7 +123,7 @@ fn run(args: &Args) -> Result<(), String> {
         return Err(format!("--size {} must be in 1..=4096", args.size));
     }
     let data = match &args.asset {
-        Some(dir) => load_cylinder(dir).map_err(err)?,
+        Some(dir) => load::<Cylinder>(dir).map_err(err)?,
         None => precompute(args)?,
     };
     // The library fits the offsets of the loaded texture (the fitted and hybrid modes only).

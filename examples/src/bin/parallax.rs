@@ -25,8 +25,9 @@ use altrep::parallax::asset::{Parallax, ParallaxData, ParallaxSpec};
 use altrep::representation::{Needs, Representation, Source};
 use altrep_data_gen::{BoundingCylinder, Light, RgbaImage, TruthParams, render_truth, scene_shape};
 use altrep_display::Precision;
+use altrep_display::load;
 use altrep_display::parallax::{DrawParams, ParallaxDisplay};
-use altrep_display::{Gpu, load_parallax, to_srgb8};
+use altrep_display::{Gpu, to_srgb8};
 use altrep_examples::window;
 use clap::Parser;
 use image::codecs::gif::{GifEncoder, Repeat};
@@ -92,7 +93,7 @@ fn precompute(args: &Args, kind: BoundKind) -> Result<ParallaxData, String> {
     )
     .map_err(|x| e(&x))?;
     // Drawn from the files, through the library's loader, as any user would.
-    load_parallax(&dir.join(&args.shape).join(Parallax::NAME)).map_err(|x| e(&x))
+    load::<Parallax>(&dir.join(&args.shape).join(Parallax::NAME)).map_err(|x| e(&x))
 }
 
 fn run(args: &Args) -> Result<(), String> {
@@ -101,7 +102,7 @@ fn run(args: &Args) -> Result<(), String> {
         .find(|k| k.slug() == args.bounds)
         .ok_or_else(|| format!("unknown --bounds {}", args.bounds))?;
     let data = match &args.asset {
-        Some(dir) => load_parallax(dir).map_err(|e| e.to_string())?,
+        Some(dir) => load::<Parallax>(dir).map_err(|e| e.to_string())?,
         None => precompute(args, kind)?,
     };
     let p = &data.images.params;

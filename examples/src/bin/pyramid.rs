@@ -24,7 +24,8 @@ use altrep::pyramid::truth::{PlaneView, footprints, supersampled_truth};
 use altrep::pyramid::{FipMap, PyramidData, PyramidParams, Texture, WrapMode};
 use altrep::representation::{Needs, Representation, Source};
 use altrep_data_gen::{Light, RgbaImage};
-use altrep_display::pyramid::{PyramidDisplay, Sampler, load_pyramid, value_psnr, values_to_image};
+use altrep_display::load;
+use altrep_display::pyramid::{PyramidDisplay, Sampler, value_psnr, values_to_image};
 use altrep_display::{Gpu, to_srgb8};
 use clap::Parser;
 
@@ -112,7 +113,7 @@ fn precompute(args: &Args, tex: &Texture, grazing: f64) -> Result<PyramidAsset, 
         serde_json::Value::Null,
     )
     .map_err(|x| e(&x))?;
-    load_pyramid(&dir.join(&name).join(PyramidRepr::NAME)).map_err(|x| e(&x))
+    load::<PyramidRepr>(&dir.join(&name).join(PyramidRepr::NAME)).map_err(|x| e(&x))
 }
 
 /// The CPU twin of a panel (the library's samplers at the same pixel footprints).

@@ -31,7 +31,8 @@ use altrep::sphere::{
 };
 use altrep_data_gen::{Light, RgbaImage, scene_shape};
 use altrep_display::Precision;
-use altrep_display::sphere::{SphereDisplay, SphereDraw, load_sphere};
+use altrep_display::load;
+use altrep_display::sphere::{SphereDisplay, SphereDraw};
 use altrep_display::{Gpu, to_srgb8};
 use altrep_examples::window;
 use clap::Parser;
@@ -114,12 +115,12 @@ fn precompute(args: &Args) -> Result<SphereImages, String> {
     )
     .map_err(|x| e(&x))?;
     // Drawn from the files, through the library's loader, as any user would.
-    load_sphere(&dir.join(&args.shape).join(SphereRepr::NAME)).map_err(|x| e(&x))
+    load::<SphereRepr>(&dir.join(&args.shape).join(SphereRepr::NAME)).map_err(|x| e(&x))
 }
 
 fn run(args: &Args) -> Result<(), String> {
     let images = match &args.asset {
-        Some(dir) => load_sphere(dir).map_err(|e| e.to_string())?,
+        Some(dir) => load::<SphereRepr>(dir).map_err(|e| e.to_string())?,
         None => precompute(args)?,
     };
     let screen = args.screen;

@@ -39,6 +39,19 @@ fn demo_writes_its_report() {
     }
     let md = std::fs::read_to_string(dir.path().join("report.md")).unwrap();
     assert!(md.contains("| truck |"));
+    // The bundled scene shows every representation of the library's one list: each has at
+    // least one asset folder in the demo's precomputed scene.
+    let scene: serde_json::Value = serde_json::from_str(
+        &std::fs::read_to_string(dir.path().join("scene/report.json")).unwrap(),
+    )
+    .unwrap();
+    let text = scene.to_string();
+    for name in altrep::representation::NAMES {
+        assert!(
+            text.contains(&format!("\"representation\":\"{name}\"")),
+            "the demo scene has no {name} asset"
+        );
+    }
 }
 
 #[test]

@@ -22,11 +22,7 @@ pub struct ReportArgs {
     #[arg(long)]
     pub quick: bool,
     /// Representations to sweep, comma-separated.
-    #[arg(
-        long,
-        value_delimiter = ',',
-        default_value = "fit,parallax,cylinder,slices,octree,pyramid"
-    )]
+    #[arg(long, value_delimiter = ',', default_values = REPRESENTATIONS)]
     pub only: Vec<String>,
     /// Mesh (.obj, .gltf or .glb) for the parallax and cylinder sweeps (default: the procedural truck and pear).
     #[arg(long)]

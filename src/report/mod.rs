@@ -59,13 +59,34 @@ pub enum ReportError {
         message: String,
     },
     /// An unknown representation name.
-    #[error("unknown representation '{0}': use fit, parallax, cylinder, slices, octree, pyramid")]
+    #[error("unknown representation '{0}': use {known}", known = REPRESENTATIONS.join(", "))]
     Unknown(String),
 }
 
+/// One sweep: the function measuring a representation's settings (see the table above).
+type SweepFn = fn(&ReportParams) -> Result<RepresentationReport, ReportError>;
+
+/// The report's one list of sweeps, in order: the names the command takes, its default, its
+/// error message and [`run`] all come from it.
+const SWEEPS: [(&str, SweepFn); 6] = [
+    ("fit", |p| fit(p.quick)),
+    ("parallax", |p| parallax(p.quick, p.mesh.as_deref())),
+    ("cylinder", |p| cylinder(p.quick, p.mesh.as_deref())),
+    ("slices", |p| slices(p.quick)),
+    ("octree", |p| octree(p.quick)),
+    ("pyramid", |p| pyramid(p.quick)),
+];
+
 /// The representations of the report, in order.
-pub const REPRESENTATIONS: [&str; 6] =
-    ["fit", "parallax", "cylinder", "slices", "octree", "pyramid"];
+pub const REPRESENTATIONS: [&str; SWEEPS.len()] = {
+    let mut names = [""; SWEEPS.len()];
+    let mut i = 0;
+    while i < SWEEPS.len() {
+        names[i] = SWEEPS[i].0;
+        i += 1;
+    }
+    names
+};
 
 /// What the report sweeps.
 #[derive(Clone, Debug)]
@@ -232,19 +253,12 @@ pub fn run(params: &ReportParams, progress: bool) -> Result<Report, ReportError>
     }
     let t0 = Instant::now();
     let mut representations = Vec::new();
-    for name in REPRESENTATIONS {
+    for (name, sweep) in SWEEPS {
         if !params.only.iter().any(|n| n == name) {
             continue;
         }
         let t = Instant::now();
-        let mut r = match name {
-            "fit" => fit(params.quick),
-            "parallax" => parallax(params.quick, params.mesh.as_deref()),
-            "cylinder" => cylinder(params.quick, params.mesh.as_deref()),
-            "slices" => slices(params.quick),
-            "octree" => octree(params.quick),
-            _ => pyramid(params.quick),
-        }?;
+        let mut r = sweep(params)?;
         r.seconds = t.elapsed().as_secs_f64();
         if progress {
             eprintln!(

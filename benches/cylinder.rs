@@ -17,6 +17,7 @@ use altrep::data_gen::{
     CylinderParams, Light, Shape, TruthParams, render_truth, scene_shape, shared_mesh,
 };
 use altrep::metrics::psnr;
+use altrep_data_gen::Supersample;
 use criterion::{Criterion, criterion_group, criterion_main};
 
 fn params() -> CylinderRenderParams {
@@ -24,7 +25,7 @@ fn params() -> CylinderRenderParams {
         angle: 0.9,
         width: 64,
         height: 64,
-        supersample: 1,
+        supersample: Supersample::ONE,
         light: Light::default(),
     }
 }
@@ -40,7 +41,7 @@ fn render(c: &mut Criterion) {
             angle: p.angle,
             width: p.width,
             height: p.height,
-            supersample: 4,
+            supersample: Supersample::of(4),
             light: p.light,
             cylinder: tex.cylinder(),
         },

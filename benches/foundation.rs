@@ -122,7 +122,7 @@ fn cylinder_rays(c: &mut Criterion) {
 /// renders now (`render_silhouette`, the same alpha bitwise), on one thread.
 fn coverage_truths(c: &mut Criterion) {
     let p = CoverageParams::default();
-    let rays = p.angles * (p.size * p.supersample).pow(2);
+    let rays = p.angles * (p.size * p.supersample.get()).pow(2);
     let mut g = c.benchmark_group("coverage_truths_8x48x48k2");
     g.throughput(Throughput::Elements(rays as u64));
     g.sample_size(10);

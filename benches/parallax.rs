@@ -6,6 +6,8 @@
 
 use std::hint::black_box;
 
+use altrep_data_gen::Supersample;
+
 use altrep::data_gen::{BoundingCylinder, Light, TruthParams, render_truth, scene_shape};
 use altrep::metrics::psnr;
 use altrep::parallax::{
@@ -24,7 +26,7 @@ fn bench(c: &mut Criterion) {
                 angle: alpha,
                 width: size,
                 height: size,
-                supersample: 1,
+                supersample: Supersample::ONE,
                 light,
                 cylinder: BoundingCylinder::default(),
             },

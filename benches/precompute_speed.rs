@@ -10,6 +10,8 @@
 use std::hint::black_box;
 use std::time::Duration;
 
+use altrep_data_gen::Supersample;
+
 use altrep::data_gen::{
     Mesh, MeshLoadOptions, VoxelParams, scene_shape, shared_mesh_paths, voxelize,
 };
@@ -54,7 +56,7 @@ fn octree(c: &mut Criterion) {
             min: glam::DVec3::new(-1.0, 0.0, -1.0),
             max: glam::DVec3::new(1.0, 2.0, 1.0),
             periodic: [false; 3],
-            supersample: 1,
+            supersample: Supersample::ONE,
         },
     )
     .expect("voxelises");

@@ -8,6 +8,7 @@ use altrep::data_gen::{
     CylinderParams, Light, RgbaImage, Shape, TruthParams, render_truth, scene_shape,
 };
 use altrep::metrics::{psnr, silhouette_iou};
+use altrep_data_gen::Supersample;
 
 /// Albedo prefilter of the captures (3 × 3 rays per texel, the library default).
 const PREFILTER: usize = 3;
@@ -36,7 +37,7 @@ fn params(angle: f64, size: usize, supersample: usize) -> CylinderRenderParams {
         angle,
         width: size,
         height: size,
-        supersample,
+        supersample: Supersample::of(supersample),
         light: Light::default(),
     }
 }

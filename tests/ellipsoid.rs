@@ -3,6 +3,8 @@
 
 use std::f64::consts::PI;
 
+use altrep_data_gen::Supersample;
+
 use altrep::ellipsoid::eigen::{
     adversarial_suite, adversarial_suite_f32, orthogonality_error, reconstruction_error,
     sym_eigen3, sym_eigen3_nalgebra,
@@ -725,7 +727,7 @@ fn octree_from_data_gen_volume_and_periodic_interiors() {
         min: glam::DVec3::new(-1.0, 0.0, -1.0),
         max: glam::DVec3::new(1.0, 2.0, 1.0),
         periodic: [false; 3],
-        supersample: 1,
+        supersample: Supersample::ONE,
     };
     let vol = voxelize(&shape, &vp).unwrap();
     let (tree, report) = Octree::build(&vol, &OctreeParams::default()).unwrap();

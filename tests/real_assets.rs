@@ -12,8 +12,8 @@ use std::path::{Path, PathBuf};
 
 use altrep::metrics::{CompareOptions, compare};
 use altrep_data_gen::{
-    BoundingCylinder, Light, Mesh, MeshLoadOptions, RgbaImage, Shape, TruthParams, ViewParams,
-    capture_view, render_truth, render_truth_at_points,
+    BoundingCylinder, Light, Mesh, MeshLoadOptions, RgbaImage, Shape, Supersample, TruthParams,
+    ViewParams, capture_view, render_truth, render_truth_at_points,
 };
 
 fn gltf_files(dir: &Path, out: &mut Vec<PathBuf>) {
@@ -65,7 +65,7 @@ fn view(angle: f64, size: usize, k: usize) -> TruthParams {
         angle,
         width: size,
         height: 2 * size,
-        supersample: k,
+        supersample: Supersample::of(k),
         light: Light::default(),
         cylinder: BoundingCylinder::default(),
     }

@@ -11,6 +11,7 @@ use altrep::slices::{
 use altrep::slices::{
     CurvedParams, ShapeParams, from_shape, render_curved_slices, render_curved_truth,
 };
+use altrep_data_gen::Supersample;
 use altrep_data_gen::{Albedo, Csg, Part, Primitive, SplitMix64};
 use approx::{assert_abs_diff_eq, assert_relative_eq};
 use glam::DVec3;
@@ -212,7 +213,7 @@ fn ball_of_constant_density_matches_the_closed_form_through_its_centre() {
     let rp = SliceRenderParams {
         width: 1,
         height: 1,
-        supersample: 1,
+        supersample: Supersample::ONE,
         pixel_voxels: 0.01,
         ..SliceRenderParams::default()
     };
@@ -325,7 +326,7 @@ fn merged_levels_are_exact_at_texel_centres_seen_straight_on() {
     let vol = test_tile(TestTile::Fur, 16, 5).unwrap();
     let (data, _) = build_slices(&vol, &SliceParams::default()).unwrap();
     let rp = SliceRenderParams {
-        supersample: 1,
+        supersample: Supersample::ONE,
         ..small_render(16)
     };
     for polar in [0.0, 180.0] {
@@ -351,7 +352,7 @@ fn nearest_reconstruction_makes_merges_exact_straight_on() {
     let (data, _) = build_slices(&vol, &SliceParams::default()).unwrap();
     let rp = SliceRenderParams {
         filter: SliceReconstruction::Nearest,
-        supersample: 3,
+        supersample: Supersample::of(3),
         ..small_render(16)
     };
     let truth_params = VolumeTruthParams {
@@ -382,13 +383,13 @@ fn slice_mipmaps_reduce_aliasing_at_a_distance() {
         width: 16,
         height: 16,
         pixel_voxels: 4.0,
-        supersample: 8,
+        supersample: Supersample::of(8),
         ..SliceRenderParams::default()
     };
     let view = StackView::degrees(30.0, 30.0);
     let truth = render_truth(&vol, &view, &far, &VolumeTruthParams::default()).unwrap();
     let one = |mip_2d| SliceRenderParams {
-        supersample: 1,
+        supersample: Supersample::ONE,
         mip_2d,
         ..far.clone()
     };
@@ -825,7 +826,7 @@ proptest! {
         let (data, report) = build_slices(&vol, &params).unwrap();
         prop_assert!(report.opacity_error_max.is_finite());
         let view = StackView::degrees(polar, azimuth);
-        let rp = SliceRenderParams { width: 4, height: 4, supersample: 1, ..SliceRenderParams::default() };
+        let rp = SliceRenderParams { width: 4, height: 4, supersample: Supersample::ONE, ..SliceRenderParams::default() };
         let images = [
             render_slices(&data, Axis::ALL[axis], level, &view, &rp),
             render_truth(&vol, &view, &rp, &VolumeTruthParams { steps_per_voxel: 2, ..VolumeTruthParams::default() }),
@@ -898,7 +899,7 @@ fn curved_patch_shells_follow_the_curved_truth() {
     };
     let params = CurvedParams {
         width: 48,
-        supersample: 2,
+        supersample: Supersample::of(2),
         tilt_deg: 20.0,
         ..CurvedParams::default()
     };

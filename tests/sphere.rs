@@ -11,6 +11,7 @@ use altrep::sphere::{
     SurfaceModel, ViewSet, check_bounds, fibonacci_directions, measure, render,
     render_engine_baseline, truth_images,
 };
+use altrep_data_gen::Supersample;
 use approx::assert_abs_diff_eq;
 use glam::DVec3;
 
@@ -26,7 +27,7 @@ fn a_frame_warped_at_its_own_direction_reproduces_it() {
         let img = images(name, 4, 32);
         let params = SphereRenderParams {
             size: 32,
-            samples: 1,
+            supersample: Supersample::ONE,
             ..SphereRenderParams::default()
         };
         for k in [0, 5, 6, 15] {
@@ -99,7 +100,7 @@ fn a_new_direction_matches_a_fresh_capture_there() {
         {
             let params = SphereRenderParams {
                 size: 64,
-                samples: 1,
+                supersample: Supersample::ONE,
                 ..SphereRenderParams::default()
             };
             let out = render(&img, d, &params).unwrap();
@@ -217,13 +218,14 @@ fn the_exact_warp_beats_the_engine_baseline_built_from_the_same_frames() {
             directions: 24,
             render: SphereRenderParams {
                 size: 64,
-                samples: 2,
+                supersample: Supersample::of(2),
                 ..SphereRenderParams::default()
             },
-            truth_supersample: 3,
+            truth_supersample: Supersample::of(3),
         };
         let dirs = fibonacci_directions(params.directions, Coverage::Hemisphere);
-        let truths = truth_images(&shape, &dirs, 64, 3, &params.render.light).unwrap();
+        let truths =
+            truth_images(&shape, &dirs, 64, Supersample::of(3), &params.render.light).unwrap();
         let m = measure(&img, &dirs, &truths, &params).unwrap();
         println!(
             "{name}: ours {:.2} dB (IoU {:.3}, {:.1} steps), baseline {:.2} dB (IoU {:.3})",
@@ -278,7 +280,7 @@ fn the_engine_baseline_at_a_frames_own_direction_shows_that_frame() {
     let img = images("truck", 4, 32);
     let params = SphereRenderParams {
         size: 32,
-        samples: 1,
+        supersample: Supersample::ONE,
         ..SphereRenderParams::default()
     };
     for k in [0, 5, 6] {
@@ -366,12 +368,12 @@ fn straight_down_into_a_cup_needs_a_frame_at_the_zenith() {
         directions: dirs.len(),
         render: SphereRenderParams {
             size: 64,
-            samples: 2,
+            supersample: Supersample::of(2),
             ..SphereRenderParams::default()
         },
-        truth_supersample: 3,
+        truth_supersample: Supersample::of(3),
     };
-    let truths = truth_images(&shape, &dirs, 64, 3, &params.render.light).unwrap();
+    let truths = truth_images(&shape, &dirs, 64, Supersample::of(3), &params.render.light).unwrap();
     let mut holes = Vec::new();
     for (g, floor) in [(4, 23.25), (5, 23.64), (8, 20.78), (9, 23.76)] {
         let img = SphereImages::capture(&shape, &SphereParams::hemisphere(g, 50).unwrap()).unwrap();
@@ -486,7 +488,7 @@ fn extra_frames_change_only_rays_no_enclosing_frame_sees_and_gain_against_the_tr
                 DVec3::new(a.cos(), e, a.sin()).normalize()
             })
             .collect();
-        let truths = truth_images(&s, &dirs, 64, 1, &light).unwrap();
+        let truths = truth_images(&s, &dirs, 64, Supersample::ONE, &light).unwrap();
         let (mut db0, mut db8, mut holes0, mut holes8) = (0.0, 0.0, 0, 0);
         for (d, truth) in dirs.iter().zip(&truths) {
             let rp = SphereRenderParams {

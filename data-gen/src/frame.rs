@@ -17,6 +17,7 @@
 //!
 //! [`screen_right`]: crate::screen_right
 
+use crate::Supersample;
 use glam::DVec3;
 
 use crate::capture::Sample;
@@ -245,12 +246,12 @@ pub fn render_truth_frame(
     frame: &OrthoFrame,
     width: usize,
     height: usize,
-    supersample: usize,
+    supersample: Supersample,
     light: &Light,
 ) -> Result<RgbaImage, DataGenError> {
     nonzero(width, "truth width")?;
     nonzero(height, "truth height")?;
-    let k = nonzero(supersample, "supersampling factor")?;
+    let k = supersample.get();
     let (columns, rows) = frame.grid(width, height, k);
     let ray = |c: usize, r: usize| frame.grid_ray(c, r, width, height, k);
     let rays = frame.parallel_rays(&columns, &rows, &ray);

@@ -54,6 +54,7 @@ mod rng;
 mod shape;
 mod shapes;
 mod shared;
+mod supersample;
 mod surface;
 #[cfg(test)]
 mod test_meshes;
@@ -81,6 +82,7 @@ pub use shape::{Csg, ParallelTracer, Part, Primitive, RayByRay, Shape, intersect
 pub use shapes::{SCENE_SHAPES, scene_shape};
 #[doc(hidden)]
 pub use shared::{shared_mesh, shared_mesh_paths, shared_meshes, skip, under_ci};
+pub use supersample::Supersample;
 pub use surface::{AlphaMode, Filter, Material, TextureImage, TextureRef, UvTransform, Wrap};
 pub use truth::{Light, TruthParams, render_silhouette, render_truth, render_truth_at_points};
 pub use volume::{Volume, Voxel, VoxelParams, voxelize};

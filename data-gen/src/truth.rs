@@ -1,5 +1,6 @@
 //! Ground truth: the original shape ray-cast orthographically, shaded, supersampled.
 
+use crate::Supersample;
 use glam::Vec3;
 
 use crate::error::{DataGenError, finite, nonzero};
@@ -46,8 +47,8 @@ pub struct TruthParams {
     pub width: usize,
     /// Image height (pixels).
     pub height: usize,
-    /// Supersampling `k`: `k × k` stratified rays per pixel (k ≥ 1).
-    pub supersample: usize,
+    /// Rays per pixel edge ([`Supersample`]: `k × k` stratified per pixel).
+    pub supersample: Supersample,
     /// The light.
     pub light: Light,
     /// The bounding cylinder the image spans.
@@ -58,7 +59,7 @@ pub struct TruthParams {
 /// sub-samples. Cost: `width × height × k²` rays, rows in parallel.
 pub fn render_truth(shape: &dyn Shape, params: &TruthParams) -> Result<RgbaImage, DataGenError> {
     let view = truth_view(params)?;
-    let (k, w, h) = (params.supersample, params.width, params.height);
+    let (k, w, h) = (params.supersample.get(), params.width, params.height);
     let ray = |c: usize, r: usize| view.ray(c, r);
     let rays = view.parallel_rays(&ray);
     let mut pixels = vec![[0.0f32; 4]; w * h];
@@ -113,7 +114,7 @@ pub fn render_silhouette(
     params: &TruthParams,
 ) -> Result<Vec<f32>, DataGenError> {
     let view = truth_view(params)?;
-    let (k, w, h) = (params.supersample, params.width, params.height);
+    let (k, w, h) = (params.supersample.get(), params.width, params.height);
     let ray = |c: usize, r: usize| view.ray(c, r);
     let rays = view.parallel_rays(&ray);
     let tracer = shape.parallel_tracer(&rays);
@@ -144,7 +145,6 @@ pub fn render_silhouette(
 fn truth_view(params: &TruthParams) -> Result<ViewGrid, DataGenError> {
     nonzero(params.width, "truth width")?;
     nonzero(params.height, "truth height")?;
-    nonzero(params.supersample, "supersampling factor")?;
     finite(params.angle, "view angle", 0)?;
     params.cylinder.validate()?;
     let grid = PixelGrid {
@@ -152,7 +152,7 @@ fn truth_view(params: &TruthParams) -> Result<ViewGrid, DataGenError> {
         height: params.height,
         cylinder: params.cylinder,
     };
-    Ok(ViewGrid::new(&grid, params.angle, params.supersample))
+    Ok(ViewGrid::new(&grid, params.angle, params.supersample.get()))
 }
 
 /// Shades the pixel rows of `pixels` (`w` per row) from the hits of their `k × k` sub-sample

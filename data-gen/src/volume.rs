@@ -6,6 +6,7 @@
 //! the shape. On a periodic axis the shape is tiled with the period of the box, so a shape that
 //! sticks out of one side comes back in on the other.
 
+use crate::Supersample;
 use glam::{DVec3, Vec3};
 use rayon::prelude::*;
 
@@ -44,8 +45,8 @@ pub struct VoxelParams {
     pub max: DVec3,
     /// Periodic (tileable) axes.
     pub periodic: [bool; 3],
-    /// Sub-samples per axis and voxel (`s`, at least 1): `s³` inside tests per voxel.
-    pub supersample: usize,
+    /// Inside tests per voxel edge ([`Supersample`]: `k³` per voxel).
+    pub supersample: Supersample,
 }
 
 /// A voxelised shape.
@@ -99,7 +100,7 @@ pub fn voxelize(shape: &dyn Shape, params: &VoxelParams) -> Result<Volume, DataG
     for (k, n) in params.dims.iter().enumerate() {
         nonzero(*n, ["volume dims x", "volume dims y", "volume dims z"][k])?;
     }
-    let s = nonzero(params.supersample, "voxel supersampling")?;
+    let s = params.supersample.get();
     for k in 0..3 {
         finite(params.min[k], "volume min", k)?;
         finite(params.max[k], "volume max", k)?;

@@ -6,7 +6,7 @@ use std::path::Path;
 
 use altrep_data_gen::gltf_write::{IDENTITY, TestGltf};
 use altrep_data_gen::{
-    DataGenError, Mesh, MeshLoadOptions, Ray, Shape, UpAxis, ViewParams, capture_view,
+    DataGenError, Mesh, MeshLoadOptions, Ray, Shape, Supersample, UpAxis, ViewParams, capture_view,
     srgb_to_linear,
 };
 use approx::assert_abs_diff_eq;
@@ -530,7 +530,7 @@ fn a_capture_reads_fine_textures_over_its_pixel_as_the_truth_does() {
         angle,
         width: w,
         height: h,
-        supersample,
+        supersample: Supersample::of(supersample),
         light,
         cylinder: Default::default(),
     };
@@ -571,7 +571,7 @@ fn voxels_of_a_textured_mesh_take_its_texture_colour() {
             min: lo - 0.05,
             max: hi + 0.05,
             periodic: [false; 3],
-            supersample: 2,
+            supersample: Supersample::of(2),
         },
     )
     .unwrap();

@@ -9,9 +9,9 @@
 
 use altrep_data_gen::{
     BoundingCylinder, Light, Mesh, MeshLoadOptions, OrthoFrame, ParallelRays, Ray, RayByRay,
-    RgbaImage, SCENE_SHAPES, Sample, Shape, TruthParams, ViewParams, capture_frame, capture_view,
-    intersect_parallel, render_silhouette, render_truth, render_truth_frame, scene_shape,
-    shared_meshes,
+    RgbaImage, SCENE_SHAPES, Sample, Shape, Supersample, TruthParams, ViewParams, capture_frame,
+    capture_view, intersect_parallel, render_silhouette, render_truth, render_truth_frame,
+    scene_shape, shared_meshes,
 };
 use glam::DVec3;
 
@@ -98,7 +98,7 @@ fn grid_captures_and_truths_are_those_of_the_ray_by_ray_walk() {
                 angle,
                 width: 48,
                 height: 40,
-                supersample: 3,
+                supersample: Supersample::of(3),
                 light: Light::default(),
                 cylinder,
             };
@@ -120,8 +120,8 @@ fn grid_captures_and_truths_are_those_of_the_ray_by_ray_walk() {
             pixels += g.samples.len();
             let light = Light::default();
             let (g, w) = (
-                render_truth_frame(mesh, &frame, 50, 50, 2, &light).unwrap(),
-                render_truth_frame(&walk, &frame, 50, 50, 2, &light).unwrap(),
+                render_truth_frame(mesh, &frame, 50, 50, Supersample::of(2), &light).unwrap(),
+                render_truth_frame(&walk, &frame, 50, 50, Supersample::of(2), &light).unwrap(),
             );
             differ += pixel_differences(&g, &w);
             pixels += g.pixels.len();
@@ -168,7 +168,7 @@ fn silhouettes_are_the_truths_alpha_bitwise() {
                 angle,
                 width: size,
                 height: size + 7,
-                supersample: k,
+                supersample: Supersample::of(k),
                 light: Light::default(),
                 cylinder: BoundingCylinder::default(),
             };

@@ -6,7 +6,9 @@
 
 use std::f64::consts::TAU;
 
-use altrep_data_gen::{Mesh, MeshLoadOptions, Shape, VoxelParams, shared_meshes, voxelize};
+use altrep_data_gen::{
+    Mesh, MeshLoadOptions, Shape, Supersample, VoxelParams, shared_meshes, voxelize,
+};
 use glam::DVec3;
 
 /// A closed torus (a hole through it, so parity rays cross up to four faces) of `n × m` quads.
@@ -64,7 +66,7 @@ fn check_rows(mesh: &Mesh) {
 /// and periodic image).
 fn per_point_density(shape: &dyn Shape, p: &VoxelParams) -> Vec<f32> {
     let [nx, ny, nz] = p.dims;
-    let s = p.supersample;
+    let s = p.supersample.get();
     let extent = p.max - p.min;
     let voxel = extent / DVec3::new(nx as f64, ny as f64, nz as f64);
     let range = |k: usize| if p.periodic[k] { -1..=1 } else { 0..=0 };
@@ -116,7 +118,7 @@ fn voxelisation_by_rows_gives_the_per_point_densities() {
                 min: DVec3::new(-1.0, 0.0, -1.0),
                 max: DVec3::new(1.0, 2.0, 0.9),
                 periodic,
-                supersample,
+                supersample: Supersample::of(supersample),
             };
             let v = voxelize(mesh, &params).unwrap();
             let want = per_point_density(mesh, &params);

@@ -28,7 +28,7 @@ use altrep::cylinder::{
     CylinderRenderParams, CylindricalTexture, MarchBounds, OffsetMode, OffsetTexture,
 };
 use altrep::fit::axis_weight;
-use altrep_data_gen::{Light, PixelGrid};
+use altrep_data_gen::{Light, PixelGrid, Supersample};
 
 use crate::offscreen::{self, Pipeline, storage};
 use crate::parallax::reals;
@@ -115,7 +115,7 @@ impl CylinderDisplay {
             let one = CylinderRenderParams {
                 width: 1,
                 height: 1,
-                supersample: 1,
+                supersample: Supersample::ONE,
                 ..CylinderRenderParams::default()
             };
             o.render(t, OffsetMode::Plain, 1.0, &one).map_err(|e| {

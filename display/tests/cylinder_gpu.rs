@@ -20,7 +20,8 @@ use altrep::cylinder::{
 use altrep::metrics::psnr;
 use altrep::pipeline::{Needs, Representation, Source};
 use altrep_data_gen::{
-    BoundingCylinder, Light, PixelGrid, RgbaImage, TruthParams, render_truth, scene_shape,
+    BoundingCylinder, Light, PixelGrid, RgbaImage, Supersample, TruthParams, render_truth,
+    scene_shape,
 };
 use altrep_display::Precision;
 use altrep_display::check::{pixel_errors, quantile, write_artefacts};
@@ -105,7 +106,7 @@ fn params(alpha: f64) -> CylinderRenderParams {
         angle: alpha,
         width: SIZE,
         height: SIZE,
-        supersample: 1,
+        supersample: Supersample::ONE,
         light: Light::default(),
     }
 }
@@ -349,7 +350,7 @@ fn gpu_psnr_against_ray_cast_truth_within_half_db_of_cpu_and_above_its_floor() {
                     angle: alpha,
                     width: SIZE,
                     height: SIZE,
-                    supersample: 4,
+                    supersample: Supersample::of(4),
                     light,
                     cylinder: BoundingCylinder::default(),
                 },

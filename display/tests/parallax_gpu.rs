@@ -17,7 +17,9 @@ use altrep::parallax::{
     render_bounded_with, render_with,
 };
 use altrep::pipeline::{Needs, Representation, Source};
-use altrep_data_gen::{BoundingCylinder, Light, TruthParams, render_truth, scene_shape};
+use altrep_data_gen::{
+    BoundingCylinder, Light, Supersample, TruthParams, render_truth, scene_shape,
+};
 use altrep_display::Precision;
 use altrep_display::check::{pixel_errors, quantile, write_artefacts};
 use altrep_display::load;
@@ -197,7 +199,7 @@ fn gpu_cylinder_march_matches_cpu_render_at_other_screen_sizes() {
             let screen = RenderParams {
                 width: w,
                 height: h,
-                supersample: 1,
+                supersample: Supersample::ONE,
                 light: Light::default(),
                 mip: false,
             };
@@ -259,7 +261,7 @@ fn gpu_original_reconstruction_matches_cpu_original() {
         let screen = RenderParams {
             width: 48,
             height: 40,
-            supersample: 1,
+            supersample: Supersample::ONE,
             light,
             mip: false,
         };
@@ -404,7 +406,7 @@ fn gpu_psnr_against_ray_cast_truth_within_half_db_of_cpu_and_above_its_floor() {
                     angle: alpha,
                     width: SIZE,
                     height: SIZE,
-                    supersample: 4,
+                    supersample: Supersample::of(4),
                     light,
                     cylinder: BoundingCylinder::default(),
                 },

@@ -17,7 +17,7 @@ use altrep::sphere::{
     Coverage, RenderOutput, SphereImages, SphereParams, SphereRenderParams, SurfaceModel, ViewSet,
     fibonacci_directions, render, truth_images,
 };
-use altrep_data_gen::{Light, RgbaImage, scene_shape};
+use altrep_data_gen::{Light, RgbaImage, Supersample, scene_shape};
 use altrep_display::DisplayError;
 use altrep_display::Precision;
 use altrep_display::check::{pixel_errors, quantile, write_artefacts};
@@ -264,7 +264,14 @@ fn gpu_psnr_against_ray_cast_truth_within_a_twentieth_of_a_db_of_the_cpu_and_abo
         let images = asset(shape, coverage, model, dir.path());
         let disp = SphereDisplay::new(gpu, &images, Precision::F32).unwrap();
         let dirs = directions(&images);
-        let truths = truth_images(&scene_shape(shape).unwrap(), &dirs, SIZE, 4, &light).unwrap();
+        let truths = truth_images(
+            &scene_shape(shape).unwrap(),
+            &dirs,
+            SIZE,
+            Supersample::of(4),
+            &light,
+        )
+        .unwrap();
         for (&d, truth) in dirs.iter().zip(&truths) {
             let frame = disp.render(gpu, &SphereDraw::new(d, SIZE)).unwrap();
             let (db_cpu, db_gpu) = (

@@ -10,8 +10,8 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use altrep_data_gen::{
-    BoundingCylinder, Light, RgbaImage, Shape, TruthParams, ViewParams, capture_view, render_truth,
-    scene_shape,
+    BoundingCylinder, Light, RgbaImage, Shape, Supersample, TruthParams, ViewParams, capture_view,
+    render_truth, scene_shape,
 };
 use indicatif::{ProgressBar, ProgressStyle};
 use serde_json::json;
@@ -152,7 +152,11 @@ fn captures_section(
     ctx: &DemoContext,
 ) -> Result<DemoSection, Box<dyn std::error::Error + Send + Sync>> {
     let dir = ctx.out.join("captures");
-    let (size, truth_size, k) = if ctx.quick { (32, 64, 2) } else { (64, 128, 4) };
+    let (size, truth_size, k) = if ctx.quick {
+        (32, 64, Supersample::of(2))
+    } else {
+        (64, 128, Supersample::of(4))
+    };
     let cylinder = BoundingCylinder::default();
     let mut rows = Vec::new();
     let mut md = String::from(
@@ -210,7 +214,7 @@ pub fn truth_image(
     shape: &dyn Shape,
     angle: f64,
     size: usize,
-    supersample: usize,
+    supersample: Supersample,
     light: Light,
     cylinder: BoundingCylinder,
 ) -> Result<RgbaImage, altrep_data_gen::DataGenError> {

@@ -277,9 +277,13 @@ pub fn demo_section(
     ctx: &super::demo::DemoContext,
 ) -> Result<super::demo::DemoSection, Box<dyn std::error::Error + Send + Sync>> {
     use crate::ellipsoid::octree::{Octree, OctreeRenderParams};
-    use altrep_data_gen::{VoxelParams, scene_shape, voxelize};
+    use altrep_data_gen::{Supersample, VoxelParams, scene_shape, voxelize};
 
-    let (n, supersample) = if ctx.quick { (32, 1) } else { (64, 2) };
+    let (n, supersample) = if ctx.quick {
+        (32, Supersample::ONE)
+    } else {
+        (64, Supersample::of(2))
+    };
     let shape = scene_shape("tree")?;
     let volume = voxelize(
         &shape,

@@ -9,7 +9,7 @@ use crate::parallax::{
     build_bounds, measure_quality, measure_quality_sweep, measure_steps, render,
     render_blend_baseline, render_offset_baseline,
 };
-use altrep_data_gen::{RgbaImage, scene_shape, srgb_to_linear};
+use altrep_data_gen::{RgbaImage, Supersample, scene_shape, srgb_to_linear};
 use serde_json::json;
 
 use super::CliResult;
@@ -192,9 +192,9 @@ fn run_sweep(
         "{}: reconstruction sweep against the ground truth ({} angles, {}×{} rays per pixel, the warp {} rays across × rows as filtered)\n\n{}",
         shape.name(),
         qp.angles,
-        qp.supersample,
-        qp.supersample,
-        qp.supersample,
+        qp.supersample.get(),
+        qp.supersample.get(),
+        qp.supersample.get(),
         sweep_markdown(&rows)
     );
     let images = ParallaxImages::capture(shape, &base)?;
@@ -226,7 +226,7 @@ fn run_sweep(
     }
     if let Some(path) = &args.json {
         let doc = json!({
-            "shape": shape.name(), "angles": qp.angles, "supersample": qp.supersample,
+            "shape": shape.name(), "angles": qp.angles, "supersample": qp.supersample.get(),
             "variants": Variant::standard(), "quality": rows, "steps": steps,
         });
         std::fs::write(path, serde_json::to_string_pretty(&doc)?)
@@ -329,8 +329,8 @@ pub fn run(args: ParallaxArgs) -> CliResult {
         println!(
             "\nImage quality against the ground truth ({} angles, {}×{} rays per pixel)\n\n{}",
             qp.angles,
-            qp.supersample,
-            qp.supersample,
+            qp.supersample.get(),
+            qp.supersample.get(),
             quality_markdown(&rows)
         );
         rows
@@ -443,14 +443,21 @@ pub fn demo_section(
     let screen = RenderParams {
         width: size,
         height: size,
-        supersample: 3,
+        supersample: Supersample::of(3),
         light: ctx.light,
         mip: true,
     };
     md += "Left to right: ground truth (3×3 rays), inverse warping, direct warping, one-step offset (same 8 views), blend of 64 views without parallax.\n\n| α (rad) | inverse PSNR dB | direct PSNR dB | offset PSNR dB | blend-64 PSNR dB | inverse IoU |\n|---|---|---|---|---|---|\n";
     let mut quality = Vec::new();
     for (n, alpha) in [0.35, 1.2, 2.6].into_iter().enumerate() {
-        let truth = truth_image(&shape, alpha, size, 3, ctx.light, params.cylinder)?;
+        let truth = truth_image(
+            &shape,
+            alpha,
+            size,
+            Supersample::of(3),
+            ctx.light,
+            params.cylinder,
+        )?;
         let inv = render(&images, alpha, WarpMethod::Inverse, &screen)?;
         let dirw = render(&images, alpha, WarpMethod::Direct, &screen)?;
         let off = render_offset_baseline(&images, alpha, &screen)?;

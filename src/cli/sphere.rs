@@ -3,6 +3,7 @@
 
 use std::path::PathBuf;
 
+use altrep_data_gen::Supersample;
 use serde_json::json;
 
 use super::CliResult;
@@ -40,12 +41,12 @@ pub struct SphereArgs {
     /// Output image side in pixels.
     #[arg(long, default_value_t = 128, value_parser = clap::value_parser!(u32).range(8..=4096))]
     pub out_size: u32,
-    /// s × s rays per output pixel, both methods.
+    /// Rays per output pixel edge, both methods: k × k rays per pixel.
     #[arg(long, default_value_t = 2, value_parser = clap::value_parser!(u32).range(1..=16))]
-    pub samples: u32,
-    /// k × k rays per pixel of the ground truth.
+    pub supersample: u32,
+    /// Rays per pixel edge of the ground truth: k × k rays per pixel.
     #[arg(long, default_value_t = 4, value_parser = clap::value_parser!(u32).range(1..=16))]
-    pub truth_samples: u32,
+    pub truth_supersample: u32,
     /// Flat texel tops instead of tangent planes.
     #[arg(long)]
     pub flat: bool,
@@ -111,13 +112,13 @@ pub fn run(args: SphereArgs) -> CliResult {
         directions: args.directions as usize,
         render: SphereRenderParams {
             size: args.out_size as usize,
-            samples: args.samples as usize,
+            supersample: Supersample::of(args.supersample as usize),
             use_bounds: !args.no_bounds,
             hole_depth: (args.hole_depth != 0.0).then_some(args.hole_depth),
             extra_frames: args.extra_frames,
             ..SphereRenderParams::default()
         },
-        truth_supersample: args.truth_samples as usize,
+        truth_supersample: Supersample::of(args.truth_supersample as usize),
     };
     // Bad render parameters (e.g. too many extra frames) are refused before the truths are cast.
     params.render.validate()?;
@@ -145,12 +146,12 @@ pub fn run(args: SphereArgs) -> CliResult {
             "upper hemisphere"
         },
         params.render.size,
-        params.truth_supersample,
-        params.truth_supersample,
+        params.truth_supersample.get(),
+        params.truth_supersample.get(),
         t.elapsed().as_secs_f64(),
         params.render.size,
-        params.render.samples,
-        params.render.samples
+        params.render.supersample.get(),
+        params.render.supersample.get()
     );
     println!(
         "{:>3} {:>4} | {:>9} {:>7} {:>7} {:>6} {:>6} {:>5} | {:>9} {:>7} {:>7} {:>6} | {:>6} {:>6} {:>6}",

@@ -15,7 +15,7 @@
 
 use std::time::Instant;
 
-use altrep_data_gen::{BoundingCylinder, CylinderParams};
+use altrep_data_gen::{BoundingCylinder, CylinderParams, Supersample};
 use serde::{Deserialize, Serialize};
 use serde_json::json;
 
@@ -388,12 +388,12 @@ impl Representation for Cylinder {
         let window = Window::for_needs(needs, size);
         for (i, &view) in measure_views(needs, 4).iter().enumerate() {
             let angle = view.azimuth;
-            let reference = window.truth(source, view, 3)?;
+            let reference = window.truth(source, view, Supersample::of(3))?;
             let params = CylinderRenderParams {
                 angle,
                 width: size,
                 height: size,
-                supersample: 1,
+                supersample: Supersample::ONE,
                 light: source.light,
             };
             let mut render = data.bounds.render(&data.texture, &params)?;

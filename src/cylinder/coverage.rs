@@ -40,8 +40,8 @@
 use std::f64::consts::TAU;
 
 use altrep_data_gen::{
-    BoundingCylinder, Light, PixelGrid, Ray, RgbaImage, Shape, TruthParams, ViewParams,
-    capture_view, direction, render_silhouette, screen_right,
+    BoundingCylinder, Light, PixelGrid, Ray, RgbaImage, Shape, Supersample, TruthParams,
+    ViewParams, capture_view, direction, render_silhouette, screen_right,
 };
 use glam::DVec3;
 use serde::{Deserialize, Serialize};
@@ -59,8 +59,8 @@ pub struct CoverageParams {
     pub angles: usize,
     /// Image size in pixels, square (≥ 1). Default 48.
     pub size: usize,
-    /// Sub-samples per pixel side (≥ 1). Default 2.
-    pub supersample: usize,
+    /// Rays per pixel edge ([`Supersample`]: `k × k` per pixel). Default 2.
+    pub supersample: Supersample,
     /// Smallest share of the visible surface the capture rays must hold
     /// ([`radial_visibility`]), in `[0, 1]`. Default 0.5: the procedural shapes hold 0.60
     /// (chair, its legs in line with the axis) to 1.00, the scanned meshes 0.68–0.95, a flat
@@ -73,7 +73,7 @@ impl Default for CoverageParams {
         Self {
             angles: 8,
             size: 48,
-            supersample: 2,
+            supersample: Supersample::of(2),
             min_share: 0.5,
         }
     }
@@ -85,7 +85,7 @@ impl CoverageParams {
         for (n, what) in [
             (self.angles, "coverage angles"),
             (self.size, "coverage image size"),
-            (self.supersample, "coverage supersampling"),
+            (self.supersample.get(), "coverage supersampling"),
         ] {
             if n == 0 {
                 return Err(CylinderError::ZeroSize { what });
@@ -294,7 +294,7 @@ pub fn radial_visibility(
     use rayon::prelude::*;
     params.validate()?;
     cylinder.validate()?;
-    let (k, size) = (params.supersample, params.size);
+    let (k, size) = (params.supersample.get(), params.size);
     let radius = cylinder.radius;
     // One check pixel: the tolerance on where a capture ray meets the surface.
     let tol = 2.0 * radius / size as f64;

@@ -15,7 +15,9 @@
 use std::f64::consts::TAU;
 use std::time::Instant;
 
-use altrep_data_gen::{CylinderParams, Light, RgbaImage, Shape, TruthParams, render_truth};
+use altrep_data_gen::{
+    CylinderParams, Light, RgbaImage, Shape, Supersample, TruthParams, render_truth,
+};
 use serde::Serialize;
 
 use super::CylinderError;
@@ -49,8 +51,9 @@ pub struct EvalParams {
     pub angles: usize,
     /// Image size in pixels. Default 64.
     pub size: usize,
-    /// Sub-samples per pixel side. Default 3.
-    pub supersample: usize,
+    /// Rays per pixel edge of the truth and the renderers ([`Supersample`]: `k × k` per pixel).
+    /// Default 3.
+    pub supersample: Supersample,
     /// Step budgets `m` of the hybrid rows. Default `[1, 2, 4]`.
     pub hybrid_steps: Vec<usize>,
     /// Validation tolerance of the fitted renderers, output pixels. Default 1.
@@ -76,7 +79,7 @@ impl Default for EvalParams {
             bounds: BoundsParams::default(),
             angles: 8,
             size: 64,
-            supersample: 3,
+            supersample: Supersample::of(3),
             hybrid_steps: vec![1, 2, 4],
             tolerance_px: 1.0,
             jump_texels: 2.0,
@@ -246,7 +249,7 @@ pub fn minification(
                         angle,
                         width: size,
                         height: size,
-                        supersample: 4,
+                        supersample: Supersample::of(4),
                         light: params.light,
                         cylinder: texture.cylinder(),
                     },
@@ -255,7 +258,7 @@ pub fn minification(
                     angle,
                     width: size,
                     height: size,
-                    supersample: 1,
+                    supersample: Supersample::ONE,
                     light: params.light,
                 };
                 let m = ExactMethod::Inverse(RadiusModel::General);
@@ -426,7 +429,7 @@ impl References {
         let inverse_ms = t0.elapsed().as_secs_f64() * 1e3 / params.len() as f64;
         let near = inverse
             .iter()
-            .map(|r| near_discontinuity(r, texture.columns(), p.jump_texels, p.supersample))
+            .map(|r| near_discontinuity(r, texture.columns(), p.jump_texels, p.supersample.get()))
             .collect();
         Ok(Self {
             params,

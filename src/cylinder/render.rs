@@ -7,6 +7,7 @@
 //! Every sub-sample row is drawn independently (rayon over rows); a sub-sample's colour is
 //! `Light::shade(albedo, normal)` of the interpolated texel.
 
+use altrep_data_gen::Supersample;
 use altrep_data_gen::{Light, PixelGrid, RgbaImage};
 use glam::Vec3;
 use rayon::prelude::*;
@@ -25,8 +26,8 @@ pub struct CylinderRenderParams {
     pub width: usize,
     /// Image height in pixels (spans `[0, H]`).
     pub height: usize,
-    /// Supersampling `k ≥ 1`: `k × k` sub-samples per pixel.
-    pub supersample: usize,
+    /// Sub-samples per pixel edge ([`Supersample`]: `k × k` per pixel).
+    pub supersample: Supersample,
     /// The light every sub-sample is shaded with.
     pub light: Light,
 }
@@ -38,7 +39,7 @@ impl Default for CylinderRenderParams {
             angle: 0.0,
             width: 64,
             height: 64,
-            supersample: 3,
+            supersample: Supersample::of(3),
             light: Light::default(),
         }
     }
@@ -50,7 +51,7 @@ impl CylinderRenderParams {
         for (n, what) in [
             (self.width, "image width"),
             (self.height, "image height"),
-            (self.supersample, "supersampling factor"),
+            (self.supersample.get(), "supersampling factor"),
         ] {
             if n == 0 {
                 return Err(CylinderError::ZeroSize { what });
@@ -172,7 +173,7 @@ pub(crate) fn render_rows(
     per_row: impl Fn(&SubRow, &mut [Option<Fragment>], &mut [Option<f64>]) -> (u64, u64) + Sync,
 ) -> Result<CylinderRender, CylinderError> {
     params.validate()?;
-    let k = params.supersample;
+    let k = params.supersample.get();
     let sub = PixelGrid {
         width: params.width * k,
         height: params.height * k,
@@ -219,7 +220,7 @@ fn shade_and_average(
     sub_width: usize,
     p: &CylinderRenderParams,
 ) -> RgbaImage {
-    let k = p.supersample;
+    let k = p.supersample.get();
     let inv = 1.0 / (k * k) as f32;
     let mut pixels = vec![[0.0f32; 4]; p.width * p.height];
     pixels

@@ -10,7 +10,7 @@
 use std::num::NonZeroU32;
 use std::time::Instant;
 
-use altrep_data_gen::{VoxelParams, voxelize};
+use altrep_data_gen::{Supersample, VoxelParams, voxelize};
 use glam::DVec3;
 use serde::{Deserialize, Serialize};
 use serde_json::json;
@@ -35,8 +35,9 @@ pub struct OctreeSpec {
     pub resolution: usize,
     /// Filter rule of coarser levels: `sggx` (default) or `seed1995`.
     pub rule: String,
-    /// Inside tests per voxel and axis when voxelising (1–4, default 2).
-    pub supersample: usize,
+    /// Inside tests per voxel edge when voxelising ([`Supersample`]: `k³` per voxel; 1–4,
+    /// default 2).
+    pub supersample: Supersample,
 }
 
 impl Default for OctreeSpec {
@@ -44,7 +45,7 @@ impl Default for OctreeSpec {
         Self {
             resolution: 64,
             rule: "sggx".into(),
-            supersample: 2,
+            supersample: Supersample::of(2),
         }
     }
 }
@@ -68,10 +69,10 @@ impl OctreeSpec {
                 self.rule
             ));
         }
-        if !(1..=4).contains(&self.supersample) {
+        if !(1..=4).contains(&self.supersample.get()) {
             return Err(format!(
                 "octree.supersample = {} must be in 1..=4",
-                self.supersample
+                self.supersample.get()
             ));
         }
         Ok(())
@@ -116,7 +117,7 @@ impl Representation for OctreeRepr {
         // ~60 B per leaf voxel at 128³ (the voxelised volume, the tree, the read-back copy), and
         // a few MB of fixed cost that dominate below 32³.
         let n = closest_resolution(needs).min(spec.resolution) as f64;
-        let ss = spec.supersample as f64 / 2.0;
+        let ss = spec.supersample.get() as f64 / 2.0;
         Estimate {
             peak_bytes: linear_bytes(3e6, 58.0 * ss.max(1.0), n * n * n),
             // At most one node per voxel of every level, NODE_BYTES each.
@@ -320,7 +321,7 @@ impl Representation for OctreeRepr {
         let mut images = Vec::new();
         let views = measure_views(needs, 4);
         for (i, &v) in views.iter().enumerate() {
-            let reference = window.truth(source, v, 3)?;
+            let reference = window.truth(source, v, Supersample::of(3))?;
             let img = tree.render_view(base, &params, &view_of(v))?;
             scores.push(window.score(&img, &reference)?);
             if i == 0 {

@@ -6,6 +6,8 @@ use std::collections::BTreeMap;
 use std::hint::black_box;
 use std::time::Instant;
 
+use altrep_data_gen::Supersample;
+
 use nalgebra::Matrix3;
 use serde::Serialize;
 
@@ -293,7 +295,7 @@ pub fn octree_row(
                 min: glam::DVec3::new(-1.0, 0.0, -1.0),
                 max: glam::DVec3::new(1.0, 2.0, 1.0),
                 periodic: [false; 3],
-                supersample: 1,
+                supersample: Supersample::ONE,
             };
             let volume = altrep_data_gen::voxelize(&shape, &vp)
                 .map_err(|e| EllipsoidError::BadVolume(e.to_string()))?;

@@ -14,7 +14,7 @@
 use std::time::Instant;
 
 use altrep_data_gen::{
-    BoundingCylinder, Projection, SampleGrid, ViewParams, capture_view, linear_to_srgb,
+    BoundingCylinder, Projection, SampleGrid, Supersample, ViewParams, capture_view, linear_to_srgb,
 };
 use glam::Vec3;
 use rayon::prelude::*;
@@ -647,12 +647,12 @@ impl Representation for Parallax {
         let window = Window::for_needs(needs, size);
         for (i, &view) in measure_views(needs, 4).iter().enumerate() {
             let angle = view.azimuth;
-            let reference = window.truth(source, view, 3)?;
+            let reference = window.truth(source, view, Supersample::of(3))?;
             // At the views' own size this is `RenderParams::native`, point-sampled.
             let screen = RenderParams {
                 width: size,
                 height: size * images.params.height / native,
-                supersample: 1,
+                supersample: Supersample::ONE,
                 light: source.light,
                 mip: minified,
             };

@@ -42,7 +42,7 @@ fn render_with(
     rows: RowFilter,
     offset: impl Fn(&View, usize, f64, f64) -> f64 + Sync,
 ) -> Result<RgbaImage, ParallaxError> {
-    if screen.width == 0 || screen.height == 0 || screen.supersample == 0 {
+    if screen.width == 0 || screen.height == 0 {
         return Err(invalid(
             "render size",
             format!("{}×{}", screen.width, screen.height),
@@ -52,7 +52,7 @@ fn render_with(
     let [(k1, t1, w1), (k2, t2, w2)] = images.bracketing(alpha)?;
     let grid = images.pixel_grid();
     let xs = screen.sample_xs(images.params.cylinder.radius);
-    let inv = 1.0 / screen.supersample as f32;
+    let inv = 1.0 / screen.supersample.get() as f32;
     let mut img = RgbaImage::new(screen.width, screen.height);
     img.pixels
         .par_chunks_mut(screen.width)
@@ -68,7 +68,7 @@ fn render_with(
                         acc += fetch(v, &grid, xt, j, &screen.light) * (w as f32 * wr);
                     }
                 }
-                let p = &mut px[s / screen.supersample];
+                let p = &mut px[s / screen.supersample.get()];
                 for c in 0..4 {
                     p[c] += acc[c] * inv;
                 }

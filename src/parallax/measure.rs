@@ -8,7 +8,7 @@
 
 use std::f64::consts::TAU;
 
-use altrep_data_gen::{Light, RgbaImage, Shape, TruthParams, render_truth};
+use altrep_data_gen::{Light, RgbaImage, Shape, Supersample, TruthParams, render_truth};
 use rayon::prelude::*;
 use serde::Serialize;
 
@@ -239,9 +239,9 @@ pub struct QualityParams {
     /// Display angles, `α_a = 2π(a + ½)/angles + 0.05` (between the capture angles of every N
     /// used). Default 16.
     pub angles: usize,
-    /// Rays per pixel for the reconstructions, across the pixel; the ground truth uses
-    /// `supersample²` rays. Default 3.
-    pub supersample: usize,
+    /// Rays per pixel edge ([`Supersample`]): the reconstructions take `k` across the pixel
+    /// (see [`RenderParams::supersample`]), the ground truth `k × k`. Default 3.
+    pub supersample: Supersample,
     /// Numbers of views of the inverse warp and the offset baseline. Default `[4, 8, 16]`.
     pub views: Vec<usize>,
     /// View sizes (square; the screen has the same size). Default `[32, 64, 128]`.
@@ -258,7 +258,7 @@ impl Default for QualityParams {
     fn default() -> Self {
         Self {
             angles: 16,
-            supersample: 3,
+            supersample: Supersample::of(3),
             views: vec![4, 8, 16],
             sizes: vec![32, 64, 128],
             blend_views: 64,
@@ -301,7 +301,7 @@ fn score(images: &[RgbaImage], truth: &[RgbaImage]) -> Result<(f64, f64), Parall
 /// The display angles of a quality measurement (offset from the view angles). Errors: no
 /// angle or no supersampling.
 fn quality_angles(params: &QualityParams) -> Result<Vec<f64>, ParallaxError> {
-    if params.angles == 0 || params.supersample == 0 {
+    if params.angles == 0 {
         return Err(invalid(
             "quality sweep",
             format!("{} angles ×{}", params.angles, params.supersample),

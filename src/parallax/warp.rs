@@ -455,13 +455,13 @@ pub fn warp_view(
             warp_row_into(images, k, j, theta, method, &xs, out);
         });
     let mut img = RgbaImage::new(screen.width, screen.height);
-    let inv = 1.0 / screen.supersample as f32;
+    let inv = 1.0 / screen.supersample.get() as f32;
     for js in 0..screen.height {
         let j = screen.view_row(js, view.height);
         for (s, c) in crossings[js * n..(js + 1) * n].iter().enumerate() {
             if let Some(c) = c {
                 let col = shade_crossing(view, j, c, &screen.light) * inv;
-                let p = &mut img.pixels[js * screen.width + s / screen.supersample];
+                let p = &mut img.pixels[js * screen.width + s / screen.supersample.get()];
                 p[0] += col.x;
                 p[1] += col.y;
                 p[2] += col.z;
@@ -548,7 +548,7 @@ fn render_original(
     let xs = screen.sample_xs(images.params.cylinder.radius);
     let n = xs.len();
     let mut img = RgbaImage::new(screen.width, screen.height);
-    let inv = 1.0 / screen.supersample as f32;
+    let inv = 1.0 / screen.supersample.get() as f32;
     img.pixels
         .par_chunks_mut(screen.width)
         .enumerate()
@@ -570,7 +570,7 @@ fn render_original(
                             + w2 as f32 * shade_crossing(v2, j2, d, &screen.light)
                     }
                 } * inv;
-                let p = &mut px[s / screen.supersample];
+                let p = &mut px[s / screen.supersample.get()];
                 p[0] += col.x;
                 p[1] += col.y;
                 p[2] += col.z;
@@ -617,7 +617,7 @@ pub fn render_with(
     let n = xs.len();
     let vh = images.params.height;
     let mut img = RgbaImage::new(screen.width, screen.height);
-    let inv = 1.0 / screen.supersample as f32;
+    let inv = 1.0 / screen.supersample.get() as f32;
     img.pixels
         .par_chunks_mut(screen.width)
         .enumerate()
@@ -659,7 +659,7 @@ pub fn render_with(
                         .or_else(|| rec.fill_holes.then(|| wall(s)).flatten());
                     let Some(col) = col else { continue };
                     let col = col * (inv * wr);
-                    let p = &mut px[s / screen.supersample];
+                    let p = &mut px[s / screen.supersample.get()];
                     p[0] += col.x;
                     p[1] += col.y;
                     p[2] += col.z;

@@ -13,8 +13,8 @@ use std::path::PathBuf;
 use std::time::Instant;
 
 use altrep_data_gen::{
-    Light, OrthoFrame, RgbaImage, Shape, TruthParams, render_truth, render_truth_frame,
-    screen_right,
+    Light, OrthoFrame, RgbaImage, Shape, Supersample, TruthParams, render_truth,
+    render_truth_frame, screen_right,
 };
 use glam::DVec3;
 use serde::{Deserialize, Serialize};
@@ -405,13 +405,13 @@ pub fn measure_angles(needs: &Needs, count: usize) -> Vec<f64> {
         .collect()
 }
 
-/// Ground-truth render of the source at `angle`, `size` pixels square, `k×k` supersampled.
+/// Ground-truth render of the source at `angle`, `size` pixels square, `k × k` rays per pixel.
 /// Errors: nothing of the object is visible (the typed error every command gives).
 pub fn truth(
     source: &Source,
     angle: f64,
     size: usize,
-    k: usize,
+    k: Supersample,
 ) -> Result<RgbaImage, PipelineError> {
     let img = render_truth(
         source.shape()?,
@@ -525,7 +525,7 @@ impl Window {
         &self,
         source: &Source,
         view: ViewDir,
-        k: usize,
+        k: Supersample,
     ) -> Result<RgbaImage, PipelineError> {
         if self.pad == 0 && view.elevation == 0.0 {
             return truth(source, view.azimuth, self.size, k);
@@ -626,13 +626,13 @@ pub fn horizontal_ceiling(
                 azimuth,
                 elevation: 0.0,
             },
-            2,
+            Supersample::of(2),
         )?;
         let view = ViewDir {
             azimuth,
             elevation: worst.to_radians(),
         };
-        let tilted = window.truth(source, view, 2)?;
+        let tilted = window.truth(source, view, Supersample::of(2))?;
         ceiling = ceiling.min(window.score(&tilted, &flat)?.0);
     }
     Ok(Some((ceiling, worst)))
@@ -733,19 +733,19 @@ mod tests {
         let window = Window::for_needs(&tilted, 24);
         assert_eq!((window.pad, window.side()), (5, 34));
         for azimuth in [0.3, 2.0, 4.4] {
-            let narrow = truth(&source, azimuth, 24, 2).unwrap();
+            let narrow = truth(&source, azimuth, 24, Supersample::of(2)).unwrap();
             let view = ViewDir {
                 azimuth,
                 elevation: 0.0,
             };
-            let wide = window.truth(&source, view, 2).unwrap();
+            let wide = window.truth(&source, view, Supersample::of(2)).unwrap();
             let placed = window.place(&narrow);
             for (p, q) in placed.pixels.iter().zip(&wide.pixels) {
                 for c in 0..4 {
                     assert_abs_diff_eq!(p[c], q[c], epsilon = 1e-5);
                 }
             }
-            let flat = truth(&source, azimuth + 0.2, 24, 2).unwrap();
+            let flat = truth(&source, azimuth + 0.2, 24, Supersample::of(2)).unwrap();
             let (a, _) = score(&flat, &narrow).unwrap();
             let (b, _) = window.score(&window.place(&flat), &placed).unwrap();
             assert_abs_diff_eq!(a, b, epsilon = 1e-9);

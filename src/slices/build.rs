@@ -9,7 +9,7 @@
 
 use std::collections::VecDeque;
 
-use altrep_data_gen::{Light, Shape, SplitMix64, VoxelParams, scene_shape, voxelize};
+use altrep_data_gen::{Light, Shape, SplitMix64, Supersample, VoxelParams, scene_shape, voxelize};
 use glam::{DVec3, Vec3};
 use rayon::prelude::*;
 
@@ -308,8 +308,8 @@ pub struct ImplicitParams {
     pub dims: [usize; 3],
     /// Voxel edge (world units).
     pub voxel: f64,
-    /// Sub-samples per axis and voxel for the coverage (`s³` sign tests).
-    pub supersample: usize,
+    /// Sign tests per voxel edge for the coverage ([`Supersample`]: `k³` per voxel).
+    pub supersample: Supersample,
     /// A Lipschitz bound `K` of `f` when known (`|f(p) − f(q)| ≤ K·|p − q|`, `K = 1` for a
     /// signed distance): voxels with `|f(centre)| > K·(√3/2)·s` are wholly in or out and skip
     /// the sub-samples. `None` samples every voxel.
@@ -327,7 +327,7 @@ impl Default for ImplicitParams {
         Self {
             dims: [32; 3],
             voxel: 1.0 / 32.0,
-            supersample: 3,
+            supersample: Supersample::of(3),
             lipschitz: None,
             periodic_images: true,
             lighting: SliceLighting::default(),
@@ -405,11 +405,6 @@ pub fn from_implicit(
     params: &ImplicitParams,
 ) -> Result<TexelVolume, SliceError> {
     check_grid(params.dims, params.voxel)?;
-    if params.supersample == 0 {
-        return Err(SliceError::ZeroSize {
-            what: "implicit supersampling",
-        });
-    }
     let light = params.lighting.light()?;
     if let Some(k) = params.lipschitz {
         super::check_range("Lipschitz bound", k, f64::MIN_POSITIVE, 1e6, "in (0, 1e6]")?;
@@ -434,7 +429,7 @@ pub fn from_implicit(
         }
         best
     };
-    let ss = params.supersample;
+    let ss = params.supersample.get();
     let n = nx * ny * nz;
     let coverage: Vec<f32> = (0..n)
         .into_par_iter()
@@ -512,8 +507,8 @@ pub struct ShapeParams {
     pub voxel: f64,
     /// Lower corner of the tile in the shape's frame (the tile spans `min + dims·voxel`).
     pub min: [f64; 3],
-    /// Sub-samples per axis and voxel (data-gen's voxelisation).
-    pub supersample: usize,
+    /// Inside tests per voxel edge of data-gen's voxelisation ([`Supersample`]: `k³` per voxel).
+    pub supersample: Supersample,
     /// Baked light.
     pub lighting: SliceLighting,
 }
@@ -526,7 +521,7 @@ impl Default for ShapeParams {
             dims: [32; 3],
             voxel: 1.0 / 16.0,
             min: [-1.0, 0.0, -1.0],
-            supersample: 3,
+            supersample: Supersample::of(3),
             lighting: SliceLighting::default(),
         }
     }
@@ -674,7 +669,7 @@ pub fn test_tile(tile: TestTile, n: usize, seed: u64) -> Result<TexelVolume, Sli
             &ShapeParams {
                 dims: [n; 3],
                 voxel: 2.0 / n.max(1) as f64,
-                supersample: 2,
+                supersample: Supersample::of(2),
                 ..ShapeParams::default()
             },
         ),

@@ -28,6 +28,7 @@
 //! through), for slices and truth alike.
 
 use altrep_data_gen::RgbaImage;
+use altrep_data_gen::Supersample;
 use glam::DVec3;
 use rayon::prelude::*;
 
@@ -46,8 +47,8 @@ pub struct CurvedParams {
     pub tilt_deg: f64,
     /// Image width (pixels); the height follows from one tile along the axis.
     pub width: usize,
-    /// `k × k` sub-samples per pixel.
-    pub supersample: usize,
+    /// Sub-samples per pixel edge ([`Supersample`]: `k × k` per pixel).
+    pub supersample: Supersample,
     /// Opacity correction by the texel-space path length (module conventions).
     pub opacity_correction: bool,
     /// Truth march samples per voxel edge of world path.
@@ -62,7 +63,7 @@ impl Default for CurvedParams {
             tiles_around: 8,
             tilt_deg: 0.0,
             width: 96,
-            supersample: 3,
+            supersample: Supersample::of(3),
             opacity_correction: true,
             truth_steps: 8,
         }
@@ -75,7 +76,7 @@ impl CurvedParams {
         for (n, what) in [
             (self.tiles_around, "tiles around"),
             (self.width, "image width"),
-            (self.supersample, "supersampling"),
+            (self.supersample.get(), "supersampling"),
             (self.truth_steps, "truth steps"),
         ] {
             if n == 0 {
@@ -116,7 +117,7 @@ impl Setup {
             pixel,
             width: p.width,
             height: (extent.z / pixel).ceil().max(1.0) as usize,
-            k: p.supersample,
+            k: p.supersample.get(),
         }
     }
 

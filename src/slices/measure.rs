@@ -11,6 +11,8 @@
 use std::collections::BTreeMap;
 use std::time::Instant;
 
+use altrep_data_gen::Supersample;
+
 use super::build::{TestTile, test_tile};
 use super::curved::{CurvedParams, render_curved_slices, render_curved_truth};
 use super::merge::{MergeRule, SliceData, SliceParams, build_slices};
@@ -466,7 +468,8 @@ fn render_params(params: &SliceMeasureParams, p: f64) -> SliceRenderParams {
         width: px,
         height: px,
         pixel_voxels: p,
-        supersample: (2.0 * p).ceil().max(1.0) as usize,
+        supersample: Supersample::new((2.0 * p).ceil().max(1.0) as usize)
+            .unwrap_or(Supersample::ONE),
         filter: params.filter,
         ..SliceRenderParams::default()
     }
@@ -536,7 +539,7 @@ fn sweep_tile(
                 psnr_three_all: err(def, three.axis, 0)?,
                 psnr_three_gpu: {
                     let gpu = SliceRenderParams {
-                        supersample: 1,
+                        supersample: Supersample::ONE,
                         mip_2d: true,
                         filter: SliceReconstruction::Linear,
                         ..rp.clone()

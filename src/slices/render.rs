@@ -4,6 +4,7 @@
 //! conventions. The patch is the texel tiled without end in `x` and `z`.
 
 use altrep_data_gen::RgbaImage;
+use altrep_data_gen::Supersample;
 use glam::DVec3;
 use rayon::prelude::*;
 
@@ -69,8 +70,8 @@ pub struct SliceRenderParams {
     pub height: usize,
     /// Pixel size in voxel edges (the distance: 1 is one pixel per voxel).
     pub pixel_voxels: f64,
-    /// `k × k` stratified sub-samples per pixel, averaged.
-    pub supersample: usize,
+    /// Sub-samples per pixel edge ([`Supersample`]: `k × k` stratified per pixel, averaged).
+    pub supersample: Supersample,
     /// Read each slice with trilinear 2D mip filtering at the sub-sample's footprint (as a GPU);
     /// off: bilinear from the finest 2D level.
     pub mip_2d: bool,
@@ -91,7 +92,7 @@ impl Default for SliceRenderParams {
             width: 64,
             height: 64,
             pixel_voxels: 1.0,
-            supersample: 2,
+            supersample: Supersample::of(2),
             mip_2d: false,
             opacity_correction: true,
             filter: SliceReconstruction::Linear,
@@ -107,7 +108,7 @@ impl SliceRenderParams {
         for (n, what) in [
             (self.width, "image width"),
             (self.height, "image height"),
-            (self.supersample, "supersampling"),
+            (self.supersample.get(), "supersampling"),
         ] {
             if n == 0 {
                 return Err(SliceError::ZeroSize { what });
@@ -164,7 +165,7 @@ impl Camera {
             pixel: p.pixel_voxels * voxel,
             width: p.width,
             height: p.height,
-            k: p.supersample,
+            k: p.supersample.get(),
             height_y: extent.y,
         }
     }

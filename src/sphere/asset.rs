@@ -12,6 +12,7 @@
 //! the bounding sphere (`centre`, `radius`, world units) every frame was captured over.
 
 use altrep_data_gen::RgbaImage;
+use altrep_data_gen::Supersample;
 use glam::DVec3;
 use serde::{Deserialize, Serialize};
 use serde_json::json;
@@ -438,13 +439,14 @@ impl Representation for SphereRepr {
             directions: dirs.len(),
             render: SphereRenderParams {
                 size,
-                samples: 1,
+                supersample: Supersample::ONE,
                 light: source.light,
                 ..SphereRenderParams::default()
             },
-            truth_supersample: 3,
+            truth_supersample: Supersample::of(3),
         };
-        let truths = truth_images(shape, &dirs, size, 3, &source.light).map_err(sphere_err)?;
+        let truths = truth_images(shape, &dirs, size, Supersample::of(3), &source.light)
+            .map_err(sphere_err)?;
         if let Some(k) = truths
             .iter()
             .position(|t| t.pixels.iter().all(|p| p[3] <= 0.0))

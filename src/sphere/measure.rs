@@ -3,7 +3,7 @@
 
 use std::time::Instant;
 
-use altrep_data_gen::{OrthoFrame, RgbaImage, Shape, render_truth_frame};
+use altrep_data_gen::{OrthoFrame, RgbaImage, Shape, Supersample, render_truth_frame};
 use glam::DVec3;
 
 use super::baseline::render_engine_baseline;
@@ -37,8 +37,8 @@ pub struct SphereMeasureParams {
     pub directions: usize,
     /// How both methods draw (size, samples per pixel, thresholds, light).
     pub render: SphereRenderParams,
-    /// `k × k` rays per pixel of the ground truth.
-    pub truth_supersample: usize,
+    /// Rays per pixel edge of the ground truth ([`Supersample`]: `k × k` per pixel).
+    pub truth_supersample: Supersample,
 }
 
 impl Default for SphereMeasureParams {
@@ -47,10 +47,10 @@ impl Default for SphereMeasureParams {
         Self {
             directions: 100,
             render: SphereRenderParams {
-                samples: 2,
+                supersample: Supersample::of(2),
                 ..SphereRenderParams::default()
             },
-            truth_supersample: 4,
+            truth_supersample: Supersample::of(4),
         }
     }
 }
@@ -114,7 +114,7 @@ pub fn truth_images(
     shape: &dyn Shape,
     directions: &[DVec3],
     size: usize,
-    supersample: usize,
+    supersample: Supersample,
     light: &altrep_data_gen::Light,
 ) -> Result<Vec<RgbaImage>, SphereError> {
     let (centre, radius) = OrthoFrame::bounding_sphere(shape);

@@ -1,6 +1,7 @@
 //! The exact inverse warp of the enclosing frames and their combination by carving free space
 //! (module docs).
 
+use altrep_data_gen::Supersample;
 use altrep_data_gen::{Light, OrthoFrame, RgbaImage};
 use glam::{DVec2, DVec3, Vec3};
 use rayon::prelude::*;
@@ -58,8 +59,9 @@ const EXTRA_MIN_FACING: f64 = 0.1;
 pub struct SphereRenderParams {
     /// Output width and height in pixels; the image covers the bounding sphere's square.
     pub size: usize,
-    /// `s × s` stratified rays per pixel (alpha is their coverage).
-    pub samples: usize,
+    /// Rays per pixel edge ([`Supersample`]: `k × k` stratified per pixel; alpha is their
+    /// coverage).
+    pub supersample: Supersample,
     /// A frame sees a surface point when its own surface lies within this many texel pitches
     /// above it.
     pub visibility: f64,
@@ -89,7 +91,7 @@ impl Default for SphereRenderParams {
     fn default() -> Self {
         Self {
             size: 128,
-            samples: 1,
+            supersample: Supersample::ONE,
             visibility: 2.0,
             use_bounds: true,
             hole_depth: Some(DEFAULT_HOLE_DEPTH),
@@ -111,9 +113,9 @@ impl SphereRenderParams {
             "must be 1 to 8192 pixels",
         )?;
         check(
-            (1..=16).contains(&self.samples),
+            (1..=16).contains(&self.supersample.get()),
             "samples per pixel side",
-            self.samples,
+            self.supersample.get(),
             "must be 1 to 16",
         )?;
         check(
@@ -438,7 +440,7 @@ pub(crate) fn draw(
     params: &SphereRenderParams,
     trace: impl Fn(f64, f64, f64) -> RaySample + Sync,
 ) -> RenderOutput {
-    let (w, s) = (params.size, params.samples);
+    let (w, s) = (params.size, params.supersample.get());
     let inv = 1.0 / (s * s) as f32;
     // Per row: pixels, depths, and every ray traced.
     type Row = (Vec<[f32; 4]>, Vec<Option<f64>>, Vec<RaySample>);

@@ -16,6 +16,7 @@ use altrep::parallax::{
     dense_sweep, error_split, march, measure_quality_sweep, measure_steps, render,
     render_bounded_with, render_with, warp_row_direct, warp_view,
 };
+use altrep_data_gen::Supersample;
 use approx::assert_abs_diff_eq;
 
 const PROCEDURAL: [&str; 3] = ["truck", "tree", "building"];
@@ -136,12 +137,12 @@ fn inverse_warping_equals_direct_warping_within_one_texel() {
         let p = small(8, 32);
         let images = ParallaxImages::capture(&shape, &p).unwrap();
         let dx = 2.0 / 32.0;
-        for supersample in [1, 3] {
+        for k in [1, 3] {
             let screen = RenderParams {
-                supersample,
+                supersample: Supersample::of(k),
                 ..RenderParams::native(&images)
             };
-            let n = p.width * supersample;
+            let n = p.width * k;
             for k in [0, 3, 6] {
                 for step in -6..=6 {
                     let theta = p.delta_theta() * step as f64 / 6.0;
@@ -159,7 +160,7 @@ fn inverse_warping_equals_direct_warping_within_one_texel() {
                             _ => {
                                 // Coverage may differ only next to a ray where the two agree.
                                 let (row, s) = (idx / n, idx % n);
-                                let near = [s.wrapping_sub(supersample), s + supersample]
+                                let near = [s.wrapping_sub(k), s + k]
                                     .iter()
                                     .filter(|&&t| t < n)
                                     .any(|&t| {
@@ -337,7 +338,7 @@ fn inverse_warping_matches_the_ground_truth_between_views() {
     let screen = RenderParams {
         width: 64,
         height: 64,
-        supersample: 3,
+        supersample: Supersample::of(3),
         light,
         mip: true,
     };
@@ -348,7 +349,7 @@ fn inverse_warping_matches_the_ground_truth_between_views() {
             angle: alpha,
             width: 64,
             height: 64,
-            supersample: 3,
+            supersample: Supersample::of(3),
             light,
             cylinder: BoundingCylinder::default(),
         },
@@ -510,7 +511,7 @@ fn minified_impostors_warp_a_mip_level_and_alias_less() {
                 angle: alpha,
                 width: 32,
                 height: 32,
-                supersample: 4,
+                supersample: Supersample::of(4),
                 light,
                 cylinder: BoundingCylinder::default(),
             },
@@ -519,7 +520,7 @@ fn minified_impostors_warp_a_mip_level_and_alias_less() {
         let screen = RenderParams {
             width: 32,
             height: 32,
-            supersample: 1,
+            supersample: Supersample::ONE,
             light,
             mip: true,
         };

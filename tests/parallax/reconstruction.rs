@@ -2,6 +2,7 @@
 //! bounds on adversarial brims.
 
 use super::*;
+use altrep_data_gen::Supersample;
 
 const TANGENT: Brim = Brim::Tangent { max_slope: 4.0 };
 
@@ -59,7 +60,7 @@ fn row_weights_interpolate_linearly_between_view_rows() {
     let images = ParallaxImages::capture(&scene_shape("sphere").unwrap(), &small(8, 16)).unwrap();
     let mut screen = RenderParams::native(&images);
     assert_eq!(screen.row_weights(5, 16, RowFilter::Linear), vec![(5, 1.0)]);
-    screen.supersample = 3;
+    screen.supersample = Supersample::of(3);
     let w = screen.row_weights(5, 16, RowFilter::Linear);
     let get = |j: usize| w.iter().find(|e| e.0 == j).map_or(0.0, |e| e.1);
     assert_abs_diff_eq!(get(4), 1.0 / 9.0, epsilon = 1e-6);
@@ -86,7 +87,7 @@ fn every_reconstruction_option_gives_finite_premultiplied_images() {
         .with_brim(TANGENT)
         .unwrap();
     let screen = RenderParams {
-        supersample: 3,
+        supersample: Supersample::of(3),
         ..RenderParams::native(&images)
     };
     let plain = render(&images, 0.7, WarpMethod::Inverse, &screen).unwrap();
@@ -135,7 +136,7 @@ fn the_error_split_adds_up_to_the_mse() {
     let shape = scene_shape("chair").unwrap();
     let images = ParallaxImages::capture(&shape, &small(8, 32)).unwrap();
     let screen = RenderParams {
-        supersample: 3,
+        supersample: Supersample::of(3),
         ..RenderParams::native(&images)
     };
     let img = render(&images, 1.0, WarpMethod::Inverse, &screen).unwrap();
@@ -145,7 +146,7 @@ fn the_error_split_adds_up_to_the_mse() {
             angle: 1.0,
             width: 32,
             height: 32,
-            supersample: 3,
+            supersample: Supersample::of(3),
             light: Light::default(),
             cylinder: BoundingCylinder::default(),
         },
@@ -597,7 +598,7 @@ fn tangent_brims_on_random_codes_stay_conservative_and_finite() {
         prop_assert!(images.march_radius().is_finite());
         let violations = brim_bound_violations(&images);
         prop_assert!(violations.iter().all(|&v| v == 0), "violations {:?}", violations);
-        let screen = RenderParams { supersample: 3, ..RenderParams::native(&images) };
+        let screen = RenderParams { supersample: Supersample::of(3), ..RenderParams::native(&images) };
         let img = render_with(&images, alpha, WarpMethod::Inverse, &screen, &Variant::best().rec).unwrap();
         prop_assert!(img.pixels.iter().flatten().all(|c| c.is_finite() && *c <= 1.0 + 1e-5));
     });

@@ -19,7 +19,7 @@ use altrep::pyramid::asset::PyramidRepr;
 use altrep::pyramid::{
     MipError, Pyramid, PyramidData, PyramidKind, PyramidParams, RipMap, WrapMode,
 };
-use altrep_data_gen::{Light, scene_shape};
+use altrep_data_gen::{Light, Supersample, scene_shape};
 use approx::assert_abs_diff_eq;
 use proptest::prelude::*;
 
@@ -412,7 +412,7 @@ fn cylinder_files_read_back_bit_for_bit() {
             angle: 0.7,
             width: 24,
             height: 24,
-            supersample: 1,
+            supersample: Supersample::ONE,
             light: src.light,
         };
         let a = loaded.bounds.render(&loaded.texture, &params).unwrap();

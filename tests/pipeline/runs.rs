@@ -2,6 +2,7 @@
 //! manifest errors, interrupted runs, and manifests drawn at random.
 
 use super::*;
+use altrep_data_gen::Supersample;
 
 const SCENE: &str = r#"
 [[asset]]
@@ -128,14 +129,14 @@ fn remeasure_pear_parallax(m: &Manifest, folder: &Path) -> altrep::pipeline::Mea
                 angle,
                 width: size,
                 height: size,
-                supersample: 3,
+                supersample: Supersample::of(3),
                 light,
                 cylinder: altrep_data_gen::BoundingCylinder::default(),
             },
         )
         .unwrap();
         let screen = RenderParams {
-            supersample: 1,
+            supersample: Supersample::ONE,
             light,
             mip: false,
             ..RenderParams::native(&data.images)

@@ -25,7 +25,9 @@ use altrep::asset::{AssetWriter, Conventions};
 use altrep::cylinder::asset::{Cylinder, CylinderData, CylinderSpec};
 use altrep::cylinder::{OffsetParams, OffsetTexture};
 use altrep::representation::{Needs, Representation, Source};
-use altrep_data_gen::{BoundingCylinder, Light, RgbaImage, TruthParams, render_truth, scene_shape};
+use altrep_data_gen::{
+    BoundingCylinder, Light, RgbaImage, Supersample, TruthParams, render_truth, scene_shape,
+};
 use altrep_display::Precision;
 use altrep_display::cylinder::{CylinderDisplay, CylinderDraw, CylinderMode};
 use altrep_display::load;
@@ -166,7 +168,7 @@ fn run(args: &Args) -> Result<(), String> {
                 angle: alpha,
                 width: size,
                 height: size,
-                supersample: 3,
+                supersample: Supersample::of(3),
                 light,
                 cylinder: BoundingCylinder::default(),
             },

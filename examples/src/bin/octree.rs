@@ -24,7 +24,9 @@ use altrep::ellipsoid::asset::{OctreeRepr, OctreeSpec};
 use altrep::ellipsoid::octree::OctreeRenderParams;
 use altrep::metrics::{psnr, silhouette_iou};
 use altrep::representation::{Needs, Representation, Source};
-use altrep_data_gen::{BoundingCylinder, Light, RgbaImage, TruthParams, render_truth, scene_shape};
+use altrep_data_gen::{
+    BoundingCylinder, Light, RgbaImage, Supersample, TruthParams, render_truth, scene_shape,
+};
 use altrep_display::to_srgb8;
 use clap::Parser;
 
@@ -102,7 +104,7 @@ fn run(args: &Args) -> Result<(), String> {
             angle: std::f64::consts::FRAC_PI_2,
             width: side,
             height: side,
-            supersample: 3,
+            supersample: Supersample::of(3),
             light,
             cylinder: BoundingCylinder::default(),
         },

@@ -23,7 +23,9 @@ use altrep::parallax::BoundKind;
 use altrep::parallax::Reconstruction;
 use altrep::parallax::asset::{Parallax, ParallaxData, ParallaxSpec};
 use altrep::representation::{Needs, Representation, Source};
-use altrep_data_gen::{BoundingCylinder, Light, RgbaImage, TruthParams, render_truth, scene_shape};
+use altrep_data_gen::{
+    BoundingCylinder, Light, RgbaImage, Supersample, TruthParams, render_truth, scene_shape,
+};
 use altrep_display::Precision;
 use altrep_display::load;
 use altrep_display::parallax::{DrawParams, ParallaxDisplay};
@@ -155,7 +157,7 @@ fn run(args: &Args) -> Result<(), String> {
                 angle: alpha,
                 width: w,
                 height: h,
-                supersample: 3,
+                supersample: Supersample::of(3),
                 light,
                 cylinder: BoundingCylinder::default(),
             },

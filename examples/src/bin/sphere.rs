@@ -29,7 +29,7 @@ use altrep::sphere::asset::{SphereRepr, SphereSpec};
 use altrep::sphere::{
     SphereImages, SphereRenderParams, azimuth_elevation, render_engine_baseline, truth_images,
 };
-use altrep_data_gen::{Light, RgbaImage, scene_shape};
+use altrep_data_gen::{Light, RgbaImage, Supersample, scene_shape};
 use altrep_display::Precision;
 use altrep_display::load;
 use altrep_display::sphere::{SphereDisplay, SphereDraw};
@@ -167,7 +167,7 @@ fn run(args: &Args) -> Result<(), String> {
     let triple = |d: DVec3| -> Result<(RgbaImage, f64, f64, f64, f64), String> {
         let fr = disp.render(&gpu, &draw(d)).map_err(|e| e.to_string())?;
         let engine = render_engine_baseline(&images, d, &cpu).map_err(|e| e.to_string())?;
-        let truth = truth_images(&shape, &[d], screen, 3, &light)
+        let truth = truth_images(&shape, &[d], screen, Supersample::of(3), &light)
             .map_err(|e| e.to_string())?
             .remove(0);
         let ours_db = psnr(&fr.image, &truth).map_err(|e| e.to_string())?;

@@ -522,6 +522,7 @@ impl Octree {
 mod tests {
     use super::*;
     use crate::ellipsoid::primitive::Ellipsoid;
+    use altrep_data_gen::Supersample;
 
     /// Skipping empty blocks changes nothing: same nodes (density, colour, packed ellipsoid,
     /// children) and the same counts, on voxelised scene shapes whose sides are not powers of two
@@ -544,7 +545,7 @@ mod tests {
                     min: glam::DVec3::new(-1.0, 0.0, -1.0),
                     max: glam::DVec3::new(1.0, 2.0, 1.0),
                     periodic,
-                    supersample: 1,
+                    supersample: Supersample::ONE,
                 },
             )
             .unwrap();

@@ -1,5 +1,6 @@
 //! The parameters of a render: its screen, and how the two warped views become a pixel.
 
+use altrep_data_gen::Supersample;
 use altrep_data_gen::{Light, PixelGrid};
 
 use super::ParallaxImages;
@@ -22,9 +23,9 @@ pub struct RenderParams {
     pub width: usize,
     /// Screen rows; each screen row reads the nearest view row (rows warp independently).
     pub height: usize,
-    /// Rays per pixel, spread evenly across the pixel horizontally (≥ 1). Vertically every ray
-    /// of a pixel reads the same view row.
-    pub supersample: usize,
+    /// Rays per pixel edge ([`Supersample`]), taken across the pixel only: rows warp
+    /// independently, so the `k` rows of a pixel's `k × k` rays would read the same view row.
+    pub supersample: Supersample,
     /// The light shading albedo and normals.
     pub light: Light,
     /// Warp a mip level when the screen is coarser than the views: level
@@ -42,7 +43,7 @@ impl RenderParams {
         Self {
             width: images.params.width,
             height: images.params.height,
-            supersample: 1,
+            supersample: Supersample::ONE,
             light: Light::default(),
             mip: true,
         }
@@ -58,11 +59,11 @@ impl RenderParams {
     }
 
     pub(super) fn validate(&self) -> Result<(), ParallaxError> {
-        if self.width == 0 || self.height == 0 || self.supersample == 0 {
+        if self.width == 0 || self.height == 0 {
             return Err(invalid(
                 "render size",
                 format!("{}×{} ×{}", self.width, self.height, self.supersample),
-                "width, height and supersampling must be at least 1",
+                "width and height must be at least 1",
             ));
         }
         Ok(())
@@ -78,10 +79,13 @@ impl RenderParams {
                 height: 1.0,
             },
         };
-        let k = self.supersample as f64;
-        (0..self.width * self.supersample)
+        let k = self.supersample.get() as f64;
+        (0..self.width * self.supersample.get())
             .map(|s| {
-                grid.x_at((s / self.supersample) as f64 + ((s % self.supersample) as f64 + 0.5) / k)
+                grid.x_at(
+                    (s / self.supersample.get()) as f64
+                        + ((s % self.supersample.get()) as f64 + 0.5) / k,
+                )
             })
             .collect()
     }
@@ -100,9 +104,9 @@ impl RenderParams {
         match filter {
             RowFilter::Nearest => vec![(self.view_row(js, view_height), 1.0)],
             RowFilter::Linear => {
-                let k = self.supersample as f64;
+                let k = self.supersample.get() as f64;
                 let scale = view_height as f64 / self.height as f64;
-                let mut out: Vec<(usize, f32)> = Vec::with_capacity(self.supersample + 1);
+                let mut out: Vec<(usize, f32)> = Vec::with_capacity(self.supersample.get() + 1);
                 let mut add = |j: i64, w: f64| {
                     if j < 0 || j >= view_height as i64 || w <= 0.0 {
                         return;
@@ -113,7 +117,7 @@ impl RenderParams {
                         None => out.push((j, w as f32)),
                     }
                 };
-                for q in 0..self.supersample {
+                for q in 0..self.supersample.get() {
                     let v = (js as f64 + (q as f64 + 0.5) / k) * scale - 0.5;
                     let j0 = v.floor();
                     let f = v - j0;

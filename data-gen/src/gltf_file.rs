@@ -31,7 +31,7 @@ use rayon::prelude::*;
 
 use crate::error::DataGenError;
 use crate::surface::{
-    AlphaMode, Filter, Material, SurfaceTri, TextureImage, TextureRef, UvTransform, Wrap,
+    Material, MaterialAlpha, SamplerFilter, SurfaceTri, TextureImage, TextureRef, UvTransform, Wrap,
 };
 
 /// Extensions whose `extensionsRequired` entry altrep accepts.
@@ -437,8 +437,8 @@ pub(crate) fn load(
                     gltf::texture::WrappingMode::ClampToEdge => Wrap::ClampToEdge,
                 };
                 let filter = match sampler.mag_filter() {
-                    Some(gltf::texture::MagFilter::Nearest) => Filter::Nearest,
-                    _ => Filter::Linear,
+                    Some(gltf::texture::MagFilter::Nearest) => SamplerFilter::Nearest,
+                    _ => SamplerFilter::Linear,
                 };
                 let (transform, set) = match info.texture_transform() {
                     Some(t) => (
@@ -476,11 +476,11 @@ pub(crate) fn load(
             None => None,
         };
         let alpha_mode = match m.alpha_mode() {
-            gltf::material::AlphaMode::Opaque => AlphaMode::Opaque,
-            gltf::material::AlphaMode::Mask => AlphaMode::Mask {
+            gltf::material::AlphaMode::Opaque => MaterialAlpha::Opaque,
+            gltf::material::AlphaMode::Mask => MaterialAlpha::Mask {
                 cutoff: m.alpha_cutoff().unwrap_or(0.5),
             },
-            gltf::material::AlphaMode::Blend => AlphaMode::Blend,
+            gltf::material::AlphaMode::Blend => MaterialAlpha::Blend,
         };
         if m.normal_texture().is_some() {
             notes.insert("normal maps ignored (geometric or vertex normals shade)".into());

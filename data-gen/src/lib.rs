@@ -83,6 +83,8 @@ pub use shapes::{SCENE_SHAPES, scene_shape};
 #[doc(hidden)]
 pub use shared::{shared_mesh, shared_mesh_paths, shared_meshes, skip, under_ci};
 pub use supersample::Supersample;
-pub use surface::{AlphaMode, Filter, Material, TextureImage, TextureRef, UvTransform, Wrap};
+pub use surface::{
+    Material, MaterialAlpha, SamplerFilter, TextureImage, TextureRef, UvTransform, Wrap,
+};
 pub use truth::{Light, TruthParams, render_silhouette, render_truth, render_truth_at_points};
 pub use volume::{Volume, Voxel, VoxelParams, voxelize};

@@ -19,7 +19,7 @@
 //! MTL file is found, else a procedural albedo (stripes by azimuth and height) so that warping
 //! errors show in images.
 //!
-//! Alpha: where a material's alpha stops no ray ([`AlphaMode`]), every tracer (the BVH walk, the
+//! Alpha: where a material's alpha stops no ray ([`MaterialAlpha`]), every tracer (the BVH walk, the
 //! binned and radial tracers, the inside tests) passes through the hit as if the triangle were
 //! not there, with the same test, so the truth and every capture agree.
 //!

@@ -12,7 +12,7 @@ use rayon::prelude::*;
 use crate::error::DataGenError;
 use crate::mesh::{Extras, Loaded, MeshLoadOptions, TriColor};
 use crate::placement::UpAxis;
-use crate::surface::{AlphaMode, Material, SurfaceTri, TextureImage, TextureRef};
+use crate::surface::{Material, MaterialAlpha, SurfaceTri, TextureImage, TextureRef};
 
 /// The triangles of the OBJ text `bytes` read from `path` (materials and textures are read
 /// from its folder), their colours, and what the normalisation needs besides.
@@ -92,11 +92,11 @@ pub(crate) fn load(
         };
         // A cut-out map is a mask (cutoff ½); a uniform dissolve below 1 is coverage.
         let alpha_mode = if alpha_texture.is_some() {
-            AlphaMode::Mask { cutoff: 0.5 }
+            MaterialAlpha::Mask { cutoff: 0.5 }
         } else if dissolve < 1.0 {
-            AlphaMode::Blend
+            MaterialAlpha::Blend
         } else {
-            AlphaMode::Opaque
+            MaterialAlpha::Opaque
         };
         surface_of[k] = Some(surface_materials.len() as u32);
         surface_materials.push(Material {

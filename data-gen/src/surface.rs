@@ -8,7 +8,7 @@
 //!   its bottom-right (glTF's convention; OBJ's `vt` has `v` upward and is flipped when loaded).
 //!   Texel `(i, j)` has its centre at `((i + ½)/w, (j + ½)/h)`.
 //! * The colour at a surface point is `factor × texture(uv) × vertex colour`, RGBA, in linear
-//!   space; the albedo is its RGB and the coverage test reads its alpha ([`AlphaMode`]).
+//!   space; the albedo is its RGB and the coverage test reads its alpha ([`MaterialAlpha`]).
 //! * A point lookup is bilinear between the four nearest texel centres (or nearest, as the sampler
 //!   says), with the sampler's wrap mode per axis.
 //! * A lookup over a footprint (a grid of rays: each ray stands for its cell of the grid, see
@@ -53,7 +53,7 @@ impl Wrap {
 
 /// How texels are combined at a lookup (the glTF sampler's magnification filter).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
-pub enum Filter {
+pub enum SamplerFilter {
     /// The nearest texel (glTF `NEAREST`).
     Nearest,
     /// Bilinear between the four nearest texel centres (glTF `LINEAR`, and the default).
@@ -154,7 +154,7 @@ impl TextureImage {
         &self,
         uv: Vec2,
         axes: [Vec2; 2],
-        filter: Filter,
+        filter: SamplerFilter,
         wrap: [Wrap; 2],
     ) -> Vec4 {
         let size = Vec2::new(self.width as f32, self.height as f32);
@@ -247,15 +247,15 @@ impl TextureImage {
 
     /// The texture at `uv` through `filter` and `wrap` (module conventions). Non-finite
     /// coordinates read texel `(0, 0)`.
-    pub fn sample(&self, uv: Vec2, filter: Filter, wrap: [Wrap; 2]) -> Vec4 {
+    pub fn sample(&self, uv: Vec2, filter: SamplerFilter, wrap: [Wrap; 2]) -> Vec4 {
         match filter {
-            Filter::Nearest => {
+            SamplerFilter::Nearest => {
                 let (x, y) = texel_coordinates(uv, self.width, self.height);
                 let i = wrap[0].index(x.round() as i64, self.width);
                 let j = wrap[1].index(y.round() as i64, self.height);
                 self.texel(i, j)
             }
-            Filter::Linear => self.bilinear(0, uv, wrap),
+            SamplerFilter::Linear => self.bilinear(0, uv, wrap),
         }
     }
 }
@@ -320,7 +320,7 @@ pub struct TextureRef {
     /// The image (shared between materials that use it).
     pub image: Arc<TextureImage>,
     /// The magnification filter (the minification filter is not used: no pyramid is read).
-    pub filter: Filter,
+    pub filter: SamplerFilter,
     /// Wrap modes along `u` and `v`.
     pub wrap: [Wrap; 2],
     /// `KHR_texture_transform`, identity without it.
@@ -332,7 +332,7 @@ impl TextureRef {
     pub fn from_image(image: Arc<TextureImage>) -> Self {
         Self {
             image,
-            filter: Filter::Linear,
+            filter: SamplerFilter::Linear,
             wrap: [Wrap::Repeat; 2],
             transform: UvTransform::default(),
         }
@@ -364,7 +364,7 @@ impl TextureRef {
 
 /// What a surface's alpha means (glTF `alphaMode`; OBJ/MTL `d` and `map_d` read as `Mask`).
 #[derive(Clone, Copy, Debug, PartialEq, Default)]
-pub enum AlphaMode {
+pub enum MaterialAlpha {
     /// Alpha is ignored: every hit is opaque.
     #[default]
     Opaque,
@@ -392,7 +392,7 @@ pub struct Material {
     /// Alpha-only texture (MTL `map_d`; its first channel, or its alpha when it has one).
     pub alpha_texture: Option<TextureRef>,
     /// How alpha is read.
-    pub alpha_mode: AlphaMode,
+    pub alpha_mode: MaterialAlpha,
 }
 
 impl Material {
@@ -432,7 +432,7 @@ impl Material {
 
     /// Whether alpha can stop a ray from hitting this material.
     pub fn is_cut_out(&self) -> bool {
-        !matches!(self.alpha_mode, AlphaMode::Opaque)
+        !matches!(self.alpha_mode, MaterialAlpha::Opaque)
     }
 }
 
@@ -457,13 +457,13 @@ impl SurfaceTri {
 }
 
 /// Whether a hit with `alpha` under `mode` stops the ray; `key` is a hash of the hit (used by
-/// [`AlphaMode::Blend`] only).
+/// [`MaterialAlpha::Blend`] only).
 #[inline]
-pub(crate) fn stops(mode: AlphaMode, alpha: f32, key: u64) -> bool {
+pub(crate) fn stops(mode: MaterialAlpha, alpha: f32, key: u64) -> bool {
     match mode {
-        AlphaMode::Opaque => true,
-        AlphaMode::Mask { cutoff } => alpha >= cutoff,
-        AlphaMode::Blend => {
+        MaterialAlpha::Opaque => true,
+        MaterialAlpha::Mask { cutoff } => alpha >= cutoff,
+        MaterialAlpha::Blend => {
             // SplitMix64's finaliser: a uniform threshold in [0, 1) per key.
             let mut z = key.wrapping_add(0x9E37_79B9_7F4A_7C15);
             z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
@@ -555,39 +555,45 @@ mod tests {
         let t = checker();
         let lin = [Wrap::Repeat; 2];
         assert_eq!(
-            t.sample(Vec2::new(0.25, 0.25), Filter::Linear, lin),
+            t.sample(Vec2::new(0.25, 0.25), SamplerFilter::Linear, lin),
             t.texel(0, 0)
         );
         assert_eq!(
-            t.sample(Vec2::new(0.75, 0.25), Filter::Linear, lin),
+            t.sample(Vec2::new(0.75, 0.25), SamplerFilter::Linear, lin),
             t.texel(1, 0)
         );
         // Halfway between two centres: the mean.
-        assert_abs_diff_eq!(t.sample(Vec2::new(0.5, 0.25), Filter::Linear, lin).x, 0.5);
+        assert_abs_diff_eq!(
+            t.sample(Vec2::new(0.5, 0.25), SamplerFilter::Linear, lin).x,
+            0.5
+        );
         // One period away: the same texel.
         assert_eq!(
-            t.sample(Vec2::new(1.25, -0.75), Filter::Linear, lin),
+            t.sample(Vec2::new(1.25, -0.75), SamplerFilter::Linear, lin),
             t.texel(0, 0)
         );
         // Clamped: the edge texel.
         let clamp = [Wrap::ClampToEdge; 2];
         assert_eq!(
-            t.sample(Vec2::new(7.0, 0.25), Filter::Linear, clamp),
+            t.sample(Vec2::new(7.0, 0.25), SamplerFilter::Linear, clamp),
             t.texel(1, 0)
         );
         // Mirrored: [1, 2) reads the texture backwards.
         let mirror = [Wrap::MirroredRepeat; 2];
         assert_eq!(
-            t.sample(Vec2::new(1.25, 0.25), Filter::Nearest, mirror),
+            t.sample(Vec2::new(1.25, 0.25), SamplerFilter::Nearest, mirror),
             t.texel(1, 0)
         );
         assert_eq!(
-            t.sample(Vec2::new(1.75, 0.25), Filter::Nearest, mirror),
+            t.sample(Vec2::new(1.75, 0.25), SamplerFilter::Nearest, mirror),
             t.texel(0, 0)
         );
         // NaN coordinates read texel (0, 0), never NaN.
-        assert!(t.sample(Vec2::NAN, Filter::Linear, lin).is_finite());
-        assert!(t.sample(Vec2::splat(1e30), Filter::Linear, lin).is_finite());
+        assert!(t.sample(Vec2::NAN, SamplerFilter::Linear, lin).is_finite());
+        assert!(
+            t.sample(Vec2::splat(1e30), SamplerFilter::Linear, lin)
+                .is_finite()
+        );
     }
 
     #[test]
@@ -628,30 +634,35 @@ mod tests {
         ] {
             let axes = [Vec2::new(1.0, 0.0), Vec2::new(0.0, 1.0)];
             assert_abs_diff_eq!(
-                t.sample_footprint(c, axes, Filter::Linear, wrap).x,
+                t.sample_footprint(c, axes, SamplerFilter::Linear, wrap).x,
                 0.5,
                 epsilon = 1e-6
             );
             // Elongated 8:1 along u, one texel across v: still the mean of a texel row pair.
             let thin = [Vec2::new(1.0, 0.0), Vec2::new(0.0, 1.0 / 8.0)];
-            let v = t.sample_footprint(c, thin, Filter::Linear, wrap).x;
+            let v = t.sample_footprint(c, thin, SamplerFilter::Linear, wrap).x;
             assert!((0.0..=1.0).contains(&v), "{v}");
         }
         // A footprint below a texel is the point lookup.
         let small = [Vec2::new(0.01, 0.0), Vec2::new(0.0, 0.01)];
         let c = Vec2::new(0.3, 0.7);
         assert_eq!(
-            t.sample_footprint(c, small, Filter::Nearest, wrap),
-            t.sample(c, Filter::Nearest, wrap)
+            t.sample_footprint(c, small, SamplerFilter::Nearest, wrap),
+            t.sample(c, SamplerFilter::Nearest, wrap)
         );
         // Degenerate footprints never give NaN.
         assert!(
-            t.sample_footprint(c, [Vec2::NAN, Vec2::ZERO], Filter::Linear, wrap)
+            t.sample_footprint(c, [Vec2::NAN, Vec2::ZERO], SamplerFilter::Linear, wrap)
                 .is_finite()
         );
         assert!(
-            t.sample_footprint(c, [Vec2::splat(1e30), Vec2::ZERO], Filter::Linear, wrap)
-                .is_finite()
+            t.sample_footprint(
+                c,
+                [Vec2::splat(1e30), Vec2::ZERO],
+                SamplerFilter::Linear,
+                wrap
+            )
+            .is_finite()
         );
     }
 
@@ -660,11 +671,11 @@ mod tests {
         for alpha in [0.0f32, 0.1, 0.3, 0.5, 0.9, 1.0] {
             let n = 100_000u64;
             let stopped = (0..n)
-                .filter(|&k| stops(AlphaMode::Blend, alpha, k))
+                .filter(|&k| stops(MaterialAlpha::Blend, alpha, k))
                 .count();
             assert_abs_diff_eq!(stopped as f64 / n as f64, f64::from(alpha), epsilon = 0.01);
         }
-        assert!(stops(AlphaMode::Mask { cutoff: 0.5 }, 0.5, 0));
-        assert!(!stops(AlphaMode::Mask { cutoff: 0.5 }, 0.499, 0));
+        assert!(stops(MaterialAlpha::Mask { cutoff: 0.5 }, 0.5, 0));
+        assert!(!stops(MaterialAlpha::Mask { cutoff: 0.5 }, 0.499, 0));
     }
 }

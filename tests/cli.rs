@@ -52,6 +52,27 @@ fn demo_writes_its_report() {
             "the demo scene has no {name} asset"
         );
     }
+    // The user's own folder named like a section, where the demo never ran, is refused before
+    // any work and left as it is.
+    let theirs = tempfile::tempdir().unwrap();
+    std::fs::create_dir(theirs.path().join("captures")).unwrap();
+    std::fs::write(theirs.path().join("captures/holiday.png"), "mine").unwrap();
+    let refused = altrep()
+        .args(["demo", "--quick", "--out"])
+        .arg(theirs.path())
+        .output()
+        .unwrap();
+    assert!(!refused.status.success());
+    let err = String::from_utf8_lossy(&refused.stderr);
+    assert!(
+        err.contains("captures") && err.contains("choose another --out"),
+        "{err}"
+    );
+    assert_eq!(
+        std::fs::read(theirs.path().join("captures/holiday.png")).unwrap(),
+        b"mine"
+    );
+    assert_eq!(std::fs::read_dir(theirs.path()).unwrap().count(), 1);
 }
 
 #[test]

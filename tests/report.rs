@@ -200,6 +200,41 @@ fn report_command_writes_its_files_and_rejects_an_unknown_representation() {
         .unwrap();
     assert!(!bad.status.success());
     assert!(String::from_utf8_lossy(&bad.stderr).contains("unknown representation 'voxels'"));
+    // A rerun with fewer sweeps leaves no file of the older run's other sweeps; a file the
+    // report does not write stays.
+    std::fs::write(dir.path().join("notes.txt"), "mine").unwrap();
+    let again = altrep()
+        .args(["report", "--quick", "--only", "fit", "--out"])
+        .arg(dir.path())
+        .output()
+        .unwrap();
+    assert!(again.status.success());
+    assert!(dir.path().join("fit.png").is_file());
+    assert!(!dir.path().join("pyramid.png").exists());
+    assert_eq!(
+        std::fs::read(dir.path().join("notes.txt")).unwrap(),
+        b"mine"
+    );
+    // A report.md of the user's, in a folder the report never wrote to, is refused before any
+    // sweep and left as it is.
+    let theirs = tempfile::tempdir().unwrap();
+    std::fs::write(theirs.path().join("report.md"), "my notes").unwrap();
+    let refused = altrep()
+        .args(["report", "--quick", "--only", "fit", "--out"])
+        .arg(theirs.path())
+        .output()
+        .unwrap();
+    assert!(!refused.status.success());
+    let err = String::from_utf8_lossy(&refused.stderr);
+    assert!(
+        err.contains("report.md") && err.contains("choose another --out"),
+        "{err}"
+    );
+    assert_eq!(
+        std::fs::read(theirs.path().join("report.md")).unwrap(),
+        b"my notes"
+    );
+    assert_eq!(std::fs::read_dir(theirs.path()).unwrap().count(), 1);
 }
 
 const SCENE: &str = r#"

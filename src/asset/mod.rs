@@ -16,6 +16,7 @@
 //!
 //! Cost: writing and reading are linear in the bytes; hashing runs at several GB/s.
 
+mod claim;
 mod read;
 mod write;
 
@@ -23,6 +24,7 @@ use std::path::PathBuf;
 
 use serde::{Deserialize, Serialize};
 
+pub use claim::OutputClaim;
 pub use read::{AssetReader, PngDecode};
 pub(crate) use write::encode_png;
 pub use write::{

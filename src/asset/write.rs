@@ -46,7 +46,7 @@ impl std::fmt::Debug for AssetWriter {
     }
 }
 
-fn io(path: &Path) -> impl FnOnce(std::io::Error) -> AssetError + '_ {
+pub(super) fn io(path: &Path) -> impl FnOnce(std::io::Error) -> AssetError + '_ {
     move |source| AssetError::Io {
         path: path.to_path_buf(),
         source,

@@ -248,8 +248,7 @@ pub fn summary_markdown(reports: &[EvalReport]) -> String {
 pub fn demo_section(
     ctx: &DemoContext,
 ) -> Result<DemoSection, Box<dyn std::error::Error + Send + Sync>> {
-    let dir = ctx.out.join("cylinder");
-    std::fs::create_dir_all(&dir).map_err(|e| format!("cannot create {}: {e}", dir.display()))?;
+    let dir = ctx.dir;
     let params = if ctx.quick {
         EvalParams {
             angles: 2,

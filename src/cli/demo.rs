@@ -31,8 +31,9 @@ pub struct DemoArgs {
 
 /// What a demo section sees.
 pub struct DemoContext<'a> {
-    /// Output folder of the whole demo; a section writes under `out/<its name>/`.
-    pub out: &'a Path,
+    /// The section's own folder (created, empty), which lands at `OUT/<its name>/`: a section
+    /// writes only here, and links its images in its Markdown as `<its name>/FILE`.
+    pub dir: &'a Path,
     /// Quick mode: smaller sizes.
     pub quick: bool,
     /// The light every image is shaded with.
@@ -72,15 +73,25 @@ pub const DEMO_CUTOUT: &str = include_str!("../../scenes/cutout.obj");
 /// Runs `altrep demo`: `precompute` of the bundled scene into `OUT/scene`, then the measured
 /// sections into `OUT/report.md`.
 pub fn run(args: DemoArgs) -> CliResult {
-    std::fs::create_dir_all(&args.out)
-        .map_err(|e| format!("cannot create output folder {}: {e}", args.out.display()))?;
+    // What the demo writes besides the scene (which `precompute` guards itself): checked before
+    // any work, staged, and renamed into place (crate::asset::OutputClaim).
+    let list = sections();
+    let entries = ["report.json", "report.md", "scene-inputs"]
+        .into_iter()
+        .chain(list.iter().map(|(name, _)| *name))
+        .map(String::from)
+        .collect();
+    let mut claim = crate::asset::OutputClaim::new(&args.out, "demo", entries);
+    claim.check()?;
+    let staging = claim.begin()?;
     // The scene's own mesh (a flat cut-out) is written beside a copy of the manifest, so the
     // demo runs from any folder.
-    let inputs = args.out.join("scene-inputs");
-    std::fs::create_dir_all(&inputs)
-        .map_err(|e| format!("cannot create {}: {e}", inputs.display()))?;
-    std::fs::write(inputs.join("cutout.obj"), DEMO_CUTOUT)
-        .map_err(|e| format!("cannot write {}: {e}", inputs.display()))?;
+    let staged_inputs = staging.join("scene-inputs");
+    std::fs::create_dir(&staged_inputs)
+        .map_err(|e| format!("cannot create {}: {e}", staged_inputs.display()))?;
+    std::fs::write(staged_inputs.join("cutout.obj"), DEMO_CUTOUT)
+        .map_err(|e| format!("cannot write {}: {e}", staged_inputs.display()))?;
+    let inputs = claim.place("scene-inputs")?;
     let manifest = crate::pipeline::Manifest::parse(DEMO_SCENE, &inputs.join("demo.toml"))?;
     let scene_out = args.out.join("scene");
     super::precompute::run_manifest(
@@ -101,12 +112,6 @@ pub fn run(args: DemoArgs) -> CliResult {
             max_memory: None,
         },
     )?;
-    let ctx = DemoContext {
-        out: &args.out,
-        quick: args.quick,
-        light: Light::default(),
-    };
-    let list = sections();
     let bar = ProgressBar::new(list.len() as u64).with_style(
         ProgressStyle::with_template("{bar:30} {pos}/{len} {msg} [{elapsed}]")
             .expect("static progress template"),
@@ -122,6 +127,13 @@ pub fn run(args: DemoArgs) -> CliResult {
     for (name, section) in list {
         bar.set_message(name);
         let t0 = Instant::now();
+        let dir = staging.join(name);
+        std::fs::create_dir(&dir).map_err(|e| format!("cannot create {}: {e}", dir.display()))?;
+        let ctx = DemoContext {
+            dir: &dir,
+            quick: args.quick,
+            light: Light::default(),
+        };
         let s = section(&ctx).map_err(|e| format!("demo section '{name}' failed: {e}"))?;
         let ms = t0.elapsed().as_secs_f64() * 1e3;
         report.insert(s.name.clone(), json!({ "wall_ms": ms, "results": s.json }));
@@ -134,12 +146,21 @@ pub fn run(args: DemoArgs) -> CliResult {
         bar.inc(1);
     }
     bar.finish_with_message("done");
-    let json_path = args.out.join("report.json");
-    std::fs::write(&json_path, serde_json::to_string_pretty(&report)?)
-        .map_err(|e| format!("cannot write {}: {e}", json_path.display()))?;
-    let md_path = args.out.join("report.md");
-    std::fs::write(&md_path, md).map_err(|e| format!("cannot write {}: {e}", md_path.display()))?;
-    println!("wrote {} and {}", json_path.display(), md_path.display());
+    let write = |name: &str, bytes: &[u8]| {
+        let path = staging.join(name);
+        std::fs::write(&path, bytes).map_err(|e| format!("cannot write {}: {e}", path.display()))
+    };
+    write(
+        "report.json",
+        serde_json::to_string_pretty(&report)?.as_bytes(),
+    )?;
+    write("report.md", md.as_bytes())?;
+    claim.commit()?;
+    println!(
+        "wrote {} and {}",
+        args.out.join("report.json").display(),
+        args.out.join("report.md").display()
+    );
     Ok(())
 }
 
@@ -151,7 +172,7 @@ pub const DEMO_SHAPES: &[&str] = &["truck", "pear", "tree", "chair", "building"]
 fn captures_section(
     ctx: &DemoContext,
 ) -> Result<DemoSection, Box<dyn std::error::Error + Send + Sync>> {
-    let dir = ctx.out.join("captures");
+    let dir = ctx.dir;
     let (size, truth_size, k) = if ctx.quick {
         (32, 64, Supersample::of(2))
     } else {

@@ -295,7 +295,7 @@ pub fn demo_section(
             supersample,
         },
     )?;
-    let dir = ctx.out.join("ellipsoid");
+    let dir = ctx.dir;
     let d = ctx.light.direction;
     let render = OctreeRenderParams {
         light: nalgebra::Vector3::new(f64::from(d.x), f64::from(d.y), f64::from(d.z)),

@@ -410,8 +410,7 @@ fn heat_map(values: &[f64], w: usize, h: usize, max: f64) -> RgbaImage {
 pub fn demo_section(
     ctx: &DemoContext,
 ) -> Result<DemoSection, Box<dyn std::error::Error + Send + Sync>> {
-    let dir = ctx.out.join("parallax");
-    std::fs::create_dir_all(&dir).map_err(|e| format!("cannot create {}: {e}", dir.display()))?;
+    let dir = ctx.dir;
     let (size, angles, sweep, zoom) = if ctx.quick {
         (32, 72, 0, 6)
     } else {

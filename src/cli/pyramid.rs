@@ -250,8 +250,7 @@ pub fn demo_section(
     use crate::pyramid::truth::{
         LookupMethod, PlaneView, footprints, lookup_all, rms, supersampled_truth,
     };
-    let dir = ctx.out.join("pyramids");
-    std::fs::create_dir_all(&dir)?;
+    let dir = ctx.dir;
     let (pixels, samples) = if ctx.quick { (32, 256) } else { (64, 1024) };
     let tex = checkerboard(64, 8)?;
     let params = PyramidParams {

@@ -36,16 +36,28 @@ pub fn run(args: ReportArgs) -> CliResult {
             return Err(crate::report::ReportError::Unknown(name.clone()).into());
         }
     }
-    std::fs::create_dir_all(&args.out)
-        .map_err(|e| format!("cannot create {}: {e}", args.out.display()))?;
-    super::precompute::check_writable(&args.out.join("report.json"))?;
+    // Every file the report may write, for any --only: checked before the sweeps, written into
+    // a staging folder, renamed into place; those of an older run this one does not write go.
+    let entries = ["report.json", "report.csv", "report.md"]
+        .into_iter()
+        .map(String::from)
+        .chain(
+            REPRESENTATIONS
+                .iter()
+                .flat_map(|r| ["csv", "svg", "png"].map(|ext| format!("{r}.{ext}"))),
+        )
+        .collect();
+    let claim = crate::asset::OutputClaim::new(&args.out, "report", entries);
+    claim.check()?;
     let params = ReportParams {
         quick: args.quick,
         only: args.only.clone(),
         mesh: args.mesh.clone(),
     };
     let report = run_report(&params, true)?;
-    let written = write(&report, &args.out)?;
+    let staging = claim.begin()?;
+    let written = write(&report, &staging)?;
+    claim.commit()?;
     if args.json {
         println!("{}", serde_json::to_string_pretty(&report)?);
     } else {

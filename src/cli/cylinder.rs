@@ -161,8 +161,7 @@ pub fn run(args: CylinderArgs) -> CliResult {
         } else {
             json!({ "params": params, "shapes": results })
         };
-        std::fs::write(path, serde_json::to_string_pretty(&out)?)
-            .map_err(|e| format!("cannot write {}: {e}", path.display()))?;
+        super::write_json(path, &out)?;
         println!("wrote {}", path.display());
     }
     Ok(())

@@ -126,8 +126,7 @@ pub fn run(args: EllipsoidBenchArgs) -> CliResult {
         report.octree = print_octree(&args)?;
     }
     if let Some(path) = &args.json {
-        std::fs::write(path, serde_json::to_string_pretty(&report)?)
-            .map_err(|e| format!("cannot write {}: {e}", path.display()))?;
+        super::write_json(path, &report)?;
         println!();
         println!("wrote {}", path.display());
     }

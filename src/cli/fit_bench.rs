@@ -400,7 +400,7 @@ pub fn run(args: FitBenchArgs) -> CliResult {
             "lambdas": lambda_rows,
             "dense_reference_rms": dense_rms,
         });
-        std::fs::write(path, serde_json::to_string_pretty(&doc)?)?;
+        super::write_json(path, &doc)?;
         println!("\nwrote {}", path.display());
     }
     Ok(())

@@ -17,6 +17,15 @@ pub mod sphere;
 /// Error type of the command-line layer: a message for the user, already formatted.
 pub type CliResult = Result<(), Box<dyn std::error::Error + Send + Sync>>;
 
+/// Writes `value` as pretty JSON to the file `path` a user named (`--json`): to a temporary name
+/// beside it, then renamed over it, so the file is never half written. Errors name the path.
+pub fn write_json(path: &std::path::Path, value: &impl serde::Serialize) -> CliResult {
+    let text = serde_json::to_string_pretty(value)?;
+    crate::asset::write_atomic(path, text.as_bytes())
+        .map_err(|e| format!("cannot write {}: {e}", path.display()))?;
+    Ok(())
+}
+
 /// The one parser of three sizes written `AxBxC` (grid cells, sample counts), for every
 /// subcommand's `value_parser`. Rule: exactly three integers ≥ 1, separated by `x`, `X` or `×`,
 /// spaces around each integer allowed (`15x8x16`, `15×8×16`, `15 x 8 x 16`).

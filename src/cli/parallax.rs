@@ -229,8 +229,7 @@ fn run_sweep(
             "shape": shape.name(), "angles": qp.angles, "supersample": qp.supersample.get(),
             "variants": Variant::standard(), "quality": rows, "steps": steps,
         });
-        std::fs::write(path, serde_json::to_string_pretty(&doc)?)
-            .map_err(|e| format!("cannot write {}: {e}", path.display()))?;
+        super::write_json(path, &doc)?;
         println!("wrote {}", path.display());
     }
     Ok(())
@@ -357,8 +356,7 @@ pub fn run(args: ParallaxArgs) -> CliResult {
             "footprint_share": r.footprint_share,
             "bounds": bounds, "quality": quality,
         });
-        std::fs::write(path, serde_json::to_string_pretty(&doc)?)
-            .map_err(|e| format!("cannot write {}: {e}", path.display()))?;
+        super::write_json(path, &doc)?;
         println!("wrote {}", path.display());
     }
     Ok(())

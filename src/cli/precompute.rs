@@ -223,8 +223,7 @@ pub fn run_manifest(manifest: &Manifest, args: &PrecomputeArgs) -> CliResult {
         args.out.join("report.md").display()
     );
     if let Some(j) = &args.json {
-        std::fs::write(j, serde_json::to_string_pretty(&summary)?)
-            .map_err(|e| format!("cannot write {}: {e}", j.display()))?;
+        super::write_json(j, &summary)?;
     }
     if !summary.ok() {
         return Err("some representations failed (see the table above)".into());

@@ -172,7 +172,7 @@ pub fn run(args: PyramidArgs) -> CliResult {
             "builds": builds,
             "fusion": fusion,
         });
-        std::fs::write(path, serde_json::to_string_pretty(&doc)?)?;
+        super::write_json(path, &doc)?;
     }
     Ok(())
 }

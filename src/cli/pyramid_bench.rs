@@ -147,7 +147,7 @@ pub fn run(args: PyramidBenchArgs) -> CliResult {
             "simd": simd_available(),
             "fusion": fusion,
         });
-        std::fs::write(path, serde_json::to_string_pretty(&doc)?)?;
+        super::write_json(path, &doc)?;
     }
     Ok(())
 }

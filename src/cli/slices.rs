@@ -314,8 +314,7 @@ pub fn run(args: SlicesArgs) -> CliResult {
         write_images(dir, &params)?;
     }
     if let Some(path) = &args.json {
-        std::fs::write(path, serde_json::to_string_pretty(&report)?)
-            .map_err(|e| format!("cannot write {}: {e}", path.display()))?;
+        super::write_json(path, &report)?;
     }
     Ok(())
 }

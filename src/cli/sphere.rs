@@ -274,7 +274,7 @@ pub fn run(args: SphereArgs) -> CliResult {
             "budgets": budgets,
             "bounds_checks": checks,
         });
-        crate::asset::write_atomic(path, serde_json::to_string_pretty(&doc)?.as_bytes())?;
+        super::write_json(path, &doc)?;
         println!("wrote {}", path.display());
     }
     Ok(())

@@ -138,6 +138,8 @@ fn a_million_textured_triangles_load_and_capture() {
     let mut prim = TestPrimitive {
         positions: Vec::new(),
         uvs: Vec::new(),
+        normals: Vec::new(),
+        tangents: Vec::new(),
         indices: Vec::new(),
         material: 0,
     };

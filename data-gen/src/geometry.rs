@@ -44,8 +44,12 @@ impl Ray {
 pub struct Hit {
     /// Ray parameter of the hit.
     pub t: f64,
-    /// Unit surface normal, facing the incoming ray (`normal · dir ≤ 0`).
+    /// Unit shading normal, facing the incoming ray (`normal · dir ≤ 0`): the surface's own, or
+    /// a mesh's interpolated vertex normal turned by its normal map.
     pub normal: DVec3,
+    /// Unit geometric normal of the surface hit (a mesh's triangle), facing the incoming ray:
+    /// what sampling density and grazing depend on.
+    pub geometric: DVec3,
     /// Linear RGB albedo at the hit.
     pub albedo: Vec3,
 }

@@ -13,14 +13,17 @@
 //!   shaded flat, as the specification requires.
 //! * `baseColorFactor` × `baseColorTexture` (sRGB decoded, the sampler's wrap modes and
 //!   magnification filter, `KHR_texture_transform`), `alphaMode` and `alphaCutoff`.
-//! * Everything else that changes how the asset looks is named in [`GltfScene::notes`]: normal,
+//! * `normalTexture` with its `scale` (linear, read over the ray's footprint like the base colour)
+//!   in the frame of `TANGENT`, or of MikkTSpace tangents generated in world coordinates when the
+//!   primitive has none (the specification's rule), so a baked normal map shades as its baker meant.
+//! * Everything else that changes how the asset looks is named in [`GltfScene::notes`]:
 //!   emissive and occlusion maps, `KHR_materials_unlit` (lit like any surface), single-sided
 //!   materials (drawn double-sided), skins and morph targets (the bind pose), optional extensions.
 //!
 //! Every accessor is checked before it is read (element type, stride, count, range), so a
 //! malformed file is an error naming the accessor, never a panic.
 
-use std::collections::BTreeSet;
+use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
@@ -31,7 +34,8 @@ use rayon::prelude::*;
 
 use crate::error::DataGenError;
 use crate::surface::{
-    Material, MaterialAlpha, SamplerFilter, SurfaceTri, TextureImage, TextureRef, UvTransform, Wrap,
+    Material, MaterialAlpha, NormalMap, SamplerFilter, SurfaceTri, TextureImage, TextureRef,
+    UvTransform, Wrap,
 };
 
 /// Extensions whose `extensionsRequired` entry altrep accepts.
@@ -377,16 +381,24 @@ pub(crate) fn load(
 
     // Materials: glTF's, then the default material (index `materials.len()`).
     let mut materials = Vec::new();
-    let mut images: Vec<Option<Arc<TextureImage>>> = vec![None; document.images().len()];
-    // Decode the base-colour images in parallel, each once.
-    let wanted: BTreeSet<usize> = document
-        .materials()
-        .filter_map(|m| m.pbr_metallic_roughness().base_color_texture())
-        .map(|info| info.texture().source().index())
-        .collect();
-    let decoded: Vec<(usize, Result<TextureImage, DataGenError>)> = {
+    // Decode the base-colour images (sRGB) and the normal maps (linear) in parallel, each once
+    // per way it is read.
+    let mut wanted: BTreeSet<(usize, bool)> = BTreeSet::new();
+    for m in document.materials() {
+        if let Some(info) = m.pbr_metallic_roughness().base_color_texture() {
+            wanted.insert((info.texture().source().index(), true));
+        }
+        if let Some(n) = m.normal_texture() {
+            wanted.insert((n.texture().source().index(), false));
+        }
+    }
+    let mut images: BTreeMap<(usize, bool), Arc<TextureImage>> = BTreeMap::new();
+    let decoded: Vec<((usize, bool), Result<TextureImage, DataGenError>)> = {
         let mut encoded = Vec::new();
-        for image in document.images().filter(|i| wanted.contains(&i.index())) {
+        for (image, srgb) in wanted
+            .iter()
+            .filter_map(|&(i, srgb)| document.images().nth(i).map(|im| (im, srgb)))
+        {
             let at = format!("images[{}]", image.index());
             let data = match image.source() {
                 gltf::image::Source::View { view, .. } => {
@@ -406,24 +418,33 @@ pub(crate) fn load(
                     read_uri(uri, base, &mut inputs).map_err(|m| err(path, &at, m))?
                 }
             };
-            encoded.push((image.index(), at, data));
+            encoded.push(((image.index(), srgb), at, data));
         }
         encoded
             .into_par_iter()
-            .map(|(i, at, data)| {
+            .map(|(key, at, data)| {
                 let decoded = image::load_from_memory(&data)
                     .map_err(|e| err(path, &at, format!("image decode failed: {e}")))
                     .and_then(|img| {
-                        TextureImage::from_dynamic(&img, true)
+                        TextureImage::from_dynamic(&img, key.1)
                             .ok_or_else(|| err(path, &at, "the image is empty"))
                     });
-                (i, decoded)
+                (key, decoded)
             })
             .collect()
     };
-    for (i, d) in decoded {
-        images[i] = Some(Arc::new(d?));
+    for (key, d) in decoded {
+        images.insert(key, Arc::new(d?));
     }
+    let wrap = |w: gltf::texture::WrappingMode| match w {
+        gltf::texture::WrappingMode::Repeat => Wrap::Repeat,
+        gltf::texture::WrappingMode::MirroredRepeat => Wrap::MirroredRepeat,
+        gltf::texture::WrappingMode::ClampToEdge => Wrap::ClampToEdge,
+    };
+    let filter = |s: &gltf::texture::Sampler| match s.mag_filter() {
+        Some(gltf::texture::MagFilter::Nearest) => SamplerFilter::Nearest,
+        _ => SamplerFilter::Linear,
+    };
     for m in document.materials() {
         let at = format!("materials[{}]", m.index().unwrap_or(0));
         let pbr = m.pbr_metallic_roughness();
@@ -431,15 +452,6 @@ pub(crate) fn load(
             Some(info) => {
                 let tex = info.texture();
                 let sampler = tex.sampler();
-                let wrap = |w: gltf::texture::WrappingMode| match w {
-                    gltf::texture::WrappingMode::Repeat => Wrap::Repeat,
-                    gltf::texture::WrappingMode::MirroredRepeat => Wrap::MirroredRepeat,
-                    gltf::texture::WrappingMode::ClampToEdge => Wrap::ClampToEdge,
-                };
-                let filter = match sampler.mag_filter() {
-                    Some(gltf::texture::MagFilter::Nearest) => SamplerFilter::Nearest,
-                    _ => SamplerFilter::Linear,
-                };
                 let (transform, set) = match info.texture_transform() {
                     Some(t) => (
                         UvTransform::from_offset_rotation_scale(
@@ -460,13 +472,14 @@ pub(crate) fn load(
                         ),
                     ));
                 }
-                let image = images[tex.source().index()]
-                    .clone()
+                let image = images
+                    .get(&(tex.source().index(), true))
+                    .cloned()
                     .ok_or_else(|| err(path, &at, "base colour image missing"))?;
                 Some((
                     TextureRef {
                         image,
-                        filter,
+                        filter: filter(&sampler),
                         wrap: [wrap(sampler.wrap_s()), wrap(sampler.wrap_t())],
                         transform,
                     },
@@ -482,9 +495,35 @@ pub(crate) fn load(
             },
             gltf::material::AlphaMode::Blend => MaterialAlpha::Blend,
         };
-        if m.normal_texture().is_some() {
-            notes.insert("normal maps ignored (geometric or vertex normals shade)".into());
-        }
+        let normal_map = match m.normal_texture() {
+            Some(info) => {
+                let tex = info.texture();
+                let sampler = tex.sampler();
+                let set = info.tex_coord();
+                if set > 1 {
+                    return Err(err(
+                        path,
+                        &at,
+                        format!("normalTexture reads TEXCOORD_{set}; only sets 0 and 1 are read"),
+                    ));
+                }
+                let image = images
+                    .get(&(tex.source().index(), false))
+                    .cloned()
+                    .ok_or_else(|| err(path, &at, "normal map image missing"))?;
+                Some(NormalMap {
+                    texture: TextureRef {
+                        image,
+                        filter: filter(&sampler),
+                        wrap: [wrap(sampler.wrap_s()), wrap(sampler.wrap_t())],
+                        transform: UvTransform::default(),
+                    },
+                    set,
+                    scale: info.scale(),
+                })
+            }
+            None => None,
+        };
         if m.emissive_texture().is_some() || m.emissive_factor() != [0.0; 3] {
             notes.insert("emission ignored".into());
         }
@@ -504,6 +543,7 @@ pub(crate) fn load(
             base_texture,
             alpha_texture: None,
             alpha_mode,
+            normal_map,
         });
     }
     let default_material = materials.len() as u32;
@@ -658,7 +698,53 @@ pub(crate) fn load(
                 .material()
                 .index()
                 .map_or(default_material, |i| i as u32);
-            for c in corners {
+            // Tangents where the material has a normal map: the file's TANGENT (carried by the
+            // node's linear part, the handedness flipped by a mirroring one), else MikkTSpace's
+            // in world coordinates (glTF §3.7.2.1), from the normals and the map's coordinates.
+            let normal_set = materials
+                .get(material as usize)
+                .and_then(|m: &Material| m.normal_map.as_ref())
+                .map(|m| (m.set as usize).min(1));
+            let tangents: Option<Vec<[Vec4; 3]>> = match normal_set {
+                None => None,
+                Some(set) => match prim.get(&gltf::Semantic::Tangents) {
+                    Some(acc) => {
+                        check_accessor(path, &acc, &[Dimensions::Vec4], &f32s, &buffers)?;
+                        let linear = DMat3::from_mat4(world);
+                        let hand = linear.determinant().signum();
+                        let t: Vec<Vec4> = reader
+                            .read_tangents()
+                            .ok_or_else(|| short("TANGENT"))?
+                            .map(|[x, y, z, w]| {
+                                let xyz = (linear * DVec3::new(x.into(), y.into(), z.into()))
+                                    .normalize_or_zero()
+                                    .as_vec3();
+                                xyz.extend(w * hand as f32)
+                            })
+                            .collect();
+                        if t.len() != n {
+                            return Err(err(path, &at, "attributes have different counts"));
+                        }
+                        Some(corners.iter().map(|c| c.map(|i| t[i as usize])).collect())
+                    }
+                    None => match &uvs[set] {
+                        Some(uv) => mikktspace(
+                            &corners,
+                            &pos,
+                            normals.as_deref(),
+                            uv,
+                            world.determinant() < 0.0,
+                        ),
+                        None => {
+                            notes.insert(format!(
+                                "normal maps without their TEXCOORD_{set} ignored"
+                            ));
+                            None
+                        }
+                    },
+                },
+            };
+            for (k, c) in corners.into_iter().enumerate() {
                 let [a, b, d] = c.map(|i| i as usize);
                 positions.push([a, b, d].map(|i| pos[i].to_array()));
                 let uv = [0, 1].map(|s| match &uvs[s] {
@@ -672,7 +758,18 @@ pub(crate) fn load(
                         Some(v) => [v[a], v[b], v[d]],
                         None => [Vec4::ONE; 3],
                     },
-                    normal: normals.as_ref().map(|v| [v[a], v[b], v[d]]),
+                    normal: match (&normals, &tangents) {
+                        (Some(v), _) => Some([v[a], v[b], v[d]]),
+                        // A normal-mapped flat triangle: its face normal by glTF's winding rule
+                        // (clockwise under a mirroring transform), the frame MikkTSpace used.
+                        (None, Some(_)) => {
+                            let [p0, p1, p2] = [a, b, d].map(|i| pos[i]);
+                            let f = (p1 - p0).cross(p2 - p0).normalize_or_zero().as_vec3();
+                            Some([if world.determinant() < 0.0 { -f } else { f }; 3])
+                        }
+                        (None, None) => None,
+                    },
+                    tangent: tangents.as_ref().map(|t| Box::new(t[k])),
                 });
             }
         }
@@ -684,4 +781,80 @@ pub(crate) fn load(
         notes: notes.into_iter().collect(),
         inputs,
     })
+}
+
+/// MikkTSpace tangents (`xyz`, handedness in `w`) of each corner of the triangles `corners` over
+/// vertices `pos` with shading normals `normals` (the faces' own where there are none) and
+/// texture coordinates `uv`, through `bevy_mikktspace`; `None` if it cannot make them (every face
+/// degenerate). `mirrored`: the instance's transform has a negative determinant, which reverses
+/// the triangles' winding (glTF §3.7.2.1); MikkTSpace reads handedness from the winding, so the
+/// corners are handed to it in the reversed order. Cost: linear in the corners, one pass of the
+/// reference algorithm.
+fn mikktspace(
+    corners: &[[u32; 3]],
+    pos: &[DVec3],
+    normals: Option<&[Vec3]>,
+    uv: &[Vec2],
+    mirrored: bool,
+) -> Option<Vec<[Vec4; 3]>> {
+    struct Faces<'a> {
+        corners: &'a [[u32; 3]],
+        order: [usize; 3],
+        pos: &'a [DVec3],
+        normals: Option<&'a [Vec3]>,
+        uv: &'a [Vec2],
+        out: Vec<[Vec4; 3]>,
+    }
+    impl Faces<'_> {
+        fn vertex(&self, face: usize, vert: usize) -> usize {
+            self.corners[face][self.order[vert]] as usize
+        }
+    }
+    impl bevy_mikktspace::Geometry for Faces<'_> {
+        fn num_faces(&self) -> usize {
+            self.corners.len()
+        }
+        fn num_vertices_of_face(&self, _face: usize) -> usize {
+            3
+        }
+        fn position(&self, face: usize, vert: usize) -> [f32; 3] {
+            self.pos[self.vertex(face, vert)].as_vec3().to_array()
+        }
+        fn normal(&self, face: usize, vert: usize) -> [f32; 3] {
+            match self.normals {
+                Some(n) => n[self.vertex(face, vert)].to_array(),
+                None => {
+                    let [a, b, c] = [0, 1, 2].map(|k| self.pos[self.vertex(face, k)]);
+                    (b - a)
+                        .cross(c - a)
+                        .normalize_or_zero()
+                        .as_vec3()
+                        .to_array()
+                }
+            }
+        }
+        fn tex_coord(&self, face: usize, vert: usize) -> [f32; 2] {
+            self.uv[self.vertex(face, vert)].to_array()
+        }
+        fn set_tangent(
+            &mut self,
+            tangent_space: Option<bevy_mikktspace::TangentSpace>,
+            face: usize,
+            vert: usize,
+        ) {
+            if let Some(t) = tangent_space {
+                self.out[face][self.order[vert]] = Vec4::from(t.tangent_encoded());
+            }
+        }
+    }
+    let mut faces = Faces {
+        corners,
+        order: if mirrored { [0, 2, 1] } else { [0, 1, 2] },
+        pos,
+        normals,
+        uv,
+        out: vec![[Vec4::ZERO; 3]; corners.len()],
+    };
+    bevy_mikktspace::generate_tangents(&mut faces).ok()?;
+    Some(faces.out)
 }

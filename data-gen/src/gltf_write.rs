@@ -36,6 +36,8 @@ pub struct TestMaterial {
     pub alpha_mode: &'static str,
     /// `alphaCutoff` (written for `MASK` only).
     pub alpha_cutoff: f32,
+    /// `normalTexture` (bytes as stored: `(n + 1)/2` per channel, linear) and its `scale`.
+    pub normal_texture: Option<(Rgba8, f32)>,
 }
 
 /// A triangle primitive of a [`TestGltf`] mesh.
@@ -45,6 +47,10 @@ pub struct TestPrimitive {
     pub positions: Vec<[f32; 3]>,
     /// `TEXCOORD_0` (same length as `positions`), or empty for none.
     pub uvs: Vec<[f32; 2]>,
+    /// `NORMAL` (same length as `positions`), or empty for none.
+    pub normals: Vec<[f32; 3]>,
+    /// `TANGENT` (`xyz` and the bitangent's sign; same length as `positions`), or empty.
+    pub tangents: Vec<[f32; 4]>,
     /// Triangle indices (`TRIANGLES` mode).
     pub indices: Vec<u32>,
     /// Index into [`TestGltf::materials`].
@@ -146,6 +152,16 @@ impl TestGltf {
                     accessors.push(json!({"bufferView": v, "componentType": 5126, "count": p.uvs.len(), "type": "VEC2"}));
                     attributes["TEXCOORD_0"] = json!(accessors.len() - 1);
                 }
+                if !p.normals.is_empty() {
+                    let v = push_view(&mut bin, &le_bytes(p.normals.iter().flatten()));
+                    accessors.push(json!({"bufferView": v, "componentType": 5126, "count": p.normals.len(), "type": "VEC3"}));
+                    attributes["NORMAL"] = json!(accessors.len() - 1);
+                }
+                if !p.tangents.is_empty() {
+                    let v = push_view(&mut bin, &le_bytes(p.tangents.iter().flatten()));
+                    accessors.push(json!({"bufferView": v, "componentType": 5126, "count": p.tangents.len(), "type": "VEC4"}));
+                    attributes["TANGENT"] = json!(accessors.len() - 1);
+                }
                 let v = push_view(
                     &mut bin,
                     &p.indices
@@ -165,11 +181,11 @@ impl TestGltf {
         let mut materials = Vec::new();
         for (k, m) in self.materials.iter().enumerate() {
             let mut pbr = json!({"baseColorFactor": m.base_color, "metallicFactor": 0.0});
-            if let Some(img) = &m.texture {
+            // One image, sampler and texture; the texture's index.
+            let mut texture = |img: &Rgba8, name: String| -> Result<usize, DataGenError> {
                 let bytes = png(img)?;
                 match external {
-                    Some(stem) => {
-                        let name = format!("{stem}_{k}.png");
+                    Some(_) => {
                         images.push(json!({"uri": name}));
                         files.push((name, bytes));
                     }
@@ -181,9 +197,23 @@ impl TestGltf {
                 let filter = if m.nearest { 9728 } else { 9729 };
                 samplers.push(json!({"magFilter": filter, "minFilter": filter, "wrapS": 33071, "wrapT": 33071}));
                 textures.push(json!({"source": images.len() - 1, "sampler": samplers.len() - 1}));
-                pbr["baseColorTexture"] = json!({"index": textures.len() - 1});
+                Ok(textures.len() - 1)
+            };
+            let stem = external.unwrap_or("");
+            if let Some(img) = &m.texture {
+                let t = texture(img, format!("{stem}_{k}.png"))?;
+                pbr["baseColorTexture"] = json!({"index": t});
             }
+            let normal = match &m.normal_texture {
+                Some((img, scale)) => {
+                    Some((texture(img, format!("{stem}_{k}_normal.png"))?, *scale))
+                }
+                None => None,
+            };
             let mut mat = json!({"pbrMetallicRoughness": pbr, "alphaMode": m.alpha_mode, "doubleSided": true});
+            if let Some((t, scale)) = normal {
+                mat["normalTexture"] = json!({"index": t, "scale": scale});
+            }
             if m.alpha_mode == "MASK" {
                 mat["alphaCutoff"] = json!(m.alpha_cutoff);
             }
@@ -281,6 +311,8 @@ impl TestGltf {
         let mut prim = TestPrimitive {
             positions: Vec::new(),
             uvs: Vec::new(),
+            normals: Vec::new(),
+            tangents: Vec::new(),
             indices: Vec::new(),
             material: 0,
         };
@@ -315,6 +347,7 @@ impl TestGltf {
                 nearest: true,
                 alpha_mode: "OPAQUE",
                 alpha_cutoff: 0.5,
+                normal_texture: None,
             }],
             nodes: vec![TestNode {
                 name: "box".into(),
@@ -347,6 +380,8 @@ impl TestGltf {
         let square = |z: f32, material: usize| TestPrimitive {
             positions: vec![[0.0, 0.0, z], [1.0, 0.0, z], [1.0, 1.0, z], [0.0, 1.0, z]],
             uvs: vec![[0.0, 1.0], [1.0, 1.0], [1.0, 0.0], [0.0, 0.0]],
+            normals: Vec::new(),
+            tangents: Vec::new(),
             indices: vec![0, 1, 2, 0, 2, 3],
             material,
         };
@@ -363,6 +398,7 @@ impl TestGltf {
                     nearest: true,
                     alpha_mode: "MASK",
                     alpha_cutoff: 0.5,
+                    normal_texture: None,
                 },
                 TestMaterial {
                     base_color: [0.2, 0.9, 0.2, 1.0],
@@ -370,8 +406,67 @@ impl TestGltf {
                     nearest: false,
                     alpha_mode: "OPAQUE",
                     alpha_cutoff: 0.5,
+                    normal_texture: None,
                 },
             ],
+            nodes: vec![TestNode {
+                name: "quad".into(),
+                mesh: Some(0),
+                matrix: IDENTITY,
+                children: vec![],
+            }],
+            roots: vec![0],
+        }
+    }
+
+    /// A square `[0, 1]²` in the plane `z = 0` (`uv = (x, 1 − y)`, so `+u` is `+x` and `+v` is
+    /// `−y`), white, with a normal map of one row of `texels` (linear codes of `(n + 1)/2`) at
+    /// `scale`. With `normals`, `NORMAL` is `+z`; with `tangents`, `TANGENT` is `(1, 0, 0, −1)`,
+    /// the frame MikkTSpace gives this mapping (`B = w · N × T = −y`).
+    pub fn normal_mapped_quad(
+        texels: &[[u8; 4]],
+        scale: f32,
+        normals: bool,
+        tangents: bool,
+    ) -> Self {
+        let n = texels.len() as u32;
+        Self {
+            meshes: vec![vec![TestPrimitive {
+                positions: vec![
+                    [0.0, 0.0, 0.0],
+                    [1.0, 0.0, 0.0],
+                    [1.0, 1.0, 0.0],
+                    [0.0, 1.0, 0.0],
+                ],
+                uvs: vec![[0.0, 1.0], [1.0, 1.0], [1.0, 0.0], [0.0, 0.0]],
+                normals: if normals {
+                    vec![[0.0, 0.0, 1.0]; 4]
+                } else {
+                    Vec::new()
+                },
+                tangents: if tangents {
+                    vec![[1.0, 0.0, 0.0, -1.0]; 4]
+                } else {
+                    Vec::new()
+                },
+                indices: vec![0, 1, 2, 0, 2, 3],
+                material: 0,
+            }]],
+            materials: vec![TestMaterial {
+                base_color: [1.0; 4],
+                texture: None,
+                nearest: true,
+                alpha_mode: "OPAQUE",
+                alpha_cutoff: 0.5,
+                normal_texture: Some((
+                    Rgba8 {
+                        width: n,
+                        height: 1,
+                        data: texels.concat(),
+                    },
+                    scale,
+                )),
+            }],
             nodes: vec![TestNode {
                 name: "quad".into(),
                 mesh: Some(0),

@@ -386,11 +386,14 @@ impl Mesh {
                 .flatten()
                 .for_each(|v| *v = (u * DVec3::from(*v)).to_array());
             colors.par_iter_mut().for_each(|c| {
-                if let TriColor::Surface(SurfaceTri {
-                    normal: Some(n), ..
-                }) = c
-                {
-                    *n = n.map(|v| uf * v);
+                if let TriColor::Surface(s) = c {
+                    if let Some(n) = &mut s.normal {
+                        *n = n.map(|v| uf * v);
+                    }
+                    // A rotation keeps the tangent frame's handedness (w).
+                    if let Some(t) = &mut s.tangent {
+                        **t = t.map(|v| (uf * v.truncate()).extend(v.w));
+                    }
                 }
             });
         }
@@ -636,19 +639,37 @@ impl Mesh {
                 let w = barycentric(tri, p);
                 let (uv, vc) = s.at(w);
                 let axes = footprint.and_then(|f| uv_axes(tri, s, f.at(p, ray.dir), ray.dir));
-                let albedo = self
-                    .materials
-                    .get(s.material as usize)
-                    .map_or(Vec3::ONE, |m| match axes {
-                        Some(axes) => m.color_over(uv, axes, vc).xyz(),
-                        None => m.color(uv, vc).xyz(),
-                    });
-                // The interpolated shading normal, on the side the geometric one faces.
-                let shading = s.normal.map_or(DVec3::ZERO, |v| {
+                let material = self.materials.get(s.material as usize);
+                let albedo = material.map_or(Vec3::ONE, |m| match axes {
+                    Some(axes) => m.color_over(uv, axes, vc).xyz(),
+                    None => m.color(uv, vc).xyz(),
+                });
+                // The interpolated shading normal (the winding's where there is none), turned by
+                // the normal map in the tangent frame, then put on the side the geometric one
+                // faces.
+                let mut shading = s.normal.map_or(DVec3::ZERO, |v| {
                     (v[0] * w[0] + v[1] * w[1] + v[2] * w[2])
                         .as_dvec3()
                         .normalize_or_zero()
                 });
+                if let (Some(map), Some(t)) =
+                    (material.and_then(|m| m.normal_map.as_ref()), &s.tangent)
+                {
+                    let base = if shading == DVec3::ZERO {
+                        tr.normals[tri_id]
+                    } else {
+                        shading
+                    };
+                    let set = (map.set as usize).min(1);
+                    let texel = match axes {
+                        Some(a) => map.texture.sample_footprint(uv[set], a[set]),
+                        None => map.texture.sample(uv[set]),
+                    };
+                    let tangent = t[0] * w[0] + t[1] * w[1] + t[2] * w[2];
+                    if let Some(m) = map.perturb(texel, base.as_vec3(), tangent) {
+                        shading = m.as_dvec3();
+                    }
+                }
                 let normal = if shading == DVec3::ZERO {
                     n
                 } else if shading.dot(n) < 0.0 {
@@ -659,7 +680,12 @@ impl Mesh {
                 (albedo, normal)
             }
         };
-        Hit { t, normal, albedo }
+        Hit {
+            t,
+            normal,
+            geometric: n,
+            albedo,
+        }
     }
 }
 

@@ -105,6 +105,7 @@ pub(crate) fn load(
             base_texture,
             alpha_texture,
             alpha_mode,
+            normal_map: None,
         });
     }
     let total: usize = models.iter().map(|m| m.mesh.indices.len() / 3).sum();
@@ -173,6 +174,7 @@ pub(crate) fn load(
                     uv: [uv, uv],
                     color: [vc(0), vc(1), vc(2)],
                     normal: None,
+                    tangent: None,
                 })
             } else if has_vc {
                 let c = |k: usize| {

@@ -796,6 +796,7 @@ impl Shape for Csg {
             Hit {
                 t,
                 normal,
+                geometric: normal,
                 albedo: part.albedo.at(ray.at(t)),
             }
         })

@@ -19,7 +19,7 @@
 
 use std::sync::Arc;
 
-use glam::{DVec3, Vec2, Vec3, Vec3A, Vec4};
+use glam::{DVec3, Vec2, Vec3, Vec3A, Vec4, Vec4Swizzles};
 use obvhs::triangle::Triangle;
 
 /// How a texture coordinate outside `[0, 1]` wraps (glTF sampler `wrapS` / `wrapT`).
@@ -379,6 +379,33 @@ pub enum MaterialAlpha {
     Blend,
 }
 
+/// A tangent-space normal map (glTF `normalTexture`): the texture's RGB (linear, not sRGB) is
+/// `(n + 1)/2` of a unit normal in the frame `(T, B, N)` of the surface's tangent, bitangent and
+/// shading normal; `scale` multiplies its `x` and `y` (glTF §3.9.3).
+#[derive(Clone, Debug, PartialEq)]
+pub struct NormalMap {
+    /// The texture (decoded without the sRGB curve).
+    pub texture: TextureRef,
+    /// The texture coordinate set it reads (0 or 1).
+    pub set: u32,
+    /// glTF `normalTexture.scale` (default 1).
+    pub scale: f32,
+}
+
+impl NormalMap {
+    /// The shading normal at a hit: the map's texel `texel` (RGB in `[0, 1]`, read at the point
+    /// or over a footprint) turned into the frame of the unit shading normal `n` and the tangent
+    /// `tangent` (`xyz`, with the bitangent's handedness in `w`: `B = w · n × T`), after
+    /// Gram–Schmidt makes `T` orthogonal to `n`. `None` where the frame or the result is
+    /// degenerate (the caller keeps `n`).
+    pub fn perturb(&self, texel: Vec4, n: Vec3, tangent: Vec4) -> Option<Vec3> {
+        let t = (tangent.xyz() - n * n.dot(tangent.xyz())).try_normalize()?;
+        let b = n.cross(t) * if tangent.w < 0.0 { -1.0 } else { 1.0 };
+        let v = texel.xyz() * 2.0 - Vec3::ONE;
+        (t * (v.x * self.scale) + b * (v.y * self.scale) + n * v.z).try_normalize()
+    }
+}
+
 /// A surface material: base colour (factor × texture), alpha, and what altrep does not read.
 #[derive(Clone, Debug, PartialEq, Default)]
 pub struct Material {
@@ -393,6 +420,8 @@ pub struct Material {
     pub alpha_texture: Option<TextureRef>,
     /// How alpha is read.
     pub alpha_mode: MaterialAlpha,
+    /// Tangent-space normal map (glTF `normalTexture`), if any.
+    pub normal_map: Option<NormalMap>,
 }
 
 impl Material {
@@ -437,13 +466,16 @@ impl Material {
 }
 
 /// The per-triangle attributes of a material-coloured triangle: material, texture coordinates of
-/// both sets, vertex colours and (when the source has them) shading normals, all per corner.
+/// both sets, vertex colours and (when the source has them) shading normals and, for a
+/// normal-mapped material, tangents (`xyz`, handedness in `w`), all per corner.
 #[derive(Clone, Debug, PartialEq)]
 pub(crate) struct SurfaceTri {
     pub(crate) material: u32,
     pub(crate) uv: [[Vec2; 3]; 2],
     pub(crate) color: [Vec4; 3],
     pub(crate) normal: Option<[Vec3; 3]>,
+    /// Boxed: most triangles have none, and the box keeps the record small.
+    pub(crate) tangent: Option<Box<[Vec4; 3]>>,
 }
 
 impl SurfaceTri {

@@ -43,6 +43,8 @@ pub(crate) fn masked_soup(seed: u64, n: usize) -> Mesh {
             .map(|_| [rng.range(0.0, 1.0) as f32, rng.range(0.0, 1.0) as f32])
             .collect(),
         indices: (0..3 * tris.len() as u32).collect(),
+        normals: Vec::new(),
+        tangents: Vec::new(),
         material: 0,
     }]];
     let glb = doc.to_glb().unwrap();

@@ -587,3 +587,60 @@ fn voxels_of_a_textured_mesh_take_its_texture_colour() {
         assert_abs_diff_eq!(c[2], want.z, epsilon = 1e-5);
     }
 }
+
+/// The tangent-space vector a normal-map texel's code stands for, `2·code/255 − 1` per channel.
+fn tangent_space(code: [u8; 4]) -> DVec3 {
+    DVec3::new(
+        2.0 * f64::from(code[0]) / 255.0 - 1.0,
+        2.0 * f64::from(code[1]) / 255.0 - 1.0,
+        2.0 * f64::from(code[2]) / 255.0 - 1.0,
+    )
+}
+
+/// A normal map turns the shading normal in the surface's tangent frame, in closed form: on a
+/// quad whose `+u` is `+x` and `+v` is `−y` (so `T = +x`, `B = −y`, `N = +z`), a texel tilted
+/// along tangent-space `x` leans the normal toward `+x`, one tilted along `y` toward `−y`, with
+/// `scale` multiplying both tilts. The same with the file's `TANGENT`, with MikkTSpace's
+/// (no `TANGENT`), and with flat normals (no `NORMAL` either); under a node mirroring `x`, the
+/// tilt along `x` is mirrored with the surface and MikkTSpace agrees with the carried `TANGENT`.
+#[test]
+fn a_normal_map_turns_the_normal_in_the_tangent_frame() {
+    // Tilted along tangent-space x, then along y (codes of (±0.6, 0, 0.8) and (0, 0.6, 0.8)).
+    let texels = [[204, 128, 230, 255], [128, 204, 230, 255]];
+    let at = [DVec3::new(0.25, 0.5, 0.0), DVec3::new(0.75, 0.5, 0.0)];
+    for scale in [1.0f32, 0.5] {
+        for (normals, tangents) in [(true, true), (true, false), (false, false)] {
+            for mirror in [false, true] {
+                let mut doc = TestGltf::normal_mapped_quad(&texels, scale, normals, tangents);
+                if mirror {
+                    doc.nodes[0].matrix[0] = -1.0;
+                }
+                let mesh = load_glb(&doc, &MeshLoadOptions::default()).unwrap();
+                for (k, code) in texels.iter().enumerate() {
+                    let v = tangent_space(*code);
+                    let s = f64::from(scale);
+                    // World frame: T = ±x (mirrored with the node), B = −y, N = +z.
+                    let t = if mirror { -DVec3::X } else { DVec3::X };
+                    let want = (t * v.x * s - DVec3::Y * v.y * s + DVec3::Z * v.z).normalize();
+                    let p = if mirror {
+                        DVec3::new(-at[k].x, at[k].y, 0.0)
+                    } else {
+                        at[k]
+                    };
+                    let (hit, _) = hit_at_source_point(&mesh, p, DVec3::Z);
+                    let got = hit.expect("the quad is hit").normal;
+                    let case = format!(
+                        "scale {scale}, NORMAL {normals}, TANGENT {tangents}, mirrored {mirror}, texel {k}"
+                    );
+                    // The loader normalises the mesh (a uniform scale and a shift), which keeps
+                    // directions.
+                    assert_abs_diff_eq!(got.x, want.x, epsilon = 1e-5);
+                    assert_abs_diff_eq!(got.y, want.y, epsilon = 1e-5);
+                    assert_abs_diff_eq!(got.z, want.z, epsilon = 1e-5);
+                    assert!(got.z < 0.99, "{case}: the map changed nothing");
+                }
+                assert!(mesh.notes().iter().all(|n| !n.contains("normal map")));
+            }
+        }
+    }
+}

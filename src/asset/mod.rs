@@ -28,8 +28,8 @@ pub use claim::OutputClaim;
 pub use read::{AssetReader, PngDecode};
 pub(crate) use write::encode_png;
 pub use write::{
-    AssetWriter, PngCode, STAGING_DIR, check_owned, replace_dir, temporary_of, valid_name,
-    write_atomic,
+    AssetWriter, PngCode, STAGING_DIR, check_owned, replace_dir, stop_commits, temporary_of,
+    valid_name, write_atomic,
 };
 
 /// Major version of the asset format. A reader refuses a file of a newer major version; minor
@@ -104,6 +104,13 @@ pub enum AssetError {
     /// A path altrep would write or replace exists and is not altrep's (a folder without
     /// altrep's `asset.json`, a file, a symbolic link): altrep never writes through it, replaces
     /// it or removes it.
+    /// The process was interrupted ([`stop_commits`]) before this folder was renamed into place;
+    /// its files stay in the staging folder, which the next run clears.
+    #[error("{path}: not written: the run was interrupted")]
+    Interrupted {
+        /// The asset folder that was not written.
+        path: PathBuf,
+    },
     #[error(
         "{path}: {reason}; altrep writes only what it wrote itself: move it aside or choose another --out"
     )]

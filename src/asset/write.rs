@@ -378,6 +378,16 @@ impl AssetWriter {
         let json = desc.sealed_json().map_err(bad)?;
         let path = self.staging.join(DESCRIPTION_FILE);
         std::fs::write(&path, json).map_err(io(&path))?;
+        // No folder lands once the process is interrupted; one being renamed when the interrupt
+        // comes lands whole before `stop_commits` returns.
+        let stopped = COMMITS
+            .read()
+            .unwrap_or_else(std::sync::PoisonError::into_inner);
+        if *stopped {
+            return Err(AssetError::Interrupted {
+                path: self.target.clone(),
+            });
+        }
         // Checked again at the last moment: what is replaced below must still be altrep's.
         let name = |p: &Path| p.file_name().map(|n| n.to_string_lossy().into_owned());
         if let Some(parent) = self.target.parent() {
@@ -400,6 +410,19 @@ impl Drop for AssetWriter {
             let _ = std::fs::remove_dir_all(&self.staging);
         }
     }
+}
+
+/// Whether this process stopped committing asset folders ([`stop_commits`]); commits read it.
+static COMMITS: std::sync::RwLock<bool> = std::sync::RwLock::new(false);
+
+/// Stops every [`AssetWriter::commit`] of this process from renaming a folder into place, for an
+/// interrupt handler: when it returns, a commit in progress has finished and none will follow
+/// (they fail with [`AssetError::Interrupted`]), so the folders present are exactly what the run
+/// finished. Cost: waits for a commit in progress (one rename).
+pub fn stop_commits() {
+    *COMMITS
+        .write()
+        .unwrap_or_else(std::sync::PoisonError::into_inner) = true;
 }
 
 /// Renames folder `from` to `to`, moving an existing `to` aside first (into `from`'s parent)

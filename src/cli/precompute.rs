@@ -128,6 +128,8 @@ fn report_interrupts(out: &Path) {
         *run = Some((out.to_path_buf(), since));
     }
     let _ = ctrlc::set_handler(|| {
+        // From here no asset folder lands, so the list below is exactly what is finished.
+        crate::asset::stop_commits();
         let run = INTERRUPTED_RUN.lock().ok().and_then(|r| r.clone());
         if let Some((out, since)) = run {
             let done = finished_since(&out, since);

@@ -261,6 +261,11 @@ pub fn coverage(
     CoverageReport::from_alphas(&pairs)
 }
 
+/// Smallest `|cos|` between a capture ray and the surface it holds (the geometric normal, not
+/// a shading or normal-mapped one): a capture ray meeting the surface within ~11.5° of grazing
+/// (a face nearly holding the axis) samples it too thinly to count.
+pub const MIN_CAPTURE_COSINE: f64 = 0.2;
+
 /// The share of the object's **visible surface that radial capture rays hold**, for a texture
 /// of any size: the coverage of the ideal (infinitely fine) cylindrical texture.
 ///
@@ -281,11 +286,6 @@ pub fn coverage(
 /// Errors: invalid parameters or cylinder, [`CylinderError::NothingVisible`] when no angle
 /// sees the object. Cost: `angles · size² · k²` view rays, traced together
 /// ([`capture_view`]), and as many single capture rays ([`Shape::intersect`]), in parallel.
-/// Smallest `|cos|` between a capture ray and the surface it holds: a capture ray meeting the
-/// surface within ~11.5° of grazing (a face nearly holding the axis) samples it too thinly to
-/// count.
-pub const MIN_CAPTURE_COSINE: f64 = 0.2;
-
 pub fn radial_visibility(
     shape: &dyn Shape,
     cylinder: BoundingCylinder,
@@ -313,7 +313,7 @@ pub fn radial_visibility(
             .intersect(&capture, 0.0, 4.0 * radius)
             .is_some_and(|f| {
                 (f.t - (2.0 * radius - r_p)).abs() <= tol
-                    && f.normal.dot(outward).abs() >= MIN_CAPTURE_COSINE
+                    && f.geometric.dot(outward).abs() >= MIN_CAPTURE_COSINE
             })
     };
     // The `k × k` sub-sample rays of a `size²` view are the pixel-centre rays of a view `k`

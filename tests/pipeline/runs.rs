@@ -412,10 +412,12 @@ fn json_output_path_is_checked_before_any_work() {
     let _ = t0;
 }
 
-/// Spawns a precompute, kills it with `signal` while it is writing an asset's files (a file
-/// seen in a staging folder), and checks that every asset folder present is complete and that
-/// the kill left a half-written asset behind in `.staging`: the check saw an interrupted write,
-/// not a run killed before it wrote anything (tried up to five times, then a failure). A SIGINT
+/// Spawns a precompute, kills it with `signal` while it is writing the chair's octree (a file
+/// seen in its staging folder: the largest write, so the signal has time to land within it), and
+/// checks that every asset folder present is complete and that the kill left a half-written
+/// asset behind in `.staging`: the check saw an interrupted write, not a run killed before it
+/// wrote anything (tried up to eight times, then a failure; an interrupt handler takes a few
+/// milliseconds to stop the writers, and one write in three finishes within them). A SIGINT
 /// ends with status 130 and says what was finished and how to resume. Then the rerun completes
 /// and equals a clean run's files.
 fn kill_mid_run(signal: &str) {
@@ -435,18 +437,18 @@ fn kill_mid_run(signal: &str) {
     let files_in = |d: &Path| std::fs::read_dir(d).map_or(0, |f| f.count());
     let being_written = || -> usize {
         let staged: usize = std::fs::read_dir(&staging).map_or(0, |d| {
-            d.filter_map(|e| e.ok()).map(|e| files_in(&e.path())).sum()
+            d.filter_map(|e| e.ok())
+                .filter(|e| e.file_name().to_string_lossy().starts_with("chair."))
+                .map(|e| files_in(&e.path()))
+                .sum()
         });
-        let unfinished: usize = ["pear/parallax", "chair/octree"]
-            .iter()
-            .map(|a| out.join(a))
+        let unfinished = Some(out.join("chair/octree"))
             .filter(|d| !d.join(DESCRIPTION_FILE).exists())
-            .map(|d| files_in(&d))
-            .sum();
+            .map_or(0, |d| files_in(&d));
         staged + unfinished
     };
     let mut interrupted = Vec::new();
-    for attempt in 1..=5 {
+    for attempt in 1..=8 {
         let _ = std::fs::remove_dir_all(&out);
         let mut child = Command::new(BIN)
             .arg("precompute")
@@ -480,6 +482,16 @@ fn kill_mid_run(signal: &str) {
                 stderr.contains("interrupted: ") && stderr.contains("run the same command again"),
                 "{stderr}"
             );
+            // Exactly what is on disk: no folder lands after the list is made.
+            let listed: Vec<&str> = stderr
+                .lines()
+                .find_map(|l| l.split("written in this run: ").nth(1))
+                .map_or(Vec::new(), |l| l.split(", ").collect());
+            let present: Vec<&str> = ["chair/octree", "pear/parallax"]
+                .into_iter()
+                .filter(|a| out.join(a).join(DESCRIPTION_FILE).exists())
+                .collect();
+            assert_eq!(listed, present, "{stderr}");
         }
         for asset in ["pear/parallax", "chair/octree"] {
             let d = out.join(asset);
@@ -501,7 +513,7 @@ fn kill_mid_run(signal: &str) {
     }
     assert!(
         !interrupted.is_empty(),
-        "no {signal} in five attempts landed while an asset was being written"
+        "no {signal} in eight attempts landed while an asset was being written"
     );
     let rerun = Command::new(BIN)
         .arg("precompute")

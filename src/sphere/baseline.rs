@@ -1,11 +1,24 @@
-//! The engines' octahedral impostor, built from the same frames (the baseline to beat).
+//! The engines' octahedral impostor, built from the same frames (the baseline to beat), as the
+//! engines ship it.
 //!
 //! Per ray and enclosing frame `k` (weight `w_k`): the ray meets the frame's plane `Z = 0` at
-//! `q_k`; the depth `D` is read there (bilinear, undefined texels read as `Z = 0`, the plane's
-//! depth, as engines clear their depth channel); the colour, normal and coverage `α_k` are read
-//! bilinearly at the **one-step offset** `q_k + D·t_k`. The frames are blended with barycentric
-//! weights: `α = Σ w_k α_k`, colour `Σ w_k α_k c_k / α`, and alpha-tested at ½. Four bilinear
-//! fetches of two textures per frame; no march.
+//! `q_k`; the depth `D` is read there; the colour, normal and coverage `α_k` are read bilinearly at
+//! the **offset** `q_k + D·t_k`. The frames are blended with barycentric weights:
+//! `α = Σ w_k α_k`, colour `Σ w_k α_k c_k / α`, and alpha-tested at ½.
+//!
+//! The depth is read as engine bakers prepare it: their atlases are **dilated** (each empty texel
+//! padded with its nearest defined neighbour's value), so a bilinear read near an outline blends
+//! defined depths only — here, the bilinear weights are renormalised over the defined texels of the
+//! four, and where none of them is defined the nearest defined texel's depth is read (the padded
+//! value; nearest by breadth-first distance over the texel grid). Reading undefined texels as the
+//! plane's depth, without renormalising, pulls every offset near an outline toward the plane. Colour
+//! and normal are likewise renormalised over defined texels; the coverage is not (it is what the
+//! alpha test reads).
+//!
+//! [`EngineSteps::One`] is the usual one-step offset; [`EngineSteps::Two`] reads the depth again
+//! at the first offset and offsets from `q_k` by it (one fixed-point iteration more), the variant
+//! some engines use for steep relief. Per frame: one depth read per step, then colour, normal and
+//! coverage at the offset: `4·(steps + 3)` texel reads.
 
 use glam::{DVec2, Vec3};
 
@@ -15,12 +28,80 @@ use super::warp::{
 };
 use super::{SphereError, SphereImages};
 
-/// Bilinear depth (undefined texels read as 0) and coverage at frame position `P`.
-fn depth_and_coverage(frame: &Frame, p: DVec2) -> (f64, f64) {
+/// How many depth reads the engine baseline's offset takes (module docs).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+pub enum EngineSteps {
+    /// One depth read: the offset engines ship by default.
+    One,
+    /// Two depth reads: the offset refined once.
+    Two,
+}
+
+impl EngineSteps {
+    fn count(self) -> u32 {
+        match self {
+            Self::One => 1,
+            Self::Two => 2,
+        }
+    }
+}
+
+/// A frame's depth with every undefined texel padded by its nearest defined texel's (multi-source
+/// breadth-first search over the 4-neighbour grid; ties go to the first reached). Empty when the
+/// frame has no defined texel. Cost: `F²`.
+fn dilated_depth(frame: &Frame) -> Vec<f64> {
+    let f = frame.size;
+    let mut depth = vec![f64::NAN; f * f];
+    let mut queue = std::collections::VecDeque::new();
+    for (k, d) in depth.iter_mut().enumerate() {
+        if frame.defined[k] {
+            *d = frame.depth[k];
+            queue.push_back(k);
+        }
+    }
+    if queue.is_empty() {
+        return Vec::new();
+    }
+    while let Some(k) = queue.pop_front() {
+        let (i, j) = (k % f, k / f);
+        let neighbours = [
+            (i > 0).then(|| k - 1),
+            (i + 1 < f).then(|| k + 1),
+            (j > 0).then(|| k - f),
+            (j + 1 < f).then(|| k + f),
+        ];
+        for n in neighbours.into_iter().flatten() {
+            if depth[n].is_nan() {
+                depth[n] = depth[k];
+                queue.push_back(n);
+            }
+        }
+    }
+    depth
+}
+
+/// Depth at frame position `p`: bilinear over the defined texels of the four, renormalised; the
+/// padded depth of the nearest texel (clamped to the frame) where none is defined.
+fn depth_at(frame: &Frame, padded: &[f64], p: DVec2) -> f64 {
+    let (d, w) = bilinear(frame, p, |k| frame.depth[k]);
+    if w > 0.0 {
+        return d / w;
+    }
+    let t = frame.texel_coords(p);
+    let f = frame.size as i64;
+    let (i, j) = (
+        (t.x.floor() as i64).clamp(0, f - 1),
+        (t.y.floor() as i64).clamp(0, f - 1),
+    );
+    padded[(j * f + i) as usize]
+}
+
+/// `Σ w·value` and `Σ w` over the defined texels of the bilinear footprint at `p`.
+fn bilinear(frame: &Frame, p: DVec2, value: impl Fn(usize) -> f64) -> (f64, f64) {
     let t = frame.texel_coords(p) - 0.5;
     let (i0, j0) = (t.x.floor() as i64, t.y.floor() as i64);
     let (fx, fy) = (t.x - i0 as f64, t.y - j0 as f64);
-    let (mut d, mut a) = (0.0, 0.0);
+    let (mut v, mut a) = (0.0, 0.0);
     for (di, dj, w) in [
         (0, 0, (1.0 - fx) * (1.0 - fy)),
         (1, 0, fx * (1.0 - fy)),
@@ -28,17 +109,15 @@ fn depth_and_coverage(frame: &Frame, p: DVec2) -> (f64, f64) {
         (1, 1, fx * fy),
     ] {
         if let Some(k) = frame.cell(i0 + di, j0 + dj) {
-            d += w * frame.depth[k];
+            v += w * value(k);
             a += w;
         }
     }
-    (d, a)
+    (v, a)
 }
 
-/// Draws the object along `dir` as an engine octahedral impostor does (module docs of
-/// `baseline`). Cost: per ray, 2 bilinear lookups in each of the (up to) three frames.
-/// [`RenderOutput::steps`] counts texel lookups (8 per frame); it finds no depth
-/// ([`RenderOutput::depth`] is `None` everywhere).
+/// Draws the object along `dir` as an engine octahedral impostor does, with the one-step
+/// offset ([`render_engine`] with [`EngineSteps::One`]).
 ///
 /// Errors: invalid parameters, or a direction the view set does not cover.
 pub fn render_engine_baseline(
@@ -46,18 +125,42 @@ pub fn render_engine_baseline(
     dir: glam::DVec3,
     params: &SphereRenderParams,
 ) -> Result<RenderOutput, SphereError> {
+    render_engine(images, dir, params, EngineSteps::One)
+}
+
+/// Draws the object along `dir` as an engine octahedral impostor does (module docs), with
+/// `steps` depth reads per frame. [`RenderOutput::steps`] counts texel reads, `4·(steps + 3)`
+/// per enclosing frame; it finds no depth ([`RenderOutput::depth`] is `None` everywhere). Cost:
+/// the padding of the (up to) three frames (`F²` each), then per ray those reads.
+///
+/// Errors: invalid parameters, or a direction the view set does not cover.
+pub fn render_engine(
+    images: &SphereImages,
+    dir: glam::DVec3,
+    params: &SphereRenderParams,
+    steps: EngineSteps,
+) -> Result<RenderOutput, SphereError> {
     params.validate()?;
     let display = display_frame(images, dir)?;
     let maps = enclosing_maps(images, &display)?;
-    let lookups = 8 * maps.len() as u32;
+    let padded: Vec<Vec<f64>> = maps
+        .iter()
+        .map(|&(k, _, _)| dilated_depth(&images.frames[k]))
+        .collect();
+    let lookups = 4 * (steps.count() + 3) * maps.len() as u32;
     Ok(draw(params, |x, y, _| {
         let (mut alpha, mut col) = (0.0f64, Vec3::ZERO);
-        for &(k, wt, ref map) in &maps {
+        for (&(k, wt, ref map), padded) in maps.iter().zip(&padded) {
+            if padded.is_empty() {
+                continue;
+            }
             let frame = &images.frames[k];
             let line = map.line(x, y);
-            let (depth, _) = depth_and_coverage(frame, line.q);
-            let p = line.q + depth * line.t;
-            let (_, cov) = depth_and_coverage(frame, p);
+            let mut p = line.q;
+            for _ in 0..steps.count() {
+                p = line.q + depth_at(frame, padded, p) * line.t;
+            }
+            let (cov, _) = bilinear(frame, p, |_| 1.0);
             if cov <= 0.0 {
                 continue;
             }
@@ -73,4 +176,31 @@ pub fn render_engine_baseline(
             ..RaySample::default()
         }
     }))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn padding_takes_the_nearest_defined_depth() {
+        // A 4 × 4 frame with two defined texels, at (0, 0) and (3, 3).
+        let mut frame = Frame::empty_for_tests(4);
+        for (k, d) in [(0usize, 0.25), (15, -0.5)] {
+            frame.defined[k] = true;
+            frame.depth[k] = d;
+        }
+        let padded = dilated_depth(&frame);
+        // Texels nearer (0, 0) than (3, 3) take 0.25, nearer (3, 3) take −0.5.
+        for j in 0..4 {
+            for i in 0..4 {
+                let (a, b) = (i + j, 6 - i - j);
+                if a != b {
+                    let want = if a < b { 0.25 } else { -0.5 };
+                    assert_eq!(padded[j * 4 + i], want, "({i}, {j})");
+                }
+            }
+        }
+        assert!(dilated_depth(&Frame::empty_for_tests(3)).is_empty());
+    }
 }

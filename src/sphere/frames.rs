@@ -105,6 +105,21 @@ fn depth_value(code: u16) -> f64 {
 }
 
 impl Frame {
+    /// An `f × f` frame along `+z` with no texel defined (for unit tests).
+    #[cfg(test)]
+    pub(crate) fn empty_for_tests(f: usize) -> Self {
+        Self {
+            frame: OrthoFrame::new(glam::DVec3::ZERO, 1.0, glam::DVec3::Z)
+                .expect("a unit frame along +z"),
+            size: f,
+            defined: vec![false; f * f],
+            depth: vec![0.0; f * f],
+            slope: vec![DVec2::ZERO; f * f],
+            albedo: vec![Vec3::ZERO; f * f],
+            normal: vec![Vec3::Z; f * f],
+        }
+    }
+
     /// Texel pitch `2/F` in frame units.
     #[inline]
     pub fn pitch(&self) -> f64 {

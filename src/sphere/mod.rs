@@ -8,7 +8,9 @@
 //! is marched texel by texel through the frame's depth map, between per-texel bounds valid for
 //! every direction that uses the frame ([`ConeBounds`]); the three frames are combined by
 //! carving free space (below). The engines' method is the baseline ([`render_engine_baseline`]):
-//! the same three frames, blended with barycentric weights, each offset once by its depth.
+//! the same three frames, blended with barycentric weights, each offset once by its depth, read
+//! as engine bakers pad it (renormalised over defined texels, the nearest defined depth beyond
+//! the outline); [`render_engine`] with [`EngineSteps::Two`] offsets twice.
 //! [`measure`] compares both against the ray-cast ground truth over many directions.
 //!
 //! ## Conventions (written once, here)
@@ -113,7 +115,7 @@ mod measure;
 mod viewset;
 mod warp;
 
-pub use baseline::render_engine_baseline;
+pub use baseline::{EngineSteps, render_engine, render_engine_baseline};
 pub use bounds::{BoundsCheck, ConeBounds, check_bounds};
 pub use frames::{Frame, FrameCodes, SphereImages, SphereParams, SurfaceModel};
 pub use measure::{

@@ -8,7 +8,7 @@
 //! (in `f64`, from its `f32` vertices) and goes to the grid cells (rays) within its **footprint**:
 //! its projected bounding box and its three edge lines, all moved out by a margin `m`. On each
 //! cell of its footprint it runs the BVH walk's own `f32` triangle test (the watertight test of
-//! [`crate::watertight`]) against the cell's ray, and a depth buffer over the cells keeps the first
+//! `watertight`) against the cell's ray, and a depth buffer over the cells keeps the first
 //! strictly nearer distance: triangles go in triangle order, so each ray meets its candidates in
 //! the order the walk keeps them along its path.
 //!

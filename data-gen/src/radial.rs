@@ -15,7 +15,7 @@
 //! sides). The columns of those two intervals (widened by `10⁻⁶` of a column for the rounding
 //! of `α_c`) are the footprint; a triangle within `8m` of the axis reaches every column. On each
 //! cell of its footprint the band runs the BVH walk's own `f32` triangle test (the watertight
-//! test of [`crate::watertight`], one shear per column) against the cell's ray, and a depth buffer keeps the first strictly
+//! test of `watertight`, one shear per column) against the cell's ray, and a depth buffer keeps the first strictly
 //! nearer distance: triangles go in triangle order.
 //!
 //! ## Exactness

@@ -39,14 +39,14 @@
 //!   [`MergeRule::Drop`] is the baseline that keeps one layer in `2^k` (its opacity raised to the
 //!   slab's thickness, `1 − (1 − a)^(2^k)`), not a merge. Every merge rule preserves opacity
 //!   exactly: the alpha of `over` does not depend on the order.
-//! * **Views** are orthographic ([`View`]): `polar` is the angle from `+y` (the surface normal),
+//! * **Views** are orthographic ([`StackView`]): `polar` is the angle from `+y` (the surface normal),
 //!   `azimuth` turns about `y` from `+x` toward `+z`: `v = (sin θ cos φ, cos θ, sin θ sin φ)`.
 //!   Polar angles beyond 90° look from below. The screen basis is `right = (sin φ, 0, −cos φ)`,
 //!   `up = v × right` (so `right × up = v`, data-gen's convention); pixel `(i, j)`, row 0 at the
 //!   top, is centred at `centre + (−W/2 + (i + ½)·p)·right + (H/2 − (j + ½)·p)·up`.
 //! * **Opacity correction.** A slice of alpha `a` (for thickness `h`) crossed at cosine `c`
 //!   between the view and its normal is drawn with `a' = 1 − (1 − a)^(1/|c|)` and its colour
-//!   scaled by `a'/a` (the path through the slab is `h/|c|`); [`RenderParams::opacity_correction`]
+//!   scaled by `a'/a` (the path through the slab is `h/|c|`); [`SliceRenderParams::opacity_correction`]
 //!   turns it off to draw as the paper's fixed-function hardware did.
 //! * **Compositing.** The slices a ray crosses are composited with `over`, nearest last in the
 //!   back-to-front formulation; the CPU renderer accumulates the equivalent front-to-back sum.

@@ -102,7 +102,7 @@ pub struct SphereMeasurement {
     pub bound_interval: f64,
     /// The exact warp.
     pub ours: MethodStats,
-    /// The engine baseline (one-step offset, padded depth: [`super::baseline`]).
+    /// The engine baseline (one-step offset, padded depth: [`render_engine_baseline`](super::render_engine_baseline)).
     pub baseline: MethodStats,
     /// The engine baseline with the two-step offset.
     pub baseline_two_step: MethodStats,

@@ -73,14 +73,14 @@
 //! event makes the whole ray free: the pixel is empty. At the surface point found, the colour is
 //! the barycentric blend of the frames that **see** it (their surface lies within
 //! `visibility` texel pitches of it), each bilinearly filtered at the hit and shaded from its
-//! normal. Where none of the three sees it, up to [`RenderParams::extra_frames`] more frames
+//! normal. Where none of the three sees it, up to [`SphereRenderParams::extra_frames`] more frames
 //! are asked in turn, the nearest to the display direction first: one that sees the point
 //! colours it (with a small weight, 1e-3, beside any enclosing frame that then sees it too); one
 //! that sees through it joins the carving, marched along its whole chord (its bounds hold only
 //! for its own cone of directions), and the carving resumes from the point. Where still no
 //! frame sees it (a point hidden from all of them, e.g. deep in a concavity) the
 //! frame whose surface lies nearest above it gives the colour, if that surface lies within the
-//! hole depth (half the radius by default, [`RenderParams::hole_depth`]); farther, the ray is
+//! hole depth (half the radius by default, [`SphereRenderParams::hole_depth`]); farther, the ray is
 //! taken as empty: through the openings of a see-through shell the ray reaches space that no
 //! enclosing frame looks into, which carving cannot clear.
 //!

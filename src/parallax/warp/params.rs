@@ -152,12 +152,12 @@ pub enum RowFilter {
     Linear,
 }
 
-/// How the two warped views are turned into a pixel ([`render_with`]). The default
+/// How the two warped views are turned into a pixel ([`render_with`](super::render_with)). The default
 /// ([`Reconstruction::DEFAULT`], docs/design.md §7.6) filters linearly between view rows, falls
 /// back to the next views out where both bracketing views miss, fills holes hidden in both views
 /// and softens silhouette brims;
 /// [`Reconstruction::ORIGINAL`] is the original path (nearest row, hard coverage, two views).
-/// The surface model at silhouettes is a property of the images instead ([`super::Brim`],
+/// The surface model at silhouettes is a property of the images instead ([`Brim`](crate::parallax::Brim),
 /// [`ParallaxImages::with_brim`]).
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 #[serde(default, deny_unknown_fields)]
@@ -197,7 +197,7 @@ pub struct Reconstruction {
     pub fill_holes: bool,
     /// Where one view hits on a brim and the other misses the whole ray, and the point projects
     /// in the missing view just past a texel of its outline (an undefined texel beside a
-    /// defined one, `±1`, whose depth is within [`CARVE_DEPTH_TEXELS`] texel pitches of the
+    /// defined one, `±1`, whose depth is within [`CARVE_DEPTH_TEXELS`](super::CARVE_DEPTH_TEXELS) texel pitches of the
     /// point's): the brim sticks out past that view's outline, so the hit is dropped (a miss;
     /// fallback views and hole filling still apply). A miss beside no such texel (a thin part
     /// that the other view's texels step over) keeps the hit. Measured at 64², 15 shapes, mean
@@ -209,7 +209,7 @@ pub struct Reconstruction {
     /// hit is a brim which, projected into a bracketing view, lies just past that view's outline
     /// (the evidence of `carve_brims`, asked of the bracketing views: an empty texel beside a
     /// defined one at the point's depth), the hit counts at half coverage
-    /// ([`DOUBTFUL_FALLBACK_COVERAGE`]): the nearer views say the point lies just outside the
+    /// ([`DOUBTFUL_FALLBACK_COVERAGE`](super::DOUBTFUL_FALLBACK_COVERAGE)): the nearer views say the point lies just outside the
     /// surface, the farther view says inside, and half is the coverage that minimises the
     /// expected squared error when either is as likely. A thin part that both bracketing views
     /// step over has no outline texel there and keeps its full hit. Measured at 64², 15 shapes,
@@ -233,7 +233,7 @@ impl Reconstruction {
     };
 
     /// The original path: nearest view row, the two bracketing views only, hard coverage.
-    /// With [`super::Brim::Flat`] images it reproduces the original renders exactly.
+    /// With [`Brim::Flat`](crate::parallax::Brim::Flat) images it reproduces the original renders exactly.
     pub const ORIGINAL: Reconstruction = Reconstruction {
         rows: RowFilter::Nearest,
         depth_test: false,

@@ -70,6 +70,18 @@ pub struct TestNode {
     pub children: Vec<usize>,
 }
 
+impl TestNode {
+    /// A node named `name` holding mesh 0, untransformed, without children.
+    pub fn mesh_at_origin(name: &str) -> Self {
+        Self {
+            name: name.into(),
+            mesh: Some(0),
+            matrix: IDENTITY,
+            children: vec![],
+        }
+    }
+}
+
 /// A whole glTF document: meshes (lists of primitives), materials, nodes, the scene's roots.
 #[derive(Clone, Debug, PartialEq, Default)]
 pub struct TestGltf {
@@ -409,12 +421,7 @@ impl TestGltf {
                     normal_texture: None,
                 },
             ],
-            nodes: vec![TestNode {
-                name: "quad".into(),
-                mesh: Some(0),
-                matrix: IDENTITY,
-                children: vec![],
-            }],
+            nodes: vec![TestNode::mesh_at_origin("quad")],
             roots: vec![0],
         }
     }
@@ -467,12 +474,7 @@ impl TestGltf {
                     scale,
                 )),
             }],
-            nodes: vec![TestNode {
-                name: "quad".into(),
-                mesh: Some(0),
-                matrix: IDENTITY,
-                children: vec![],
-            }],
+            nodes: vec![TestNode::mesh_at_origin("quad")],
             roots: vec![0],
         }
     }

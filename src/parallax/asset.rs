@@ -14,7 +14,7 @@
 use std::time::Instant;
 
 use altrep_data_gen::{
-    BoundingCylinder, Projection, SampleGrid, Supersample, ViewParams, capture_view, linear_to_srgb,
+    BoundingCylinder, Projection, SampleGrid, Supersample, ViewParams, capture_view,
 };
 use glam::Vec3;
 use rayon::prelude::*;
@@ -33,7 +33,7 @@ use crate::representation::{
 };
 
 mod format;
-use format::{check_size, read_bounds, verify_atlas, write_atlas, write_bounds};
+use format::{check_size, read_bounds, rgba8_of, verify_atlas, write_atlas, write_bounds};
 
 /// Manifest parameters of images with parallax (`[asset.parallax]`).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -457,18 +457,8 @@ impl Representation for Parallax {
                 w.png8(&role, &file, &img, depth_enc)?;
             }
             for &l in &d.mip_levels {
-                let t = &data.images.pyramids()[k].levels()[l];
-                let mut img = CodeImage::<u8>::new(t.width, t.height, 4);
-                for idx in 0..t.width * t.height {
-                    let px = &t.data[idx * 8..idx * 8 + 4];
-                    let a = px[3].clamp(0.0, 1.0);
-                    let out = img.pixel_mut(idx);
-                    for c in 0..3 {
-                        let straight = if a > 0.0 { px[c] / a } else { 0.0 };
-                        out[c] = (linear_to_srgb(straight.clamp(0.0, 1.0)) * 255.0).round() as u8;
-                    }
-                    out[3] = (a * 255.0).round() as u8;
-                }
+                // Colour and coverage of the level (its first four of eight channels).
+                let img = rgba8_of(&data.images.pyramids()[k].levels()[l]);
                 w.png8(
                     &format!("view{k}/mip{l}"),
                     &format!("view{k}-mip{l}.png"),

@@ -199,18 +199,20 @@ fn print_report(r: &MeasureReport, all_rows: bool) {
         "\nPer tile (merge gain = {def} − drop at the criterion's level, mean over all views):\n"
     );
     println!(
-        "| tile | merge gain | gain where merged | three − one, ≥70° | same, all slices | slices drawn/tile | bytes (RGBA8, all) | bytes y level 0 | build s | volume s |"
+        "| tile | merge gain | gain where merged | three − one, ≥70° | same, all slices | slices drawn/tile | direction rule below best: worst / mean | bytes (RGBA8, all) | bytes y level 0 | build s | volume s |"
     );
-    println!("|---|---|---|---|---|---|---|---|---|---|");
+    println!("|---|---|---|---|---|---|---|---|---|---|---|");
     for t in &r.tiles {
         println!(
-            "| {} | {:+.2} | {:+.2} | {:+.2} | {:+.2} | {:.1} | {} | {} | {:.3} | {:.3} |",
+            "| {} | {:+.2} | {:+.2} | {:+.2} | {:+.2} | {:.1} | {:.2} / {:.2} | {} | {} | {:.3} | {:.3} |",
             t.tile.name(),
             t.merge_gain_db,
             t.merge_gain_merged_views_db,
             t.three_gain_grazing_db,
             t.three_gain_grazing_all_db,
             t.slices_drawn_mean,
+            t.direction_shortfall_max_db,
+            t.direction_shortfall_mean_db,
             t.bytes,
             t.bytes_y_level0,
             t.build_seconds,

@@ -142,6 +142,17 @@ pub struct SliceSweepRow {
     /// PSNR of the three-direction choice at its level drawn as a GPU would: one sample per
     /// pixel, slices read with trilinear 2D mip filtering.
     pub psnr_three_gpu: f64,
+    /// PSNR of each direction (`X`, `Y`, `Z`) at the level the criterion picks for it, default
+    /// rule: what the direction rule chooses among (`psnr_three` is one of them).
+    pub psnr_axis: [f64; 3],
+}
+
+impl SliceSweepRow {
+    /// How far the direction rule's choice falls below the best direction (dB, ≥ 0).
+    pub fn direction_shortfall_db(&self) -> f64 {
+        let best = self.psnr_axis.iter().copied().fold(f64::MIN, f64::max);
+        (best - self.psnr_three).max(0.0)
+    }
 }
 
 /// Mean PSNR of the `y` stack per level and rule (first distance, every angle and side).
@@ -242,6 +253,11 @@ pub struct TileSummary {
     /// Mean slices drawn per tile over the sweep (three directions, criterion's level; all
     /// slices would be `N`).
     pub slices_drawn_mean: f64,
+    /// How far below the best of the three directions (each at its criterion level) the
+    /// direction rule's choice falls: the worst view of the sweep (dB, ≥ 0).
+    pub direction_shortfall_max_db: f64,
+    /// The same, mean over the sweep.
+    pub direction_shortfall_mean_db: f64,
     /// Bytes of the default rule's stacks (RGBA8, all levels and axes, 2D mips).
     pub bytes: usize,
     /// Bytes of the level-0 `y` stack alone (RGBA8).
@@ -368,6 +384,11 @@ pub fn measure(params: &SliceMeasureParams) -> Result<MeasureReport, SliceError>
             three_gain_grazing_db: grazing(false),
             three_gain_grazing_all_db: grazing(true),
             slices_drawn_mean: mean(rows.iter().map(|r| r.three.slices as f64)),
+            direction_shortfall_max_db: rows
+                .iter()
+                .map(|r| r.direction_shortfall_db())
+                .fold(0.0, f64::max),
+            direction_shortfall_mean_db: mean(rows.iter().map(|r| r.direction_shortfall_db())),
             bytes: report.bytes,
             bytes_y_level0: y0
                 .slices(super::Side::Plus)
@@ -509,6 +530,13 @@ fn sweep_tile(
             let one = choose(volume, v, depth, [false, true, false])?;
             let three = choose(volume, v, depth, [true; 3])?;
             let def = td.get(default_rule);
+            let mut psnr_axis = [0.0; 3];
+            for (k, e) in psnr_axis.iter_mut().enumerate() {
+                let mut only = [false; 3];
+                only[k] = true;
+                let c = choose(volume, v, depth, only)?;
+                *e = err(def, c.axis, c.level)?;
+            }
             let mut psnr_rule = BTreeMap::new();
             for rule in MergeRule::ALL {
                 psnr_rule.insert(rule.name(), err(td.get(rule), Axis::Y, one.level)?);
@@ -535,7 +563,7 @@ fn sweep_tile(
                 three,
                 psnr_all: err(def, Axis::Y, 0)?,
                 psnr_rule,
-                psnr_three: err(def, three.axis, three.level)?,
+                psnr_three: psnr_axis[three.axis.index()],
                 psnr_three_all: err(def, three.axis, 0)?,
                 psnr_three_gpu: {
                     let gpu = SliceRenderParams {
@@ -547,6 +575,7 @@ fn sweep_tile(
                     let img = render_slices(def, three.axis, three.level, &view, &gpu)?;
                     capped(psnr(&img, &reference)?)
                 },
+                psnr_axis,
             });
         }
     }

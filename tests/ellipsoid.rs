@@ -15,8 +15,7 @@ use altrep::ellipsoid::octree::{
 };
 use altrep::ellipsoid::rng::{RandomGeometry, SplitMix64};
 use altrep::ellipsoid::{
-    EigenError, Ellipsoid, EllipsoidError, FilterRule, Phong, SphereQuadrature, filter,
-    filter_errors,
+    Ellipsoid, EllipsoidError, FilterRule, Phong, SphereQuadrature, filter, filter_errors,
 };
 use nalgebra::{Matrix3, Vector3};
 use proptest::prelude::*;
@@ -441,11 +440,7 @@ fn typed_errors_for_bad_ellipsoids_and_weights() {
     nan_q[(0, 2)] = f64::NAN;
     assert!(matches!(
         Ellipsoid::from_quadratic_form(&nan_q),
-        Err(EllipsoidError::Eigen(EigenError::NonFinite {
-            row: 0,
-            col: 2,
-            ..
-        }))
+        Err(EllipsoidError::MatrixNotFinite { row: 0, col: 2, .. })
     ));
     assert!(matches!(
         Ellipsoid::from_quadratic_form(&Matrix3::from_diagonal(&v(1.0, -1.0, 1.0))),
@@ -554,7 +549,7 @@ proptest! {
         let mut m = Matrix3::identity();
         m[idx] = bad;
         let err = sym_eigen3(&m).unwrap_err();
-        let typed = matches!(err, EigenError::NonFinite { row, col, .. } if (row, col) == idx);
+        let typed = matches!(err, EllipsoidError::MatrixNotFinite { row, col, .. } if (row, col) == idx);
         prop_assert!(typed);
     }
 }

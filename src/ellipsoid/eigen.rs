@@ -45,28 +45,8 @@
 
 use nalgebra::{Matrix3, RealField, Vector3};
 
+use super::error::EllipsoidError;
 use super::rng::{RandomGeometry, SplitMix64};
-
-/// Why a 3×3 symmetric eigen-decomposition was refused.
-#[derive(Debug, Clone, Copy, PartialEq, thiserror::Error)]
-pub enum EigenError {
-    /// An entry of the upper triangle is NaN or infinite.
-    #[error("matrix entry ({row}, {col}) is not finite: {value}")]
-    NonFinite {
-        /// Row of the entry (0-based).
-        row: usize,
-        /// Column of the entry (0-based).
-        col: usize,
-        /// The offending value, as f64.
-        value: f64,
-    },
-    /// An eigenvalue overflowed when the matrix was scaled back (entries near the largest float).
-    #[error("an eigenvalue overflows the scalar type (largest entry {max_abs:e})")]
-    Overflow {
-        /// Largest absolute entry of the input, as f64.
-        max_abs: f64,
-    },
-}
 
 /// Scalar types the solver runs in (`f32`, `f64`): a real field plus exact power-of-two scaling.
 pub trait EigenScalar: RealField + Copy {
@@ -207,10 +187,10 @@ fn canonical_sign<T: EigenScalar>(v: [T; 3]) -> [T; 3] {
 /// Decomposes the symmetric 3×3 matrix `a` (upper triangle read) into ascending eigenvalues and
 /// orthonormal eigenvectors; see the module docs for the method and the conventions.
 ///
-/// Errors: [`EigenError::NonFinite`] if an upper-triangle entry is NaN or infinite;
-/// [`EigenError::Overflow`] if an eigenvalue overflows (entries near the largest float).
+/// Errors: [`EllipsoidError::MatrixNotFinite`] if an upper-triangle entry is NaN or infinite;
+/// [`EllipsoidError::EigenOverflow`] if an eigenvalue overflows (entries near the largest float).
 /// Cost: constant, about 200 flops, four square roots and a few divisions.
-pub fn sym_eigen3<T: EigenScalar>(a: &Matrix3<T>) -> Result<SymEigen3<T>, EigenError> {
+pub fn sym_eigen3<T: EigenScalar>(a: &Matrix3<T>) -> Result<SymEigen3<T>, EllipsoidError> {
     let upper = [
         (0, 0, a[(0, 0)]),
         (0, 1, a[(0, 1)]),
@@ -222,7 +202,7 @@ pub fn sym_eigen3<T: EigenScalar>(a: &Matrix3<T>) -> Result<SymEigen3<T>, EigenE
     let mut max_abs = T::zero();
     for &(row, col, x) in &upper {
         if !x.is_finite() {
-            return Err(EigenError::NonFinite {
+            return Err(EllipsoidError::MatrixNotFinite {
                 row,
                 col,
                 value: x.to_f64(),
@@ -276,7 +256,7 @@ pub fn sym_eigen3<T: EigenScalar>(a: &Matrix3<T>) -> Result<SymEigen3<T>, EigenE
     };
     let out = assemble(pairs, k1, k2);
     if out.values.iter().any(|v| !v.is_finite()) {
-        return Err(EigenError::Overflow {
+        return Err(EllipsoidError::EigenOverflow {
             max_abs: max_abs.to_f64(),
         });
     }
@@ -418,10 +398,10 @@ fn general_case<T: EigenScalar>(c: [T; 6]) -> [(T, [T; 3]); 3] {
 ///
 /// nalgebra reads the lower triangle; the input is symmetrised from the upper triangle first so both
 /// solvers see the same matrix. Errors as [`sym_eigen3`] for non-finite input.
-pub fn sym_eigen3_nalgebra<T: EigenScalar>(a: &Matrix3<T>) -> Result<SymEigen3<T>, EigenError> {
+pub fn sym_eigen3_nalgebra<T: EigenScalar>(a: &Matrix3<T>) -> Result<SymEigen3<T>, EllipsoidError> {
     for (row, col) in [(0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2)] {
         if !a[(row, col)].is_finite() {
-            return Err(EigenError::NonFinite {
+            return Err(EllipsoidError::MatrixNotFinite {
                 row,
                 col,
                 value: a[(row, col)].to_f64(),
@@ -656,11 +636,14 @@ mod tests {
         a[(1, 2)] = f64::NAN;
         assert!(matches!(
             sym_eigen3(&a),
-            Err(EigenError::NonFinite { row: 1, col: 2, .. })
+            Err(EllipsoidError::MatrixNotFinite { row: 1, col: 2, .. })
         ));
         let b = Matrix3::<f64>::identity() * f64::MAX;
         let mut b2 = b;
         b2[(0, 1)] = f64::MAX;
-        assert!(matches!(sym_eigen3(&b2), Err(EigenError::Overflow { .. })));
+        assert!(matches!(
+            sym_eigen3(&b2),
+            Err(EllipsoidError::EigenOverflow { .. })
+        ));
     }
 }

@@ -1,9 +1,6 @@
-//! Typed errors of the ellipsoid module: what was wrong, and where. The eigen-solver's own
-//! error ([`EigenError`], in `eigen.rs`) converts into [`EllipsoidError::Eigen`].
+//! Typed errors of the ellipsoid module, the eigen-solver's included: what was wrong, and where.
 
 use thiserror::Error;
-
-use super::eigen::EigenError;
 
 /// Why an ellipsoid, a filter or a volume was refused.
 #[derive(Debug, Clone, PartialEq, Error)]
@@ -94,7 +91,21 @@ pub enum EllipsoidError {
     /// A voxel volume is inconsistent (sizes, non-finite samples).
     #[error("volume: {0}")]
     BadVolume(String),
-    /// The eigen-solver refused a matrix.
-    #[error(transparent)]
-    Eigen(#[from] EigenError),
+    /// The eigen-solver refused a matrix: an entry of its upper triangle is NaN or infinite.
+    #[error("matrix entry ({row}, {col}) is not finite: {value}")]
+    MatrixNotFinite {
+        /// Row of the entry (0-based).
+        row: usize,
+        /// Column of the entry (0-based).
+        col: usize,
+        /// The offending value, as f64.
+        value: f64,
+    },
+    /// The eigen-solver refused a matrix: an eigenvalue overflowed when the matrix was scaled back
+    /// (entries near the largest float).
+    #[error("an eigenvalue overflows the scalar type (largest entry {max_abs:e})")]
+    EigenOverflow {
+        /// Largest absolute entry of the input, as f64.
+        max_abs: f64,
+    },
 }

@@ -21,7 +21,7 @@ pub mod quadrature;
 pub mod report;
 pub mod rng;
 
-pub use eigen::{EigenError, SymEigen3, sym_eigen3};
+pub use eigen::{SymEigen3, sym_eigen3};
 pub use error::EllipsoidError;
 pub use filter::{FilterErrors, FilterRule, filter, filter_errors};
 pub use octree::{Octree, OctreeParams, OctreeReport, VoxelGrid, VoxelSource};

@@ -11,7 +11,6 @@ use altrep_data_gen::Supersample;
 use nalgebra::Matrix3;
 use serde::Serialize;
 
-use super::eigen::EigenError;
 use super::eigen::{
     EigenScalar, SymEigen3, adversarial_suite, adversarial_suite_f32, orthogonality_error,
     reconstruction_error, sym_eigen3, sym_eigen3_nalgebra,
@@ -45,12 +44,12 @@ pub struct EigenRow {
     pub cases: usize,
 }
 
-type Solver<T> = fn(&Matrix3<T>) -> Result<SymEigen3<T>, EigenError>;
+type Solver<T> = fn(&Matrix3<T>) -> Result<SymEigen3<T>, EllipsoidError>;
 
 fn accuracy<T: EigenScalar>(
     suite: &[(String, Matrix3<T>)],
     solve: Solver<T>,
-) -> Result<(f64, f64, String), EigenError> {
+) -> Result<(f64, f64, String), EllipsoidError> {
     let mut worst = (0.0f64, 0.0f64, String::new());
     for (name, m) in suite {
         let e = solve(m)?;
@@ -125,7 +124,7 @@ pub fn timing_set(seed: u64, n: usize) -> Vec<Matrix3<f64>> {
 /// The eigen table: this module's solver and nalgebra's `SymmetricEigen`, in `f64` and `f32`.
 /// Accuracy on [`adversarial_suite`] (f32: [`adversarial_suite_f32`]); speed on 4096 random
 /// matrices, median of `batches` interleaved passes (single thread). Cost: ~`batches` × 10 ms.
-pub fn eigen_table(seed: u64, batches: usize) -> Result<Vec<EigenRow>, EigenError> {
+pub fn eigen_table(seed: u64, batches: usize) -> Result<Vec<EigenRow>, EllipsoidError> {
     let suite64: Vec<(String, Matrix3<f64>)> = adversarial_suite(seed)
         .into_iter()
         .map(|c| (c.name, c.matrix))

@@ -197,7 +197,7 @@ fn bad_input_is_reported_not_panicked() {
         .args(["capture", "--mesh"])
         .arg(&p)
         .arg("--out")
-        .arg(dir.path())
+        .arg(dir.path().join("out"))
         .output()
         .unwrap();
     let err = String::from_utf8_lossy(&out.stderr);

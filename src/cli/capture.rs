@@ -73,6 +73,9 @@ pub fn load_shape(
 
 /// Runs `altrep capture`.
 pub fn run(args: CaptureArgs) -> CliResult {
+    // The output folder is replaced whole: it must be one this command wrote, checked before
+    // any work and again just before the swap.
+    check_capture_folder(&args.out)?;
     let t_load = Instant::now();
     let shape = load_shape(args.mesh.as_ref(), args.shape.as_deref(), &args.read)?;
     let load_ms = t_load.elapsed().as_secs_f64() * 1e3;
@@ -104,6 +107,10 @@ pub fn run(args: CaptureArgs) -> CliResult {
     let result = capture_into(&args, shape.as_ref(), &staging, [load_ms, setup_ms]);
     match result {
         Ok(summary) => {
+            if let Err(e) = check_capture_folder(&args.out) {
+                let _ = std::fs::remove_dir_all(&staging);
+                return Err(e.into());
+            }
             crate::asset::replace_dir(&staging, &args.out)?;
             println!("{summary}");
             Ok(())
@@ -181,4 +188,62 @@ fn capture_into(
         args.out.display(),
         capture_s * 1e3
     ))
+}
+
+/// Whether `out` may be replaced by a capture: absent, an empty folder, or a folder this command
+/// wrote — a `capture.json` of its own listing every other entry (a symbolic link is refused, as
+/// is any entry the description does not list: the user's file in a capture folder stays).
+/// Errors name the path and why. Cost: one read of the folder and of `capture.json`.
+fn check_capture_folder(out: &std::path::Path) -> Result<(), String> {
+    let refuse = |path: &std::path::Path, why: &str| {
+        format!(
+            "{}: {why}; altrep capture replaces only a folder it wrote: move it aside or choose \
+             another --out",
+            path.display()
+        )
+    };
+    let meta = match std::fs::symlink_metadata(out) {
+        Ok(m) => m,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(()),
+        Err(e) => return Err(format!("{}: {e}", out.display())),
+    };
+    if meta.file_type().is_symlink() {
+        return Err(refuse(out, "is a symbolic link"));
+    }
+    if !meta.is_dir() {
+        return Err(refuse(out, "is a file"));
+    }
+    let entries: Vec<String> = std::fs::read_dir(out)
+        .map_err(|e| format!("{}: {e}", out.display()))?
+        .filter_map(Result::ok)
+        .map(|e| e.file_name().to_string_lossy().into_owned())
+        .collect();
+    if entries.is_empty() {
+        return Ok(());
+    }
+    let description = out.join("capture.json");
+    let listed: Option<std::collections::BTreeSet<String>> = std::fs::read(&description)
+        .ok()
+        .and_then(|b| serde_json::from_slice::<serde_json::Value>(&b).ok())
+        .filter(|d| d["conventions"].is_string())
+        .and_then(|d| {
+            d["files"].as_array().map(|files| {
+                files
+                    .iter()
+                    .flat_map(|f| ["color", "albedo", "normal", "depth16"].map(|k| &f[k]))
+                    .filter_map(|v| v.as_str().map(String::from))
+                    .chain(["capture.json".to_string()])
+                    .collect()
+            })
+        });
+    let Some(listed) = listed else {
+        return Err(refuse(out, "holds no capture.json of altrep's"));
+    };
+    match entries.iter().find(|e| !listed.contains(*e)) {
+        Some(extra) => Err(refuse(
+            &out.join(extra),
+            "is not among the files its capture.json lists",
+        )),
+        None => Ok(()),
+    }
 }

@@ -670,6 +670,44 @@ fn capture_rerun_leaves_no_stale_views() {
         .map(|e| e.unwrap().file_name())
         .collect();
     assert_eq!(leftovers, vec![std::ffi::OsString::from("cap")]);
+    // The folder is replaced whole, so only one the command wrote: a file of the user's in a
+    // capture folder, a folder of the user's, a file at --out and a link are refused before any
+    // work, naming the path, and left as they are.
+    let refused = |at: &Path, what: &str| {
+        let o = Command::new(BIN)
+            .args([
+                "capture", "--shape", "pear", "--size", "8", "--views", "2", "--out",
+            ])
+            .arg(at)
+            .output()
+            .unwrap();
+        assert!(!o.status.success(), "{what}: the capture ran");
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(
+            err.contains("replaces only a folder it wrote"),
+            "{what}: {err}"
+        );
+    };
+    std::fs::write(out.join("notes.txt"), "mine").unwrap();
+    refused(&out, "a file of the user's in a capture folder");
+    assert_eq!(std::fs::read(out.join("notes.txt")).unwrap(), b"mine");
+    assert!(out.join("view001.albedo.png").exists());
+    let theirs = dir.path().join("theirs");
+    std::fs::create_dir(&theirs).unwrap();
+    std::fs::write(theirs.join("holiday.png"), "mine").unwrap();
+    refused(&theirs, "a folder of the user's");
+    assert_eq!(std::fs::read(theirs.join("holiday.png")).unwrap(), b"mine");
+    let file = dir.path().join("file");
+    std::fs::write(&file, "mine").unwrap();
+    refused(&file, "a file at --out");
+    assert_eq!(std::fs::read(&file).unwrap(), b"mine");
+    #[cfg(unix)]
+    {
+        let link = dir.path().join("link");
+        std::os::unix::fs::symlink(&theirs, &link).unwrap();
+        refused(&link, "a link at --out");
+        assert_eq!(std::fs::read(theirs.join("holiday.png")).unwrap(), b"mine");
+    }
 }
 
 #[test]

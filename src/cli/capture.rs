@@ -42,7 +42,8 @@ pub struct CaptureArgs {
     /// Width and height of each view in pixels.
     #[arg(long, default_value_t = 64, allow_negative_numbers = true, value_parser = clap::value_parser!(u32).range(1..=16384))]
     pub size: u32,
-    /// Output folder.
+    /// Output folder, replaced whole: it must be absent, empty, or a capture folder this command
+    /// wrote (holding only what its capture.json lists).
     #[arg(long, default_value = "altrep-out/capture")]
     pub out: PathBuf,
 }

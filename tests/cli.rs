@@ -234,3 +234,60 @@ fn capture_reads_gltf_with_an_up_axis_and_a_node() {
     let (ok, err) = run(&["--node", "tree"]);
     assert!(!ok && err.contains("no node named 'tree'"), "{err}");
 }
+
+/// `altrep slices --images DIR` replaces DIR whole, so only a folder it wrote (its images.json
+/// lists every file): a rerun replaces its images, the user's file inside it or a folder of the
+/// user's is refused before any work and left as it is.
+#[test]
+fn slice_images_replace_only_a_folder_they_wrote() {
+    let dir = tempfile::tempdir().unwrap();
+    let images = dir.path().join("images");
+    let run = |at: &std::path::Path| {
+        altrep()
+            .args([
+                "slices",
+                "--size",
+                "8",
+                "--tiles",
+                "grass",
+                "--angles",
+                "0",
+                "--distances",
+                "1",
+                "--one-side",
+                "--truth-steps",
+                "2",
+                "--images",
+            ])
+            .arg(at)
+            .output()
+            .unwrap()
+    };
+    for _ in 0..2 {
+        let o = run(&images);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        assert!(images.join("images.json").is_file());
+        assert!(images.join("grass-0deg-y1-vs-truth.png").is_file());
+    }
+    std::fs::write(images.join("notes.txt"), "mine").unwrap();
+    let theirs = dir.path().join("theirs");
+    std::fs::create_dir(&theirs).unwrap();
+    std::fs::write(theirs.join("holiday.png"), "mine").unwrap();
+    for (at, kept) in [
+        (&images, images.join("notes.txt")),
+        (&theirs, theirs.join("holiday.png")),
+    ] {
+        let o = run(at);
+        assert!(!o.status.success());
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(err.contains("replaces only a folder it wrote"), "{err}");
+        assert_eq!(std::fs::read(&kept).unwrap(), b"mine");
+    }
+    // Nothing was left beside the folders (no staging folder).
+    let mut names: Vec<String> = std::fs::read_dir(dir.path())
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    names.sort();
+    assert_eq!(names, ["images", "theirs"]);
+}

@@ -191,60 +191,26 @@ fn capture_into(
     ))
 }
 
-/// Whether `out` may be replaced by a capture: absent, an empty folder, or a folder this command
-/// wrote — a `capture.json` of its own listing every other entry (a symbolic link is refused, as
-/// is any entry the description does not list: the user's file in a capture folder stays).
-/// Errors name the path and why. Cost: one read of the folder and of `capture.json`.
+/// The files a capture folder's `capture.json` lists (itself included), if it is one of this
+/// command's.
+fn capture_listing(out: &std::path::Path) -> Option<std::collections::BTreeSet<String>> {
+    let bytes = std::fs::read(out.join("capture.json")).ok()?;
+    let d: serde_json::Value = serde_json::from_slice(&bytes).ok()?;
+    if !d["conventions"].is_string() {
+        return None;
+    }
+    let files = d["files"].as_array()?;
+    Some(
+        files
+            .iter()
+            .flat_map(|f| ["color", "albedo", "normal", "depth16"].map(|k| &f[k]))
+            .filter_map(|v| v.as_str().map(String::from))
+            .chain(["capture.json".to_string()])
+            .collect(),
+    )
+}
+
+/// Whether `out` may be replaced by a capture ([`super::check_replaceable`]).
 fn check_capture_folder(out: &std::path::Path) -> Result<(), String> {
-    let refuse = |path: &std::path::Path, why: &str| {
-        format!(
-            "{}: {why}; altrep capture replaces only a folder it wrote: move it aside or choose \
-             another --out",
-            path.display()
-        )
-    };
-    let meta = match std::fs::symlink_metadata(out) {
-        Ok(m) => m,
-        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(()),
-        Err(e) => return Err(format!("{}: {e}", out.display())),
-    };
-    if meta.file_type().is_symlink() {
-        return Err(refuse(out, "is a symbolic link"));
-    }
-    if !meta.is_dir() {
-        return Err(refuse(out, "is a file"));
-    }
-    let entries: Vec<String> = std::fs::read_dir(out)
-        .map_err(|e| format!("{}: {e}", out.display()))?
-        .filter_map(Result::ok)
-        .map(|e| e.file_name().to_string_lossy().into_owned())
-        .collect();
-    if entries.is_empty() {
-        return Ok(());
-    }
-    let description = out.join("capture.json");
-    let listed: Option<std::collections::BTreeSet<String>> = std::fs::read(&description)
-        .ok()
-        .and_then(|b| serde_json::from_slice::<serde_json::Value>(&b).ok())
-        .filter(|d| d["conventions"].is_string())
-        .and_then(|d| {
-            d["files"].as_array().map(|files| {
-                files
-                    .iter()
-                    .flat_map(|f| ["color", "albedo", "normal", "depth16"].map(|k| &f[k]))
-                    .filter_map(|v| v.as_str().map(String::from))
-                    .chain(["capture.json".to_string()])
-                    .collect()
-            })
-        });
-    let Some(listed) = listed else {
-        return Err(refuse(out, "holds no capture.json of altrep's"));
-    };
-    match entries.iter().find(|e| !listed.contains(*e)) {
-        Some(extra) => Err(refuse(
-            &out.join(extra),
-            "is not among the files its capture.json lists",
-        )),
-        None => Ok(()),
-    }
+    super::check_replaceable(out, "altrep capture", "capture.json", capture_listing)
 }

@@ -17,6 +17,55 @@ pub mod sphere;
 /// Error type of the command-line layer: a message for the user, already formatted.
 pub type CliResult = Result<(), Box<dyn std::error::Error + Send + Sync>>;
 
+/// Whether the folder `out`, which a command replaces whole, may be replaced: absent, empty, or a
+/// folder the command wrote — holding its description `description`, whose `listing` (the
+/// entries it wrote, itself included) covers every entry. A symbolic link, a file, a folder
+/// without the description and an entry it does not list are refused, naming the path: the
+/// user's files are never replaced. Cost: one read of the folder and of the description.
+pub fn check_replaceable(
+    out: &std::path::Path,
+    command: &str,
+    description: &str,
+    listing: impl Fn(&std::path::Path) -> Option<std::collections::BTreeSet<String>>,
+) -> Result<(), String> {
+    let refuse = |path: &std::path::Path, why: &str| {
+        format!(
+            "{}: {why}; {command} replaces only a folder it wrote: move it aside or choose \
+             another folder",
+            path.display()
+        )
+    };
+    let meta = match std::fs::symlink_metadata(out) {
+        Ok(m) => m,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(()),
+        Err(e) => return Err(format!("{}: {e}", out.display())),
+    };
+    if meta.file_type().is_symlink() {
+        return Err(refuse(out, "is a symbolic link"));
+    }
+    if !meta.is_dir() {
+        return Err(refuse(out, "is a file"));
+    }
+    let entries: Vec<String> = std::fs::read_dir(out)
+        .map_err(|e| format!("{}: {e}", out.display()))?
+        .filter_map(Result::ok)
+        .map(|e| e.file_name().to_string_lossy().into_owned())
+        .collect();
+    if entries.is_empty() {
+        return Ok(());
+    }
+    let Some(listed) = listing(out) else {
+        return Err(refuse(out, &format!("holds no {description} of altrep's")));
+    };
+    match entries.iter().find(|e| !listed.contains(*e)) {
+        Some(extra) => Err(refuse(
+            &out.join(extra),
+            &format!("is not among the files its {description} lists"),
+        )),
+        None => Ok(()),
+    }
+}
+
 /// Writes `value` as pretty JSON to the file `path` a user named (`--json`): to a temporary name
 /// beside it, then renamed over it, so the file is never half written. Errors name the path.
 pub fn write_json(path: &std::path::Path, value: &impl serde::Serialize) -> CliResult {

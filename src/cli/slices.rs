@@ -229,63 +229,123 @@ fn write_images(dir: &std::path::Path, params: &SliceMeasureParams) -> CliResult
         choose, render_curved_slices, render_curved_truth, render_slices, render_truth, test_tile,
     };
     use altrep_data_gen::RgbaImage;
-    std::fs::create_dir_all(dir).map_err(|e| format!("cannot create {}: {e}", dir.display()))?;
+    // Written into a staging folder beside `dir`, then swapped in whole (only over a folder this
+    // command wrote: checked before the work and again here).
+    check_images_folder(dir)?;
+    let parent = match dir.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
+        _ => std::path::PathBuf::from("."),
+    };
+    std::fs::create_dir_all(&parent)
+        .map_err(|e| format!("cannot create {}: {e}", parent.display()))?;
+    let name = dir
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .ok_or_else(|| format!("--images {} has no folder name", dir.display()))?;
+    let staging = parent.join(format!(".{name}.staging{}", std::process::id()));
+    if staging.exists() {
+        std::fs::remove_dir_all(&staging)
+            .map_err(|e| format!("cannot clear {}: {e}", staging.display()))?;
+    }
+    std::fs::create_dir(&staging)
+        .map_err(|e| format!("cannot create {}: {e}", staging.display()))?;
+    let written = std::cell::RefCell::new(Vec::new());
     let grey = [0.5f32; 3];
     let save = |name: String, images: &[&RgbaImage]| -> CliResult {
-        let path = dir.join(name);
         let row: Vec<RgbaImage> = images.iter().map(|i| i.over(grey)).collect();
         let refs: Vec<&RgbaImage> = row.iter().collect();
-        RgbaImage::side_by_side(&refs).write_png(&path)?;
-        println!("wrote {}", path.display());
+        RgbaImage::side_by_side(&refs).write_png(&staging.join(&name))?;
+        println!("wrote {}", dir.join(&name).display());
+        written.borrow_mut().push(name);
         Ok(())
     };
-    for &tile in &params.tiles {
-        let volume = test_tile(tile, params.size, params.seed)?;
-        let (data, _) = build_slices(&volume, &SliceParams::default())?;
-        let rp = SliceRenderParams {
-            width: 96,
-            height: 96,
-            filter: params.filter,
-            ..SliceRenderParams::default()
-        };
-        let truth_params = VolumeTruthParams {
-            filter: params.filter,
-            ..VolumeTruthParams::default()
-        };
-        for polar in [0.0, 60.0, 85.0] {
-            let view = StackView::degrees(polar, params.azimuth_deg);
-            let c = choose(
-                &volume,
-                view.vector(),
-                params.d_pixels * volume.voxel_size(),
-                [true; 3],
-            )?;
-            let slices = render_slices(&data, c.axis, c.level, &view, &rp)?;
-            let truth = render_truth(&volume, &view, &rp, &truth_params)?;
+    let drawn = (|| -> CliResult {
+        for &tile in &params.tiles {
+            let volume = test_tile(tile, params.size, params.seed)?;
+            let (data, _) = build_slices(&volume, &SliceParams::default())?;
+            let rp = SliceRenderParams {
+                width: 96,
+                height: 96,
+                filter: params.filter,
+                ..SliceRenderParams::default()
+            };
+            let truth_params = VolumeTruthParams {
+                filter: params.filter,
+                ..VolumeTruthParams::default()
+            };
+            for polar in [0.0, 60.0, 85.0] {
+                let view = StackView::degrees(polar, params.azimuth_deg);
+                let c = choose(
+                    &volume,
+                    view.vector(),
+                    params.d_pixels * volume.voxel_size(),
+                    [true; 3],
+                )?;
+                let slices = render_slices(&data, c.axis, c.level, &view, &rp)?;
+                let truth = render_truth(&volume, &view, &rp, &truth_params)?;
+                save(
+                    format!(
+                        "{}-{polar}deg-{}{}-vs-truth.png",
+                        tile.name(),
+                        c.axis.name(),
+                        c.slices
+                    ),
+                    &[&slices, &truth],
+                )?;
+            }
+            let cp = CurvedParams {
+                tilt_deg: 30.0,
+                width: 192,
+                ..CurvedParams::default()
+            };
+            let all = render_curved_slices(&data, 0, &cp)?;
+            let merged = render_curved_slices(&data, 2, &cp)?;
+            let truth = render_curved_truth(&volume, &cp)?;
             save(
-                format!(
-                    "{}-{polar}deg-{}{}-vs-truth.png",
-                    tile.name(),
-                    c.axis.name(),
-                    c.slices
-                ),
-                &[&slices, &truth],
+                format!("{}-cylinder-all-8shells-truth.png", tile.name()),
+                &[&all, &merged, &truth],
             )?;
         }
-        let cp = CurvedParams {
-            tilt_deg: 30.0,
-            width: 192,
-            ..CurvedParams::default()
-        };
-        let all = render_curved_slices(&data, 0, &cp)?;
-        let merged = render_curved_slices(&data, 2, &cp)?;
-        let truth = render_curved_truth(&volume, &cp)?;
-        save(
-            format!("{}-cylinder-all-8shells-truth.png", tile.name()),
-            &[&all, &merged, &truth],
-        )?;
+        Ok(())
+    })();
+    if let Err(e) = drawn {
+        let _ = std::fs::remove_dir_all(&staging);
+        return Err(e);
     }
+    let listing = serde_json::json!({
+        "written_by": "altrep slices --images",
+        "files": written.into_inner(),
+    });
+    super::write_json(&staging.join(IMAGES_LIST), &listing)?;
+    if let Err(e) = check_images_folder(dir) {
+        let _ = std::fs::remove_dir_all(&staging);
+        return Err(e.into());
+    }
+    crate::asset::replace_dir(&staging, dir)?;
     Ok(())
+}
+
+/// The list of the images `--images` wrote, in their folder.
+const IMAGES_LIST: &str = "images.json";
+
+/// Whether the `--images` folder may be replaced ([`super::check_replaceable`]): one this
+/// command wrote holds `images.json`, listing the images.
+fn check_images_folder(dir: &std::path::Path) -> Result<(), String> {
+    super::check_replaceable(dir, "altrep slices --images", IMAGES_LIST, |d| {
+        let bytes = std::fs::read(d.join(IMAGES_LIST)).ok()?;
+        let v: serde_json::Value = serde_json::from_slice(&bytes).ok()?;
+        if v["written_by"] != "altrep slices --images" {
+            return None;
+        }
+        let files = v["files"].as_array()?;
+        Some(
+            files
+                .iter()
+                .filter_map(|f| f.as_str().map(String::from))
+                .chain([IMAGES_LIST.to_string()])
+                .collect(),
+        )
+    })
 }
 
 /// Runs `altrep slices`.
@@ -293,6 +353,9 @@ pub fn run(args: SlicesArgs) -> CliResult {
     // Output paths are checked before the work, not after it.
     if let Some(path) = &args.json {
         super::precompute::check_writable(path)?;
+    }
+    if let Some(dir) = &args.images {
+        check_images_folder(dir)?;
     }
     let params = SliceMeasureParams {
         size: args.size,

@@ -316,10 +316,11 @@ fn write_images(dir: &std::path::Path, params: &SliceMeasureParams) -> CliResult
         "written_by": "altrep slices --images",
         "files": written.into_inner(),
     });
-    super::write_json(&staging.join(IMAGES_LIST), &listing)?;
-    if let Err(e) = check_images_folder(dir) {
+    let listed = super::write_json(&staging.join(IMAGES_LIST), &listing)
+        .and_then(|()| check_images_folder(dir).map_err(Into::into));
+    if let Err(e) = listed {
         let _ = std::fs::remove_dir_all(&staging);
-        return Err(e.into());
+        return Err(e);
     }
     crate::asset::replace_dir(&staging, dir)?;
     Ok(())

@@ -100,6 +100,13 @@ fn estimates_are_within_twice_the_measured_peak() {
             shape_asset(&format!("[asset.octree]\nresolution = {n}")),
         ));
     }
+    for n in [16, 64, 128] {
+        cases.push((
+            format!("slices {n}³"),
+            shape_asset(&format!("[asset.slices]\nresolution = {n}"))
+                .replace("quality_db = 1\n", "quality_db = 1\nlighting = \"baked\"\n"),
+        ));
+    }
     for (g, s) in [(4, 32), (8, 64), (16, 64)] {
         cases.push((
             format!("sphere {g}² frames of {s}²"),

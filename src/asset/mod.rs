@@ -392,6 +392,52 @@ impl<T: Copy + Default> CodeImage<T> {
     }
 }
 
+impl CodeImage<u8> {
+    /// Premultiplied linear RGBA (`channels ≥ 4` floats per pixel, the first four read) as
+    /// RGBA8: straight colour in sRGB codes, alpha (coverage or opacity) linear. The encoding
+    /// of every colour atlas of the asset format (`docs/asset-format.md`); a pixel of alpha 0
+    /// stores colour 0. Cost: one pass.
+    pub fn from_premultiplied(width: usize, height: usize, channels: usize, data: &[f32]) -> Self {
+        let mut img = CodeImage::<u8>::new(width, height, 4);
+        for idx in 0..width * height {
+            let px = &data[idx * channels..idx * channels + 4];
+            let a = px[3].clamp(0.0, 1.0);
+            let out = img.pixel_mut(idx);
+            for c in 0..3 {
+                let straight = if a > 0.0 { px[c] / a } else { 0.0 };
+                out[c] = (altrep_data_gen::linear_to_srgb(straight.clamp(0.0, 1.0)) * 255.0).round()
+                    as u8;
+            }
+            out[3] = (a * 255.0).round() as u8;
+        }
+        img
+    }
+
+    /// The inverse of [`Self::from_premultiplied`] for an RGBA image: premultiplied linear
+    /// RGBA floats, 4 per pixel (sRGB codes decoded by the IEC 61966-2-1 curve, then multiplied
+    /// by alpha). Errors: an image without 4 channels (the count is returned).
+    pub fn to_premultiplied(&self) -> Result<Vec<f32>, usize> {
+        if self.channels != 4 {
+            return Err(self.channels);
+        }
+        let lut: [f32; 256] =
+            std::array::from_fn(|v| altrep_data_gen::srgb_to_linear(v as f32 / 255.0));
+        Ok(self
+            .data
+            .chunks_exact(4)
+            .flat_map(|c| {
+                let a = f32::from(c[3]) / 255.0;
+                [
+                    lut[usize::from(c[0])] * a,
+                    lut[usize::from(c[1])] * a,
+                    lut[usize::from(c[2])] * a,
+                    a,
+                ]
+            })
+            .collect())
+    }
+}
+
 /// A 32-bit float RGBA image (EXR files), row-major.
 #[derive(Clone, Debug, PartialEq)]
 pub struct FloatImage {

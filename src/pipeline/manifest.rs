@@ -27,6 +27,8 @@
 //! resolution = 64
 //! [asset.sphere]              # images with parallax from any direction (views from above)
 //! grid = 8
+//! [asset.slices]              # stacks of alpha slices of the object; needs lighting = "baked"
+//! resolution = 64
 //!
 //! [[asset]]
 //! name = "bark"

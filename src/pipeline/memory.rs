@@ -232,11 +232,11 @@ pub fn plan_memory(manifest: &Manifest, options: &RunOptions) -> Result<MemoryPl
         .filter(|a| options.shard.is_none_or(|s| s.owns(&a.name)))
     {
         let (input, source_bytes) = source_size(spec)?;
-        let needs = effective_needs(spec, options.everything);
         let mut representations = Vec::new();
         macro_rules! estimates {
             ($(($key:ident, $variant:ident, $repr:ty, $doc:literal)),* $(,)?) => {$(
                 if let Some(s) = &spec.$key {
+                    let needs = effective_needs(spec, options.everything, <$repr>::RELIGHTS);
                     representations.push((
                         <$repr>::NAME.to_string(),
                         <$repr>::estimate(s, &needs, &input),

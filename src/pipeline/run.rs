@@ -294,13 +294,20 @@ fn scene_light(manifest: &Manifest) -> Light {
     }
 }
 
-/// The needs a run uses: the asset's, or everything for `--everything`.
-pub(crate) fn effective_needs(spec: &AssetSpec, everything: bool) -> Needs {
+/// The needs a run builds a representation for: the asset's, or everything for `--everything`
+/// (every azimuth and screen size, and dynamic lighting where the representation `relights`: one
+/// that stores shaded colour only keeps the asset's lighting, see
+/// [`Representation::RELIGHTS`]).
+pub(crate) fn effective_needs(spec: &AssetSpec, everything: bool, relights: bool) -> Needs {
     if everything {
         Needs {
             azimuth_deg: [0.0, 360.0],
             screen_px: [1.0, 16384.0],
-            lighting: Lighting::Dynamic,
+            lighting: if relights {
+                Lighting::Dynamic
+            } else {
+                spec.needs.lighting
+            },
             ..spec.needs.clone()
         }
     } else {
@@ -322,10 +329,10 @@ pub fn plan_scene(
         }
         let (loaded, _) = load_source(spec)?;
         let source = loaded.source(&spec.name, light);
-        let needs = effective_needs(spec, options.everything);
         macro_rules! plan_each {
             ($(($key:ident, $variant:ident, $repr:ty, $doc:literal)),* $(,)?) => {$(
                 if let Some(p) = &spec.$key {
+                    let needs = effective_needs(spec, options.everything, <$repr>::RELIGHTS);
                     out.push((
                         spec.name.clone(),
                         <$repr>::NAME.into(),
@@ -378,7 +385,10 @@ pub fn run_scene(manifest: &Manifest, options: &RunOptions) -> Result<RunSummary
         let t_asset = Instant::now();
         let loaded = load_source(spec);
         let load_seconds = t_asset.elapsed().as_secs_f64();
-        let needs = effective_needs(spec, options.everything);
+        // The needs built for, by a representation that relights and by one that does not
+        // (they differ under `--everything` only).
+        let needs = effective_needs(spec, options.everything, true);
+        let needs_shaded = effective_needs(spec, options.everything, false);
         let fail = |repr: &str, e: &PipelineError| AssetOutcome {
             asset: spec.name.clone(),
             representation: repr.into(),
@@ -405,7 +415,8 @@ pub fn run_scene(manifest: &Manifest, options: &RunOptions) -> Result<RunSummary
         let p = profile.as_ref();
         // First every representation is built and committed, concurrently (writing files
         // overlaps the others' computing); then each is read back and measured.
-        let (source, needs, hash) = (&source, &needs, input_hash.as_str());
+        let (source, hash) = (&source, input_hash.as_str());
+        let (needs, needs_shaded) = (&needs, &needs_shaded);
         let mut builds: Vec<(&'static str, bool, BuildJob<'_>)> = Vec::new();
         // One job per representation the asset asks for, in manifest order.
         macro_rules! jobs {
@@ -415,6 +426,7 @@ pub fn run_scene(manifest: &Manifest, options: &RunOptions) -> Result<RunSummary
                         <$repr>::NAME,
                         <$repr>::CASTS_RAYS,
                         Box::new(move || {
+                            let needs = if <$repr>::RELIGHTS { needs } else { needs_shaded };
                             build_one::<$repr>(s, needs, &spec.needs, source, hash, options, p)
                         }),
                     ));

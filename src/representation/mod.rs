@@ -1,7 +1,7 @@
 //! # The one shape of every representation (docs/design.md §12)
 //!
 //! Every representation (images with parallax, cylindrical textures, the ellipsoid octree, texture
-//! pyramids, frames over the sphere) lives in its own module folder and implements
+//! pyramids, frames over the sphere, slices) lives in its own module folder and implements
 //! [`Representation`] there: its `Spec` (the manifest's parameters, serde with documented defaults)
 //! → [`Representation::plan`] from the scene's [`Needs`] → [`Representation::build`] → `Data` and a
 //! report → [`Representation::write`] / [`Representation::read`] of an asset folder (through
@@ -100,6 +100,9 @@ pub enum PipelineError {
     /// The octree failed.
     #[error(transparent)]
     Ellipsoid(#[from] crate::ellipsoid::EllipsoidError),
+    /// Slices failed.
+    #[error(transparent)]
+    Slices(#[from] crate::slices::SliceError),
     /// An image comparison failed.
     #[error(transparent)]
     Metrics(#[from] crate::metrics::MetricsError),
@@ -335,6 +338,11 @@ pub trait Representation {
     /// Whether the representation is built from a texture (assets given by `texture` or
     /// `test_texture`) instead of geometry (`shape` or `mesh`).
     const FROM_TEXTURE: bool = false;
+    /// Whether the representation can follow a moving light (stores normals, or shades from
+    /// its data at draw time). One that cannot stores colour shaded with the scene's light: its
+    /// plan refuses dynamic lighting, and `--everything` (which builds for dynamic lighting)
+    /// keeps the asset's own lighting for it.
+    const RELIGHTS: bool = true;
     /// Manifest parameters (the `[asset.NAME]` table).
     type Spec: Clone + std::fmt::Debug + PartialEq + Serialize + serde::de::DeserializeOwned + Sync;
     /// The representation as loaded from (or written to) files.

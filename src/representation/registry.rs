@@ -25,6 +25,8 @@ macro_rules! for_each_representation {
                 "Texture pyramid ([`crate::pyramid`]), if wanted (texture assets only)."),
             (sphere, Sphere, $crate::sphere::asset::SphereRepr,
                 "Images with parallax from any direction ([`crate::sphere`]), if wanted."),
+            (slices, Slices, $crate::slices::asset::SlicesRepr,
+                "Stacks of alpha slices of the object ([`crate::slices`]), if wanted (baked lighting)."),
         }
     };
 }

@@ -511,11 +511,14 @@ pub struct ShapeParams {
     pub supersample: Supersample,
     /// Baked light.
     pub lighting: SliceLighting,
+    /// The shape repeats along `x` and `z` (a tile: voxelised periodically); off for one object
+    /// in its box (docs/design.md §9.4).
+    pub tiled: bool,
 }
 
 impl Default for ShapeParams {
     /// The bounding cylinder of the data-gen shapes (`R = 1`, `H = 2`) as a 32³ tile:
-    /// `[−1, 1] × [0, 2] × [−1, 1]`, voxel 1/16, 3³ sub-samples.
+    /// `[−1, 1] × [0, 2] × [−1, 1]`, voxel 1/16, 3³ sub-samples, data-gen's light, tiled.
     fn default() -> Self {
         Self {
             dims: [32; 3],
@@ -523,11 +526,13 @@ impl Default for ShapeParams {
             min: [-1.0, 0.0, -1.0],
             supersample: Supersample::of(3),
             lighting: SliceLighting::default(),
+            tiled: true,
         }
     }
 }
 
-/// Builds a texel from a data-gen shape: [`voxelize`] (periodic in `x` and `z`) gives coverage,
+/// Builds a texel from a data-gen shape: [`voxelize`] (periodic in `x` and `z` when
+/// [`ShapeParams::tiled`]) gives coverage,
 /// albedo and normals; boundary voxels are shaded, the interior takes the colour of its nearest
 /// boundary voxel (Meyer & Neyret's §3.2 fill). Cost: data-gen's voxelisation plus one pass.
 ///
@@ -544,7 +549,7 @@ pub fn from_shape(shape: &dyn Shape, params: &ShapeParams) -> Result<TexelVolume
             dims: d,
             min,
             max,
-            periodic: [true, false, true],
+            periodic: [params.tiled, false, params.tiled],
             supersample: params.supersample,
         },
     )?;

@@ -72,17 +72,23 @@ pub struct SliceParams {
     pub rule: MergeRule,
     /// Count the 2D mip levels of each slice in the bytes (the pyramids are always built).
     pub mip_2d: bool,
+    /// The volume tiles (repeats along `x` and `z`, the module conventions): slices wrap in
+    /// those directions when filtered. Off for a volume holding one object: every direction
+    /// clamps to the edge texel (the renderer draws nothing outside the volume's box).
+    pub tiled: bool,
 }
 
 impl Default for SliceParams {
     /// All three axes, every level, [`MergeRule::PerSide`] (the most accurate rule from both
-    /// sides in `altrep slices`; see the README's "Measured" section), 2D mip-maps counted.
+    /// sides in `altrep slices`; see the README's "Measured" section), 2D mip-maps counted, a
+    /// tiling volume.
     fn default() -> Self {
         Self {
             axes: [true; 3],
             levels: None,
             rule: MergeRule::PerSide,
             mip_2d: true,
+            tiled: true,
         }
     }
 }
@@ -204,6 +210,7 @@ pub struct SliceData {
     dims: [usize; 3],
     voxel: f64,
     rule: MergeRule,
+    tiled: bool,
     stacks: Vec<Stack>,
 }
 
@@ -221,6 +228,11 @@ impl SliceData {
     /// The merge rule of the levels above 0.
     pub fn rule(&self) -> MergeRule {
         self.rule
+    }
+
+    /// Whether the volume tiles along `x` and `z` ([`SliceParams::tiled`]).
+    pub fn tiled(&self) -> bool {
+        self.tiled
     }
 
     /// Every stack, by axis then level.
@@ -296,32 +308,17 @@ fn merge_column(layers: &[[f64; 4]], rule: MergeRule, side: Side) -> [f64; 4] {
 /// Builds the slices of `axis` at `level` for `side`, with the worst opacity error.
 fn build_stack_side(
     volume: &TexelVolume,
-    axis: Axis,
-    level: usize,
+    (axis, level): (Axis, usize),
     rule: MergeRule,
     side: Side,
+    tiled: bool,
 ) -> Result<(Vec<Pyramid>, f64), SliceError> {
     let dims = volume.dims();
     let (ua, va) = axis.plane_axes();
     let (w, h) = (dims[ua], dims[va]);
     let g = 1usize << level;
     let count = dims[axis.index()] / g;
-    let wrap = [
-        if ua == 1 {
-            WrapMode::Clamp
-        } else {
-            WrapMode::Repeat
-        },
-        if va == 1 {
-            WrapMode::Clamp
-        } else {
-            WrapMode::Repeat
-        },
-    ];
-    let params = PyramidParams {
-        wrap,
-        ..PyramidParams::default()
-    };
+    let params = slice_pyramid_params(axis, tiled);
     let built: Vec<Result<(Pyramid, f64), SliceError>> = (0..count)
         .into_par_iter()
         .map(|j| {
@@ -396,9 +393,10 @@ pub fn build_slices(
         }
         for &level in levels {
             let two_sides = level > 0 && params.rule == MergeRule::PerSide;
-            let (plus, e1) = build_stack_side(volume, axis, level, params.rule, Side::Plus)?;
+            let at = (axis, level);
+            let (plus, e1) = build_stack_side(volume, at, params.rule, Side::Plus, params.tiled)?;
             let minus = if two_sides {
-                let (m, e2) = build_stack_side(volume, axis, level, params.rule, Side::Minus)?;
+                let (m, e2) = build_stack_side(volume, at, params.rule, Side::Minus, params.tiled)?;
                 opacity_error_max = opacity_error_max.max(e2);
                 Some(m)
             } else {
@@ -434,7 +432,147 @@ pub fn build_slices(
         dims,
         voxel: volume.voxel_size(),
         rule: params.rule,
+        tiled: params.tiled,
         stacks,
     };
     Ok((data, report))
+}
+
+/// The 2D pyramid parameters of a slice normal to `axis`: its height direction (`y`) clamps,
+/// the surface directions repeat when the volume tiles and clamp when it does not.
+fn slice_pyramid_params(axis: Axis, tiled: bool) -> PyramidParams {
+    let (ua, va) = axis.plane_axes();
+    let wrap = |a: usize| {
+        if a == 1 || !tiled {
+            WrapMode::Clamp
+        } else {
+            WrapMode::Repeat
+        }
+    };
+    PyramidParams {
+        wrap: [wrap(ua), wrap(va)],
+        ..PyramidParams::default()
+    }
+}
+
+/// The stored slices of one stack, as a reader hands them to [`SliceData::from_stored`]: level-0
+/// textures (premultiplied linear RGBA f32, `w × h` of the axis's plane, see
+/// [`Axis::plane_axes`]), for the plus side and, for a per-side stack, the minus side.
+#[derive(Clone, Debug)]
+pub struct StoredStack {
+    /// Slice direction.
+    pub axis: Axis,
+    /// Merge level `k` (`N/2^k` slices).
+    pub level: usize,
+    /// The slices seen from the plus side (or both sides).
+    pub plus: Vec<Texture>,
+    /// The slices seen from the minus side, when stored apart.
+    pub minus: Option<Vec<Texture>>,
+}
+
+impl SliceData {
+    /// Slice data from stored stacks (an asset file's reader): each slice's 2D pyramid is
+    /// rebuilt as [`build_slices`] builds it, so data read back draws exactly as the data
+    /// written (from the same level-0 texels). Cost: one 2D pyramid per slice, in parallel.
+    ///
+    /// Errors: a dimension that is not a power of two, a voxel size that is not positive, a
+    /// stack at a level beyond one slice, with a slice count other than `N/2^k`, slices of
+    /// another size than the axis's plane or not 4 channels, a minus side on a rule that
+    /// stores one, a stack given twice, a non-finite texel (through the pyramid).
+    pub fn from_stored(
+        dims: [usize; 3],
+        voxel: f64,
+        rule: MergeRule,
+        tiled: bool,
+        stored: Vec<StoredStack>,
+    ) -> Result<SliceData, SliceError> {
+        for axis in Axis::ALL {
+            let n = dims[axis.index()];
+            if !n.is_power_of_two() {
+                return Err(SliceError::NotPowerOfTwo { axis, value: n });
+            }
+        }
+        super::check_range(
+            "voxel size",
+            voxel,
+            f64::MIN_POSITIVE,
+            f64::MAX,
+            "finite and > 0",
+        )?;
+        let bad = |value: String, reason: &'static str| SliceError::InvalidParameter {
+            name: "stored stack",
+            value,
+            reason,
+        };
+        let mut stacks = Vec::with_capacity(stored.len());
+        for s in stored {
+            let (axis, level) = (s.axis, s.level);
+            let at = format!("axis {} level {level}", axis.name());
+            let n = dims[axis.index()];
+            if level > n.trailing_zeros() as usize {
+                return Err(bad(at, "level beyond the coarsest (one slice)"));
+            }
+            if stacks
+                .iter()
+                .any(|t: &Stack| t.axis == axis && t.level == level)
+            {
+                return Err(bad(at, "given twice"));
+            }
+            let (ua, va) = axis.plane_axes();
+            let pyramids = |slices: Vec<Texture>| -> Result<Vec<Pyramid>, SliceError> {
+                if slices.len() != n >> level {
+                    return Err(bad(
+                        format!("{at}: {} slices", slices.len()),
+                        "a level-k stack holds N/2^k slices",
+                    ));
+                }
+                if slices
+                    .iter()
+                    .any(|t| (t.width, t.height, t.channels) != (dims[ua], dims[va], 4))
+                {
+                    return Err(bad(
+                        at.clone(),
+                        "every slice is the axis's plane of voxels, RGBA",
+                    ));
+                }
+                let params = slice_pyramid_params(axis, tiled);
+                slices
+                    .into_par_iter()
+                    .map(|t| Ok(Pyramid::build(t, params)?))
+                    .collect()
+            };
+            let plus = pyramids(s.plus)?;
+            let minus = match s.minus {
+                Some(m) if level > 0 && rule == MergeRule::PerSide => Some(pyramids(m)?),
+                Some(_) => {
+                    return Err(bad(
+                        at,
+                        "a minus side is stored by the per-side rule above level 0 only",
+                    ));
+                }
+                None if level > 0 && rule == MergeRule::PerSide => {
+                    return Err(bad(
+                        at,
+                        "the per-side rule stores a minus side above level 0",
+                    ));
+                }
+                None => None,
+            };
+            stacks.push(Stack {
+                axis,
+                level,
+                spacing: voxel * (1usize << level) as f64,
+                plus,
+                minus,
+            });
+        }
+        stacks.sort_by_key(|s| (s.axis.index(), s.level));
+        Ok(SliceData {
+            dims,
+            voxel,
+            rule,
+            tiled,
+            stacks,
+        })
+    }
 }

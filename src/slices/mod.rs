@@ -8,7 +8,10 @@
 //! a level per view ([`stack`]: the paper's criterion `h·tan a / d ≤ 1` and its direction rule
 //! `argmin (1/c_i² − 1)·h_i²`), draws them on the CPU over a flat patch ([`render_slices`]) or
 //! a curved one ([`curved`]: shells over a cylinder) and measures them against a ray-marched
-//! ground truth of the same volume ([`render_truth`], [`measure()`]).
+//! ground truth of the same volume ([`render_truth`], [`measure()`]). A volume may also hold one
+//! object instead of a tile ([`object`]): the pipeline's `[asset.slices]` ([`asset`]) voxelises
+//! an asset's shape or mesh, writes its stacks as files and measures them against the object's
+//! ray-cast ground truth.
 //!
 //! ## Conventions (written once here)
 //!
@@ -59,10 +62,12 @@
 //! pixel sample, one bilinear fetch (or two with 2D mip-maps) per slice crossed; a view draws
 //! `N_i/2^k` slice polygons per tile.
 
+pub mod asset;
 pub mod build;
 pub mod curved;
 pub mod measure;
 pub mod merge;
+pub mod object;
 pub mod render;
 pub mod stack;
 pub mod truth;
@@ -77,7 +82,10 @@ pub use measure::{
     CurvedRow, LevelRow, MeasureReport, RuleSummary, SliceMeasureParams, SliceSweepRow,
     TileSummary, ViewError, measure, view_errors,
 };
-pub use merge::{MergeRule, Side, SliceData, SliceParams, SliceReport, Stack, build_slices};
+pub use merge::{
+    MergeRule, Side, SliceData, SliceParams, SliceReport, Stack, StoredStack, build_slices,
+};
+pub use object::{ObjectImage, choose_stored, render_object};
 pub use render::{SliceRenderParams, StackView, render_slices};
 pub use stack::{Axis, ViewChoice, choose, choose_direction, level_for_slices, slices_needed};
 pub use truth::{VolumeTruthParams, render_truth};

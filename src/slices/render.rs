@@ -11,6 +11,7 @@ use rayon::prelude::*;
 use super::merge::{Side, SliceData, Stack};
 use super::volume::{SliceReconstruction, rescale_thickness};
 use super::{Axis, SliceError};
+use crate::mip::Pyramid;
 
 /// An orthographic view of the patch (see the module conventions).
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -232,6 +233,28 @@ pub(crate) fn accumulate(acc: &mut [f64; 4], sample: [f64; 4]) -> bool {
     acc[3] > 1.0 - 1e-6
 }
 
+/// Reads slice `pyr` at `(u, v)` (texture coordinates in `[0, 1]`) with trilinear filtering at
+/// level of detail `lod` (clamped to the pyramid's levels; 0 when not finite), as a GPU's
+/// mip-mapped sampler: bilinear in the two nearest 2D levels, blended linearly.
+pub(crate) fn trilinear_into(pyr: &Pyramid, lod: f64, u: f64, v: f64, out: &mut [f32; 4]) {
+    let max = (pyr.levels().len() - 1) as f64;
+    let lod = if lod.is_finite() {
+        lod.clamp(0.0, max)
+    } else {
+        0.0
+    };
+    let l0 = lod.floor() as usize;
+    let f = (lod - l0 as f64) as f32;
+    pyr.bilinear_into(l0, u, v, out);
+    if f > 0.0 {
+        let mut b = [0.0f32; 4];
+        pyr.bilinear_into(l0 + 1, u, v, &mut b);
+        for (x, y) in out.iter_mut().zip(b) {
+            *x = (1.0 - f) * *x + f * y;
+        }
+    }
+}
+
 /// Composites the slices of `stack` that `ray` crosses.
 fn shade_stack(
     stack: &Stack,
@@ -306,22 +329,7 @@ fn shade_stack(
                 dy[ua] / extent[ua],
                 dy[va] / extent[va],
             );
-            let max = (pyr.levels().len() - 1) as f64;
-            let lod = if lod.is_finite() {
-                lod.clamp(0.0, max)
-            } else {
-                0.0
-            };
-            let l0 = lod.floor() as usize;
-            let f = (lod - l0 as f64) as f32;
-            pyr.bilinear_into(l0, u, v, out);
-            if f > 0.0 {
-                let mut b = [0.0f32; 4];
-                pyr.bilinear_into(l0 + 1, u, v, &mut b);
-                for (x, y) in out.iter_mut().zip(b) {
-                    *x = (1.0 - f) * *x + f * y;
-                }
-            }
+            trilinear_into(pyr, lod, u, v, out);
         } else {
             pyr.bilinear_into(0, u, v, out);
         }

@@ -19,6 +19,7 @@ use altrep::pyramid::asset::PyramidRepr;
 use altrep::pyramid::{
     MipError, Pyramid, PyramidData, PyramidKind, PyramidParams, RipMap, WrapMode,
 };
+use altrep::slices::asset::{SlicesRepr, SlicesSpec};
 use altrep_data_gen::{Light, Supersample, scene_shape};
 use approx::assert_abs_diff_eq;
 use proptest::prelude::*;
@@ -384,6 +385,72 @@ fn octree_files_read_back_bit_for_bit() {
     assert_eq!(loaded.nodes(), tree.nodes());
     assert_eq!(loaded.depth(), tree.depth());
     assert_eq!(desc.data_bytes() as usize, tree.nodes().len() * 52);
+}
+
+/// Slices of the tree: the files read back to slices that write the same files again (every
+/// atlas byte for byte), and draw the same images; damaged metadata is refused by the reader.
+#[test]
+fn slices_files_read_back_bit_for_bit_and_damaged_metadata_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let shape = scene_shape("tree").unwrap();
+    let src = source("tree", &shape);
+    let spec = SlicesSpec {
+        resolution: 16,
+        ..SlicesSpec::default()
+    };
+    let needs = Needs {
+        lighting: Lighting::Baked,
+        elevation_deg: [0.0, 50.0],
+        screen_px: [4.0, 16.0],
+        ..Needs::default()
+    };
+    let (plan, dec) = SlicesRepr::plan(&spec, &needs, &src).unwrap();
+    assert!(plan.refused.is_none(), "{plan:?}");
+    let (data, _) = SlicesRepr::build(&spec, &needs, &dec, &src).unwrap();
+    let (loaded, desc) = round_trip::<SlicesRepr>(dir.path(), "tree", &data);
+    assert_eq!(loaded.slices.stacks().len(), data.slices.stacks().len());
+    assert!(desc.files.iter().any(|f| f.path == "slices-y1-minus.png"));
+    // Written again from what was read, every file is the same.
+    let again = dir.path().join("again");
+    let (_, desc2) = round_trip::<SlicesRepr>(&again, "tree", &loaded);
+    let hashes = |d: &altrep::asset::AssetDescription| -> Vec<(String, String)> {
+        d.files
+            .iter()
+            .map(|f| (f.path.clone(), f.blake3.clone()))
+            .collect()
+    };
+    assert_eq!(hashes(&desc), hashes(&desc2));
+    // What is read draws as what was written, up to the 8-bit codes: 8-bit colour in sRGB and
+    // alpha within 1/255 of the built slices.
+    let (m1, _) = SlicesRepr::measure(&loaded, &needs, 16, &src).unwrap();
+    let (m0, _) = SlicesRepr::measure(&data, &needs, 16, &src).unwrap();
+    assert_abs_diff_eq!(m1.psnr_db, m0.psnr_db, epsilon = 0.2);
+    // A stack count that does not match its atlas is refused with a typed error naming it.
+    let path = dir.path().join("tree/slices").join(DESCRIPTION_FILE);
+    let mut doc: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&path).unwrap()).unwrap();
+    doc.as_object_mut().unwrap().remove("description_blake3");
+    let good = doc.clone();
+    for (key, value) in [
+        ("slices", serde_json::json!(3)),
+        ("axis", serde_json::json!("w")),
+        ("minus", serde_json::json!(null)),
+    ] {
+        let mut bad = good.clone();
+        let stacks = bad["metadata"]["stacks"].as_array_mut().unwrap();
+        let i = stacks.iter().position(|s| s["minus"].is_string()).unwrap();
+        stacks[i][key] = value;
+        std::fs::write(&path, serde_json::to_string(&bad).unwrap()).unwrap();
+        let r = AssetReader::open(&dir.path().join("tree/slices")).unwrap();
+        let err = SlicesRepr::read(&r).err().unwrap();
+        assert!(
+            matches!(
+                &err,
+                PipelineError::Asset(AssetError::Content { path, .. }) if path.ends_with("tree/slices")
+            ),
+            "{key}: {err}"
+        );
+    }
 }
 
 #[test]

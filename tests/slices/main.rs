@@ -19,6 +19,7 @@ use glam::DVec3;
 use proptest::prelude::*;
 
 mod measured;
+mod object;
 
 /// A volume of `n³` voxels of edge `1/n` with `value` everywhere.
 fn uniform(n: usize, value: [f32; 4]) -> TexelVolume {

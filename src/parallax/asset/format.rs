@@ -2,8 +2,6 @@
 //! impostor atlas written beside the views and checked against them on reading. The layout of
 //! every file is in the parent module's documentation.
 
-use altrep_data_gen::linear_to_srgb;
-
 use crate::asset::{AssetReader, AssetWriter, Channel, CodeImage, Encoding};
 use serde_json::json;
 
@@ -212,20 +210,10 @@ pub(super) fn colour_of(t: &crate::pyramid::Texture) -> crate::pyramid::Texture 
     }
 }
 
-/// A premultiplied linear RGBA level as RGBA8: straight sRGB colour, coverage in alpha.
+/// A premultiplied linear RGBA level as RGBA8: straight sRGB colour, coverage in alpha
+/// ([`CodeImage::from_premultiplied`]).
 pub(super) fn rgba8_of(t: &crate::pyramid::Texture) -> CodeImage<u8> {
-    let mut img = CodeImage::<u8>::new(t.width, t.height, 4);
-    for idx in 0..t.width * t.height {
-        let px = &t.data[idx * t.channels..idx * t.channels + 4];
-        let a = px[3].clamp(0.0, 1.0);
-        let out = img.pixel_mut(idx);
-        for c in 0..3 {
-            let straight = if a > 0.0 { px[c] / a } else { 0.0 };
-            out[c] = (linear_to_srgb(straight.clamp(0.0, 1.0)) * 255.0).round() as u8;
-        }
-        out[3] = (a * 255.0).round() as u8;
-    }
-    img
+    CodeImage::from_premultiplied(t.width, t.height, t.channels, &t.data)
 }
 
 /// The impostor atlas of the present views of `images` and its pyramid: transparent gutters

@@ -1,0 +1,576 @@
+//! Slices of an object in the pipeline (docs/design.md §9.4): the asset's shape or mesh is
+//! voxelised in its box `[−1, 1] × [0, 2] × [−1, 1]` (the bounding cylinder's), its colours
+//! shaded with the scene's light, and cut into the stacks and merge levels the needed views and
+//! screen sizes draw.
+//!
+//! ## Files
+//!
+//! One 8-bit RGBA PNG atlas per stack and side: `slices-{axis}{level}.png` (role `{axis}{level}`),
+//! and `slices-{axis}{level}-minus.png` (role `{axis}{level}-minus`) for the minus side of a
+//! per-side merge. The atlas is the stack's `N/2^level` slices one under another: slice `j`
+//! (lying in the plane `q_axis = (j + ½)·h`, `h = 2^level·s`, from the box's lower corner)
+//! fills rows `j·H … (j + 1)·H − 1`; texel `(i, j)` of a slice is voxel `u = i`, `v = j` of the
+//! axis's plane ([`super::Axis::plane_axes`]). Colour is straight sRGB, alpha the slice's opacity
+//! at normal incidence (linear): premultiply on load, and raise alpha to `1/|cos|` at an
+//! oblique view (the module conventions). The metadata gives `dims`, `voxel` (edge, object
+//! units), `box_min`, the merge `rule`, `depth_px` (the criterion's visible depth in pixels,
+//! for choosing the level per view) and the `stacks`.
+
+use std::time::Instant;
+
+use altrep_data_gen::{RgbaImage, Supersample};
+use glam::DVec3;
+use serde::{Deserialize, Serialize};
+use serde_json::json;
+
+use super::build::{ShapeParams, SliceLighting, from_shape};
+use super::merge::{MergeRule, Side, SliceData, SliceParams, StoredStack, build_slices};
+use super::object::{choose_stored, render_object};
+use super::stack::{Axis, choose_direction, level_for_slices, slices_needed};
+use crate::asset::{AssetReader, AssetWriter, Channel, CodeImage, Encoding};
+use crate::mip::Texture;
+use crate::representation::{
+    Estimate, InputSize, Lighting, Measurement, Needs, Picture, PipelineError, Plan,
+    Representation, Source, Window, elevation_note, fold, linear_bytes, measure_views, secs,
+};
+
+/// Lower corner of the voxelised box (object units): the bounding cylinder's box.
+pub const BOX_MIN: [f64; 3] = [-1.0, 0.0, -1.0];
+/// Edge of the voxelised box (object units).
+const BOX_EDGE: f64 = 2.0;
+
+/// Manifest parameters of slices (`[asset.slices]`).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct SlicesSpec {
+    /// Voxels per side of the box (power of two, 4–256; default 64). The planner lowers it to the
+    /// closest footprint (the largest screen size rounded up to a power of two).
+    pub resolution: usize,
+    /// Merge rule of the coarser levels: `per-side` (default), `symmetric`, `front-over-back`,
+    /// `back-over-front`, or `drop` (the baseline that keeps one layer in `2^k`).
+    pub rule: String,
+    /// Inside tests per voxel edge when voxelising ([`Supersample`]: `k³` per voxel; 1–4,
+    /// default 2).
+    pub supersample: Supersample,
+    /// Visible depth `d` of Meyer & Neyret's criterion `h·tan a / d ≤ 1`, in pixels of the
+    /// screen size (in `[0.25, 16]`; default 1): the planner builds, and a display draws, the
+    /// coarsest level that keeps the parallax error of a view under `d`.
+    pub depth_px: f64,
+}
+
+impl Default for SlicesSpec {
+    fn default() -> Self {
+        Self {
+            resolution: 64,
+            rule: MergeRule::PerSide.name().into(),
+            supersample: Supersample::of(2),
+            depth_px: 1.0,
+        }
+    }
+}
+
+fn rule_of(name: &str) -> Option<MergeRule> {
+    MergeRule::ALL.into_iter().find(|r| r.name() == name)
+}
+
+impl SlicesSpec {
+    /// Checks ranges; the message names the key.
+    pub fn validate(&self) -> Result<(), String> {
+        if !self.resolution.is_power_of_two() || !(4..=256).contains(&self.resolution) {
+            return Err(format!(
+                "slices.resolution = {} must be a power of two in 4..=256",
+                self.resolution
+            ));
+        }
+        if rule_of(&self.rule).is_none() {
+            let names: Vec<_> = MergeRule::ALL.iter().map(|r| r.name()).collect();
+            return Err(format!(
+                "slices.rule = '{}' must be one of {}",
+                self.rule,
+                names.join(", ")
+            ));
+        }
+        if !(1..=4).contains(&self.supersample.get()) {
+            return Err(format!(
+                "slices.supersample = {} must be in 1..=4",
+                self.supersample.get()
+            ));
+        }
+        if !(self.depth_px.is_finite() && (0.25..=16.0).contains(&self.depth_px)) {
+            return Err(format!(
+                "slices.depth_px = {} must be in [0.25, 16]",
+                self.depth_px
+            ));
+        }
+        Ok(())
+    }
+}
+
+/// What the planner decided for the slices.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct SlicesDecisions {
+    /// Voxels per side actually built.
+    pub resolution: usize,
+    /// Axes whose stacks some needed view draws (`x, y, z`).
+    pub axes: [bool; 3],
+    /// Merge levels some needed view and screen size draws, ascending (every built axis).
+    pub levels: Vec<usize>,
+}
+
+/// Slices as loaded from an asset folder: the stacks and the criterion's visible depth.
+#[derive(Clone, Debug)]
+pub struct SlicesAsset {
+    /// The stacks, over the box of lower corner [`BOX_MIN`].
+    pub slices: SliceData,
+    /// Visible depth of the criterion in pixels ([`SlicesSpec::depth_px`]).
+    pub depth_px: f64,
+}
+
+impl SlicesAsset {
+    /// The stack a display draws for `view` (unit, toward the camera) at screen size `size_px`
+    /// (pixels across the box's width): the criterion's depth is `depth_px` pixels of that size.
+    pub fn choose(
+        &self,
+        view: DVec3,
+        size_px: f64,
+    ) -> Result<super::ViewChoice, super::SliceError> {
+        choose_stored(&self.slices, view, self.depth_px * BOX_EDGE / size_px)
+    }
+}
+
+/// Slices of an object for the pipeline.
+pub struct SlicesRepr;
+
+/// The box resolution the closest footprint needs: the largest screen size rounded up to a power
+/// of two, at least 4.
+fn closest_resolution(needs: &Needs) -> usize {
+    (needs.screen_px[1].ceil() as usize)
+        .next_power_of_two()
+        .max(4)
+}
+
+/// Unit view vectors (toward the camera) sampling the needed azimuths and elevations: 72
+/// azimuths round a full circle, else 37 over the range, ends included; 9 elevations over a
+/// range, ends included.
+fn needed_views(needs: &Needs) -> Vec<DVec3> {
+    let [a0, a1] = needs.azimuth_deg;
+    let azimuths: Vec<f64> = if needs.all_azimuths() {
+        (0..72).map(|k| f64::from(k) * 5.0).collect()
+    } else {
+        (0..=36)
+            .map(|k| a0 + (a1 - a0) * f64::from(k) / 36.0)
+            .collect()
+    };
+    let [e0, e1] = needs.elevation_deg;
+    let elevations: Vec<f64> = if e0 == e1 {
+        vec![e0]
+    } else {
+        (0..=8)
+            .map(|k| e0 + (e1 - e0) * f64::from(k) / 8.0)
+            .collect()
+    };
+    let mut v = Vec::with_capacity(azimuths.len() * elevations.len());
+    for e in &elevations {
+        for a in &azimuths {
+            let (a, e) = (a.to_radians(), e.to_radians());
+            v.push(DVec3::new(e.cos() * a.cos(), e.sin(), e.cos() * a.sin()));
+        }
+    }
+    v
+}
+
+/// Nine screen sizes from the smallest needed to the largest, spaced geometrically.
+fn needed_sizes(needs: &Needs) -> Vec<f64> {
+    let [p0, p1] = needs.screen_px;
+    (0..=8)
+        .map(|k| p0 * (p1 / p0).powf(f64::from(k) / 8.0))
+        .collect()
+}
+
+impl Representation for SlicesRepr {
+    const NAME: &'static str = "slices";
+    const CASTS_RAYS: bool = false;
+    const RELIGHTS: bool = false;
+    type Spec = SlicesSpec;
+    type Data = SlicesAsset;
+    type Decisions = SlicesDecisions;
+
+    fn validate(spec: &Self::Spec) -> Result<(), String> {
+        spec.validate()
+    }
+
+    fn relevant_needs(needs: &Needs) -> serde_json::Value {
+        json!({ "screen_px": needs.screen_px, "azimuth_deg": needs.azimuth_deg,
+                "elevation_deg": needs.elevation_deg, "lighting": needs.lighting })
+    }
+
+    fn estimate(spec: &SlicesSpec, needs: &Needs, _input: &InputSize) -> Estimate {
+        // ~150 B per voxel at 64³ (data-gen's voxelisation, the volume, the f32 slices with
+        // their 2D mips and minus sides, the read-back copy), fitted to the peaks
+        // `tests/memory.rs` measures, and a few MB of fixed cost.
+        let n = closest_resolution(needs).min(spec.resolution) as f64;
+        let ss = spec.supersample.get() as f64 / 2.0;
+        Estimate {
+            peak_bytes: linear_bytes(3e6, 40.0 * ss.max(1.0) + 110.0, n * n * n),
+            // RGBA8, three axes, level 0 plus merged levels on two sides (≤ 2 N³ texels).
+            output_bytes: linear_bytes(0.0, 3.0 * 4.0 * 3.0, n * n * n),
+        }
+    }
+
+    fn plan(
+        spec: &SlicesSpec,
+        needs: &Needs,
+        _source: &Source,
+    ) -> Result<(Plan, SlicesDecisions), PipelineError> {
+        let mut plan = Plan::default();
+        let closest = closest_resolution(needs);
+        let resolution = closest.min(spec.resolution);
+        let mut decisions = SlicesDecisions {
+            resolution,
+            axes: [false; 3],
+            levels: Vec::new(),
+        };
+        if needs.lighting == Lighting::Dynamic {
+            plan.refuse(
+                "slices store colour with the light baked in (no normals), and the needs ask for \
+                 dynamic lighting: set lighting = \"baked\", or use the octree or images with \
+                 parallax, which relight"
+                    .into(),
+            );
+            return Ok((plan, decisions));
+        }
+        let mut l = spec.resolution;
+        while l > resolution {
+            plan.skip(
+                format!("{l}³ voxels"),
+                format!(
+                    "finer than the closest footprint: the largest screen size is {} px",
+                    needs.screen_px[1]
+                ),
+            );
+            l /= 2;
+        }
+        let s = BOX_EDGE / resolution as f64;
+        let mut range: [Option<(usize, usize)>; 3] = [None; 3];
+        for v in needed_views(needs) {
+            let axis = choose_direction(v, [s; 3], [true; 3])?;
+            let i = axis.index();
+            for px in needed_sizes(needs) {
+                let depth = spec.depth_px * BOX_EDGE / px;
+                let needed = slices_needed(BOX_EDGE, v[i].abs().min(1.0).acos(), depth)?;
+                let level = level_for_slices(axis, resolution, needed, false)?;
+                range[i] =
+                    Some(range[i].map_or((level, level), |(a, b)| (a.min(level), b.max(level))));
+            }
+        }
+        let lo = range.iter().flatten().map(|r| r.0).min().unwrap_or(0);
+        let hi = range.iter().flatten().map(|r| r.1).max().unwrap_or(0);
+        let top = resolution.trailing_zeros() as usize;
+        for axis in Axis::ALL {
+            let i = axis.index();
+            if range[i].is_some() {
+                plan.build(format!(
+                    "{} stack of {resolution}³ voxels, levels {lo}–{hi} ({}–{} slices, rule {})",
+                    axis.name(),
+                    resolution >> lo,
+                    resolution >> hi,
+                    spec.rule
+                ));
+            } else {
+                plan.skip(
+                    format!("{} stack", axis.name()),
+                    "no needed view draws it: the direction rule picks another axis for every one"
+                        .into(),
+                );
+            }
+        }
+        if lo > 0 {
+            plan.skip(
+                format!(
+                    "levels 0–{} ({}–{} slices)",
+                    lo - 1,
+                    resolution,
+                    resolution >> (lo - 1)
+                ),
+                "no needed view and screen size asks for that many slices".into(),
+            );
+        }
+        if hi < top {
+            plan.skip(
+                format!(
+                    "levels {}–{top} ({}–1 slices)",
+                    hi + 1,
+                    resolution >> (hi + 1)
+                ),
+                "too few slices for every needed view and screen size".into(),
+            );
+        }
+        decisions.axes = [0, 1, 2].map(|i| range[i].is_some());
+        decisions.levels = (lo..=hi).collect();
+        Ok((plan, decisions))
+    }
+
+    fn build(
+        spec: &SlicesSpec,
+        _needs: &Needs,
+        decisions: &SlicesDecisions,
+        source: &Source,
+    ) -> Result<(SlicesAsset, serde_json::Value), PipelineError> {
+        let n = decisions.resolution;
+        let rule = rule_of(&spec.rule).ok_or_else(|| PipelineError::Spec(spec.rule.clone()))?;
+        let t0 = Instant::now();
+        let voxelising = crate::profile::timer("voxelise");
+        let volume = from_shape(
+            source.shape()?,
+            &ShapeParams {
+                dims: [n; 3],
+                voxel: BOX_EDGE / n as f64,
+                min: BOX_MIN,
+                supersample: spec.supersample,
+                lighting: SliceLighting {
+                    direction: source.light.direction.to_array(),
+                    ambient: source.light.ambient,
+                },
+                tiled: false,
+            },
+        )?;
+        voxelising.stop();
+        let voxelize_s = secs(t0);
+        if volume.rgba().iter().all(|v| v[3] <= 0.0) {
+            return Err(PipelineError::Invisible {
+                asset: source.name.into(),
+                what: format!("the {n}³ voxelisation"),
+            });
+        }
+        let cutting = crate::profile::timer("slices");
+        let (slices, report) = build_slices(
+            &volume,
+            &SliceParams {
+                axes: decisions.axes,
+                levels: Some(decisions.levels.clone()),
+                rule,
+                mip_2d: true,
+                tiled: false,
+            },
+        )?;
+        cutting.stop();
+        Ok((
+            SlicesAsset {
+                slices,
+                depth_px: spec.depth_px,
+            },
+            json!({ "voxelize_s": voxelize_s, "build_s": report.build_seconds,
+                    "stacks": report.stacks.iter().map(|(a, l, c)| format!("{}{l}: {c} slices", a.name())).collect::<Vec<_>>(),
+                    "bytes_rgba8": report.bytes, "opacity_error_max": report.opacity_error_max }),
+        ))
+    }
+
+    fn write(asset: &SlicesAsset, w: &mut AssetWriter) -> Result<serde_json::Value, PipelineError> {
+        let data = &asset.slices;
+        let ch = |name: &str, encoding: Encoding| Channel {
+            name: name.into(),
+            encoding,
+        };
+        let channels = || {
+            vec![
+                ch("colour.r", Encoding::Srgb),
+                ch("colour.g", Encoding::Srgb),
+                ch("colour.b", Encoding::Srgb),
+                ch(
+                    "alpha",
+                    Encoding::Linear {
+                        scale: 1.0 / 255.0,
+                        offset: 0.0,
+                    },
+                ),
+            ]
+        };
+        let mut stacks = Vec::new();
+        for stack in data.stacks() {
+            let role = format!("{}{}", stack.axis().name(), stack.level());
+            let mut sides = vec![(Side::Plus, role.clone())];
+            if stack.per_side() {
+                sides.push((Side::Minus, format!("{role}-minus")));
+            }
+            for (side, r) in &sides {
+                w.png8(
+                    r,
+                    &format!("slices-{r}.png"),
+                    &atlas_of(stack.slices(*side)),
+                    channels(),
+                )?;
+            }
+            stacks.push(json!({ "axis": stack.axis().name(), "level": stack.level(),
+                                "slices": stack.count(), "plus": role,
+                                "minus": stack.per_side().then(|| format!("{role}-minus")) }));
+        }
+        Ok(
+            json!({ "dims": data.dims(), "voxel": data.voxel_size(), "box_min": BOX_MIN,
+                   "rule": data.rule().name(), "depth_px": asset.depth_px, "stacks": stacks }),
+        )
+    }
+
+    fn read(r: &AssetReader) -> Result<SlicesAsset, PipelineError> {
+        r.expect_representation(Self::NAME)?;
+        let m = &r.description().metadata;
+        let field = |k: &str| r.content(format!("metadata.{k} missing or malformed"));
+        let dims: [usize; 3] =
+            serde_json::from_value(m["dims"].clone()).map_err(|_| field("dims"))?;
+        let voxel = m["voxel"].as_f64().ok_or_else(|| field("voxel"))?;
+        let box_min: [f64; 3] =
+            serde_json::from_value(m["box_min"].clone()).map_err(|_| field("box_min"))?;
+        if box_min != BOX_MIN {
+            return Err(r
+                .content(format!(
+                    "metadata.box_min = {box_min:?}, expected {BOX_MIN:?}"
+                ))
+                .into());
+        }
+        let rule = m["rule"]
+            .as_str()
+            .and_then(rule_of)
+            .ok_or_else(|| field("rule"))?;
+        let depth_px = m["depth_px"]
+            .as_f64()
+            .filter(|d| d.is_finite() && *d > 0.0)
+            .ok_or_else(|| field("depth_px"))?;
+        let list = m["stacks"].as_array().ok_or_else(|| field("stacks"))?;
+        let mut stored = Vec::with_capacity(list.len());
+        for s in list {
+            let axis = match s["axis"].as_str() {
+                Some("x") => Axis::X,
+                Some("y") => Axis::Y,
+                Some("z") => Axis::Z,
+                _ => return Err(field("stacks[].axis").into()),
+            };
+            let level = s["level"].as_u64().ok_or_else(|| field("stacks[].level"))? as usize;
+            let slices = s["slices"]
+                .as_u64()
+                .ok_or_else(|| field("stacks[].slices"))? as usize;
+            let plus = s["plus"].as_str().ok_or_else(|| field("stacks[].plus"))?;
+            let (ua, va) = axis.plane_axes();
+            let (w, h) = (dims[ua], dims[va]);
+            let side = |role: &str| -> Result<Vec<Texture>, PipelineError> {
+                let img = r.png8(role)?;
+                if img.width != w || img.height != h * slices || slices == 0 {
+                    return Err(r
+                        .content(format!(
+                            "{role}: a {}×{} atlas, expected {w}×{} ({slices} slices of {w}×{h})",
+                            img.width,
+                            img.height,
+                            h * slices
+                        ))
+                        .into());
+                }
+                let px = img
+                    .to_premultiplied()
+                    .map_err(|c| r.content(format!("{role}: {c} channels, expected 4")))?;
+                px.chunks_exact(w * h * 4)
+                    .map(
+                        |c| Ok(Texture::new(w, h, 4, c.to_vec()).map_err(super::SliceError::from)?),
+                    )
+                    .collect()
+            };
+            let minus = match s["minus"].as_str() {
+                Some(role) => Some(side(role)?),
+                None => None,
+            };
+            stored.push(StoredStack {
+                axis,
+                level,
+                plus: side(plus)?,
+                minus,
+            });
+        }
+        let slices = SliceData::from_stored(dims, voxel, rule, false, stored)
+            .map_err(|e| r.content(format!("metadata.stacks: {e}")))?;
+        Ok(SlicesAsset { slices, depth_px })
+    }
+
+    fn measure_size(d: &SlicesDecisions) -> usize {
+        d.resolution
+    }
+
+    fn measure(
+        asset: &SlicesAsset,
+        needs: &Needs,
+        size: usize,
+        source: &Source,
+    ) -> Result<(Measurement, Vec<Picture>), PipelineError> {
+        let size = size.max(1);
+        let window = Window::for_needs(needs, size);
+        let side = window.side();
+        let min = DVec3::from_array(BOX_MIN);
+        let views = measure_views(needs, 4);
+        let mut scores = Vec::new();
+        let mut steps = 0.0;
+        let mut images: Vec<RgbaImage> = Vec::new();
+        let mut drawn = Vec::new();
+        for (k, &v) in views.iter().enumerate() {
+            let frame = window.frame(v);
+            let choice = asset.choose(frame.dir, size as f64)?;
+            let reference = window.truth(source, v, Supersample::of(3))?;
+            let at = |level: usize| {
+                render_object(
+                    &asset.slices,
+                    (choice.axis, level),
+                    &frame,
+                    min,
+                    (side, side),
+                    Supersample::ONE,
+                )
+            };
+            let drawing = at(choice.level)?;
+            scores.push(window.score(&drawing.image, &reference)?);
+            steps += drawing.steps_per_pixel;
+            drawn.push(format!("{}{}", choice.axis.name(), choice.level));
+            if k == 0 {
+                images.push(reference);
+                images.push(drawing.image);
+                // The next coarser stored levels of the same axis, for the picture.
+                for s in asset.slices.stacks() {
+                    if s.axis() == choice.axis && s.level() > choice.level && images.len() < 4 {
+                        images.push(at(s.level())?.image);
+                    }
+                }
+            }
+        }
+        let refs: Vec<_> = images.iter().collect();
+        let first = views[0];
+        let picture = Picture {
+            file: format!("{}-slices.png", source.name),
+            caption: format!(
+                "{}: ground truth | slices {} and coarser merge levels of the same axis, azimuth {:.0}°, elevation {:.0}°",
+                source.name,
+                drawn[0],
+                first.azimuth.to_degrees(),
+                first.elevation.to_degrees()
+            ),
+            image: RgbaImage::side_by_side(&refs),
+        };
+        let n = asset.slices.dims()[0];
+        let method = format!(
+            "slices of {n}³ voxels ({}), the stack the direction rule and the criterion (d = {} px) pick per view ({}), \
+             trilinear 2D filtering, 1 sample per pixel, {size}² px at {} needed directions, vs truth 3×3 supersampled{}",
+            asset.slices.rule().name(),
+            asset.depth_px,
+            drawn.join(", "),
+            scores.len(),
+            elevation_note(needs, window)
+        );
+        let mut m = fold(method, &scores, Some(steps / views.len().max(1) as f64));
+        m.size = size;
+        Ok((m, vec![picture]))
+    }
+}
+
+/// The atlas of a stack's slices (level 0 of each), one under another, as RGBA8.
+fn atlas_of(slices: &[crate::mip::Pyramid]) -> CodeImage<u8> {
+    let first = &slices[0].levels()[0];
+    let (w, h) = (first.width, first.height);
+    let mut data = Vec::with_capacity(w * h * 4 * slices.len());
+    for p in slices {
+        data.extend_from_slice(&p.levels()[0].data);
+    }
+    CodeImage::from_premultiplied(w, h * slices.len(), 4, &data)
+}

@@ -1,0 +1,239 @@
+//! Slices holding one object (docs/design.md §9.4): the renderer against a closed-form
+//! composite of the voxels, merged levels against level 0 where merging is exact, the planner's
+//! choice of axes and levels from the needs, and the pipeline's figures against the ray-cast
+//! ground truth of the object.
+
+use altrep::pipeline::{Lighting, Manifest, Needs, Outcome, Representation, RunOptions, Source};
+use altrep::slices::asset::{SlicesRepr, SlicesSpec};
+use altrep::slices::{
+    MergeRule, ShapeParams, SliceParams, build_slices, choose_stored, from_shape, render_object,
+};
+use altrep_data_gen::{Light, OrthoFrame, Supersample, scene_shape};
+use approx::assert_abs_diff_eq;
+use glam::DVec3;
+
+/// The chair voxelised as one object in its box `[−1, 1] × [0, 2] × [−1, 1]`, `n³` voxels.
+fn chair_volume(n: usize) -> altrep::slices::TexelVolume {
+    from_shape(
+        &scene_shape("chair").unwrap(),
+        &ShapeParams {
+            dims: [n; 3],
+            voxel: 2.0 / n as f64,
+            min: [-1.0, 0.0, -1.0],
+            supersample: Supersample::of(2),
+            tiled: false,
+            ..ShapeParams::default()
+        },
+    )
+    .unwrap()
+}
+
+/// Seen along an axis with one pixel per voxel, pixel centres on texel centres, every level of
+/// a per-side merge draws the composite of the voxel column: level 0 equals the `over`
+/// composite of the voxels computed here (1e-5), and every merged level equals level 0 (1e-5),
+/// from both sides of all three axes.
+#[test]
+fn seen_along_an_axis_every_level_draws_the_composite_of_the_voxel_column() {
+    let n = 16;
+    let volume = chair_volume(n);
+    let (data, _) = build_slices(
+        &volume,
+        &SliceParams {
+            tiled: false,
+            ..SliceParams::default()
+        },
+    )
+    .unwrap();
+    let min = DVec3::new(-1.0, 0.0, -1.0);
+    for (axis, sign) in [
+        (0usize, 1.0),
+        (0, -1.0),
+        (1, 1.0),
+        (1, -1.0),
+        (2, 1.0),
+        (2, -1.0),
+    ] {
+        let mut dir = DVec3::ZERO;
+        dir[axis] = sign;
+        let frame = OrthoFrame::new(DVec3::Y, 1.0, dir).unwrap();
+        let a = altrep::slices::Axis::ALL[axis];
+        let level0 = render_object(&data, (a, 0), &frame, min, (n, n), Supersample::ONE).unwrap();
+        // The composite of the column under each pixel centre, nearest voxel first.
+        for j in 0..n {
+            for i in 0..n {
+                let x = -1.0 + (i as f64 + 0.5) * 2.0 / n as f64;
+                let y = 1.0 - (j as f64 + 0.5) * 2.0 / n as f64;
+                let p = frame.centre + x * frame.right + y * frame.up - min;
+                let mut c = [
+                    (p.x * n as f64 / 2.0) as usize,
+                    (p.y * n as f64 / 2.0) as usize,
+                    (p.z * n as f64 / 2.0) as usize,
+                ];
+                let mut acc = [0.0f64; 4];
+                for k in 0..n {
+                    c[axis] = if sign > 0.0 { n - 1 - k } else { k };
+                    let v = volume.get(c[0], c[1], c[2]);
+                    let t = 1.0 - acc[3];
+                    for q in 0..4 {
+                        acc[q] += t * f64::from(v[q]);
+                    }
+                }
+                let got = level0.image.pixels[j * n + i];
+                for q in 0..4 {
+                    assert_abs_diff_eq!(f64::from(got[q]), acc[q], epsilon = 1e-5);
+                }
+            }
+        }
+        assert!(level0.covered_pixels > 0);
+        assert!((1.0..=n as f64).contains(&level0.steps_per_pixel));
+        for level in 1..=4 {
+            let merged =
+                render_object(&data, (a, level), &frame, min, (n, n), Supersample::ONE).unwrap();
+            for (p, q) in merged.image.pixels.iter().zip(&level0.image.pixels) {
+                for c in 0..4 {
+                    assert_abs_diff_eq!(p[c], q[c], epsilon = 1e-5);
+                }
+            }
+            // A merged level holds, and reads at most, 2^level times fewer slices per pixel.
+            assert!(merged.steps_per_pixel <= (n >> level) as f64);
+        }
+    }
+}
+
+/// The level a view draws: the direction rule among the stored axes, the criterion's level,
+/// else the coarsest stored one finer than it.
+#[test]
+fn a_view_draws_the_stored_stack_the_rule_and_the_criterion_pick() {
+    let volume = chair_volume(16);
+    let (data, _) = build_slices(
+        &volume,
+        &SliceParams {
+            axes: [false, true, true],
+            levels: Some(vec![0, 2]),
+            rule: MergeRule::Symmetric,
+            tiled: false,
+            ..SliceParams::default()
+        },
+    )
+    .unwrap();
+    let s = 2.0 / 16.0;
+    // Straight along z: one slice is enough; the coarsest stored level is 2.
+    let c = choose_stored(&data, DVec3::Z, s).unwrap();
+    assert_eq!((c.axis, c.level, c.needed), (altrep::slices::Axis::Z, 2, 1));
+    // Along x, not stored: the rule falls back to z or y; 45° between x and z picks z.
+    let v = DVec3::new(1.0, 0.0, 1.0).normalize();
+    let c = choose_stored(&data, v, s).unwrap();
+    assert_eq!(c.axis, altrep::slices::Axis::Z);
+    // tan 45° · 2 / (1/8) = 16 slices needed: level 0.
+    assert_eq!((c.level, c.needed), (0, 16));
+    // Three slices needed: level 2 holds 4, level 1 is not stored, so level 0 (finer) is drawn.
+    let v = DVec3::new(0.2, 0.0, 1.0).normalize();
+    let c = choose_stored(&data, v, s).unwrap();
+    assert_eq!((c.level, c.needed), (2, 4));
+    let v = DVec3::new(0.3, 0.0, 1.0).normalize();
+    let c = choose_stored(&data, v, s).unwrap();
+    assert_eq!(c.needed, 5);
+    assert_eq!(c.level, 0);
+}
+
+fn source<'a>(shape: &'a (dyn altrep_data_gen::Shape + Sync)) -> Source<'a> {
+    Source {
+        name: "tree",
+        geometry: Some(shape),
+        texture: None,
+        light: Light::default(),
+        placement: None,
+    }
+}
+
+/// Horizontal views round the z axis draw the z stack only; the planner skips the others and
+/// the levels no needed view and screen size draws, each with its reason; views from above add
+/// the y stack; dynamic lighting is refused, naming the way out.
+#[test]
+fn the_planner_builds_the_axes_and_levels_the_needs_draw() {
+    let shape = scene_shape("tree").unwrap();
+    let src = source(&shape);
+    let spec = SlicesSpec::default();
+    let road = Needs {
+        azimuth_deg: [80.0, 100.0],
+        screen_px: [4.0, 24.0],
+        lighting: Lighting::Baked,
+        ..Needs::default()
+    };
+    let (plan, d) = SlicesRepr::plan(&spec, &road, &src).unwrap();
+    assert!(plan.refused.is_none());
+    assert_eq!(d.resolution, 32);
+    assert_eq!(d.axes, [false, false, true]);
+    // At 80° from x, 24 px: ⌈2·tan 10° / (2/24)⌉ = 5 slices, level 2 (8 slices); at 90°, one.
+    assert_eq!(d.levels, vec![2, 3, 4, 5]);
+    let skipped: Vec<String> = plan.skipped().map(|i| i.what.clone()).collect();
+    assert!(
+        skipped.iter().any(|s| s.starts_with("x stack")),
+        "{skipped:?}"
+    );
+    assert!(
+        skipped.iter().any(|s| s.starts_with("y stack")),
+        "{skipped:?}"
+    );
+    assert!(
+        skipped.iter().any(|s| s.starts_with("levels 0–1")),
+        "{skipped:?}"
+    );
+    assert!(skipped.iter().any(|s| s.starts_with("64³")), "{skipped:?}");
+    let above = Needs {
+        elevation_deg: [30.0, 90.0],
+        ..road.clone()
+    };
+    let (_, d) = SlicesRepr::plan(&spec, &above, &src).unwrap();
+    assert!(d.axes[1] && d.axes[2], "{:?}", d.axes);
+    let lit = Needs {
+        lighting: Lighting::Dynamic,
+        ..road
+    };
+    let (plan, _) = SlicesRepr::plan(&spec, &lit, &src).unwrap();
+    assert!(
+        plan.refused
+            .as_deref()
+            .unwrap()
+            .contains("lighting = \"baked\"")
+    );
+}
+
+/// The pipeline's figures against the ray-cast ground truth of the object: the tree seen from a
+/// road (45°–135°, up to 24 px) measures 27.75 dB mean PSNR at 32³ voxels and the chair from up to
+/// 60° of elevation (up to 64 px) 26.87 dB at 64³ (1 dB of margin here), with silhouette IoUs
+/// of 0.898 and 0.921 (0.88 asserted) and fewer slices per pixel than voxels across.
+#[test]
+fn slices_of_the_tree_and_the_chair_measure_against_the_object_truth() {
+    let dir = tempfile::tempdir().unwrap();
+    let text = r#"
+[[asset]]
+name = "tree"
+shape = "tree"
+[asset.needs]
+azimuth_deg = [45, 135]
+screen_px = [4, 24]
+lighting = "baked"
+[asset.slices]
+[[asset]]
+name = "chair"
+shape = "chair"
+[asset.needs]
+screen_px = [8, 64]
+elevation_deg = [0, 60]
+lighting = "baked"
+[asset.slices]
+"#;
+    let m = Manifest::parse(text, std::path::Path::new("scene.toml")).unwrap();
+    let run = altrep::pipeline::run_scene(&m, &RunOptions::new(dir.path())).unwrap();
+    assert!(run.ok(), "{}", run.table());
+    for (asset, psnr, voxels) in [("tree", 27.75, 32.0), ("chair", 26.87, 64.0)] {
+        let o = run.outcomes.iter().find(|o| o.asset == asset).unwrap();
+        assert_eq!(o.outcome, Outcome::Built);
+        let m = o.measurement.as_ref().unwrap();
+        assert!(m.psnr_db > psnr - 1.0, "{asset}: {m:?}");
+        assert!(m.iou > 0.88, "{asset}: {m:?}");
+        let steps = m.mean_steps.unwrap();
+        assert!(steps > 1.0 && steps < voxels, "{asset}: {m:?}");
+    }
+}

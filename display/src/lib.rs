@@ -9,8 +9,9 @@
 //!
 //! Representations drawn: images with parallax ([`parallax::ParallaxDisplay`], the twin of
 //! `altrep::parallax::{render, render_bounded}`), cylindrical impostors
-//! ([`cylinder::CylinderDisplay`]), texture pyramids ([`pyramid::PyramidDisplay`]) and images with parallax from
-//! any direction ([`sphere::SphereDisplay`], the twin of `altrep::sphere::render`). A further
+//! ([`cylinder::CylinderDisplay`]), texture pyramids ([`pyramid::PyramidDisplay`]), images with parallax from
+//! any direction ([`sphere::SphereDisplay`], the twin of `altrep::sphere::render`) and slices of
+//! an object ([`slices::SlicesDisplay`], the twin of `altrep::slices::render_object`). A further
 //! representation is one more module with its own WGSL file, taking the same [`Gpu`].
 //!
 //! ## Conventions
@@ -39,6 +40,7 @@ mod offscreen;
 pub mod parallax;
 pub mod pyramid;
 pub mod shader;
+pub mod slices;
 pub mod sphere;
 
 use std::collections::HashMap;

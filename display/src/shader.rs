@@ -29,15 +29,18 @@ pub enum Shader {
     Sphere,
     /// Pyramid lookups on a textured plane (`shaders/pyramid.wgsl`, `f32` only).
     Pyramid,
+    /// Slices of an object (`shaders/slices.wgsl`, `f32` only).
+    Slices,
 }
 
 impl Shader {
     /// Every shader.
-    pub const ALL: [Shader; 4] = [
+    pub const ALL: [Shader; 5] = [
         Shader::Parallax,
         Shader::Cylinder,
         Shader::Sphere,
         Shader::Pyramid,
+        Shader::Slices,
     ];
 
     /// The shader's own code (without the prelude).
@@ -47,6 +50,7 @@ impl Shader {
             Shader::Cylinder => include_str!("shaders/cylinder.wgsl"),
             Shader::Sphere => include_str!("shaders/sphere.wgsl"),
             Shader::Pyramid => include_str!("shaders/pyramid.wgsl"),
+            Shader::Slices => include_str!("shaders/slices.wgsl"),
         }
     }
 
@@ -57,6 +61,7 @@ impl Shader {
             Shader::Cylinder => "cylinder",
             Shader::Sphere => "sphere",
             Shader::Pyramid => "pyramid",
+            Shader::Slices => "slices",
         };
         let p = match precision {
             Precision::F32 => "f32",
@@ -65,16 +70,16 @@ impl Shader {
         format!("{name}.wgsl ({p})")
     }
 
-    /// Whether the fragment stage writes depth (an `FsOut` with a depth target): every impostor;
-    /// the pyramid's plane writes colour only.
+    /// Whether the fragment stage writes depth (an `FsOut` with a depth target): every opaque
+    /// impostor; the pyramid's plane and the translucent slices write colour only.
     pub fn writes_depth(self) -> bool {
-        self != Shader::Pyramid
+        !matches!(self, Shader::Pyramid | Shader::Slices)
     }
 
     /// The precisions the shader exists in.
     pub fn precisions(self) -> &'static [Precision] {
         match self {
-            Shader::Pyramid => &[Precision::F32],
+            Shader::Pyramid | Shader::Slices => &[Precision::F32],
             _ => &[Precision::F32, Precision::F64],
         }
     }
@@ -124,8 +129,8 @@ mod tests {
         let variants = variants();
         assert_eq!(
             variants.len(),
-            7,
-            "3 impostors × 2 precisions + the pyramid"
+            8,
+            "3 impostors × 2 precisions + the pyramid + the slices"
         );
         for (shader, precision, source) in variants {
             let label = shader.label(precision);

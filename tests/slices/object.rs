@@ -237,3 +237,113 @@ lighting = "baked"
         assert!(steps > 1.0 && steps < voxels, "{asset}: {m:?}");
     }
 }
+
+mod adversarial {
+    use super::*;
+    use altrep::slices::{Axis, SliceData, SliceError, StoredStack, TexelVolume};
+    use altrep_data_gen::SplitMix64;
+    use proptest::prelude::*;
+
+    fn random_volume(dims: [usize; 3], seed: u64) -> TexelVolume {
+        let mut rng = SplitMix64::new(seed);
+        let rgba = (0..dims[0] * dims[1] * dims[2])
+            .map(|_| {
+                let r = rng.next_f64();
+                let a = if r < 0.3 {
+                    0.0
+                } else if r < 0.4 {
+                    1.0
+                } else {
+                    rng.next_f64() as f32
+                };
+                let c = rng.next_f64() as f32 * a;
+                [c, c * 0.5, c * 0.25, a]
+            })
+            .collect();
+        TexelVolume::new(dims, 2.0 / dims[0] as f64, rgba).unwrap()
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig { cases: 64, rng_seed: proptest::test_runner::RngSeed::Fixed(20261206), ..ProptestConfig::default() })]
+
+        /// Random object volumes (empty and opaque voxels included), any frame, including
+        /// directions along an axis or within rounding of a slice plane, any stored level: an
+        /// image in [0, 1] with colour ≤ alpha and at most one read per slice per pixel, or a
+        /// typed error — never a panic or NaN.
+        #[test]
+        fn random_object_volumes_and_frames_draw_finite(
+            lx in 0u32..4, ly in 0u32..4, lz in 0u32..4, seed in any::<u64>(),
+            dx in -1.0f64..1.0, dy in -1.0f64..1.0, dz in -1.0f64..1.0, snap in 0usize..4,
+            radius in 0.01f64..4.0, level in 0usize..4, axis in 0usize..3, side in 1usize..6,
+        ) {
+            let vol = random_volume([1 << lx, 1 << ly, 1 << lz], seed);
+            let (data, _) = build_slices(&vol, &SliceParams { tiled: false, ..SliceParams::default() }).unwrap();
+            let mut dir = DVec3::new(dx, dy, dz);
+            if snap < 3 {
+                // Along an axis, up to a rounding error.
+                dir = DVec3::ZERO;
+                dir[snap] = if dx < 0.0 { -1.0 } else { 1.0 };
+                dir[(snap + 1) % 3] = 1e-17 * dy;
+            }
+            let Ok(frame) = OrthoFrame::new(DVec3::new(0.0, 1.0, 0.0), radius, dir) else {
+                return Ok(());
+            };
+            let min = DVec3::new(-1.0, 0.0, -1.0);
+            match render_object(&data, (Axis::ALL[axis], level), &frame, min, (side, side), Supersample::of(2)) {
+                Ok(out) => {
+                    let count = data.dims()[axis] >> level;
+                    for (p, s) in out.image.pixels.iter().zip(&out.steps) {
+                        prop_assert!(p.iter().all(|c| c.is_finite()));
+                        prop_assert!(p[3] >= -1e-6 && p[3] <= 1.0 + 1e-5);
+                        prop_assert!(p[..3].iter().all(|c| *c >= -1e-6 && *c <= p[3] + 1e-5));
+                        prop_assert!(*s as usize <= 4 * count);
+                    }
+                    prop_assert!(out.steps_per_pixel.is_finite());
+                }
+                Err(SliceError::MissingStack { .. }) => prop_assert!(level > data.dims()[axis].trailing_zeros() as usize),
+                Err(e) => prop_assert!(false, "unexpected error {e}"),
+            }
+            let choice = choose_stored(&data, dir, 2.0 / side as f64);
+            if let Ok(c) = choice {
+                prop_assert!(c.level <= data.dims()[c.axis.index()].trailing_zeros() as usize);
+            }
+        }
+
+        /// The reader's constructor given stacks of random counts, sizes, channels, levels and
+        /// sides: slice data, or a typed error — never a panic.
+        #[test]
+        fn stored_stacks_of_any_shape_are_refused_or_read(
+            n in 0usize..6, level in 0usize..4, count in 0usize..5, w in 0usize..5, h in 0usize..5,
+            channels in 3usize..5, minus in any::<bool>(), rule in 0usize..5, axis in 0usize..3,
+            twice in any::<bool>(), voxel in prop_oneof![Just(f64::NAN), Just(0.0), Just(-1.0), Just(0.25)],
+            nan in any::<bool>(),
+        ) {
+            let dims = [n, 4, 4];
+            let tex = || {
+                let mut data = vec![0.5f32; w * h * channels];
+                if nan && !data.is_empty() {
+                    data[0] = f32::NAN;
+                }
+                altrep::mip::Texture::new(w, h, channels, data)
+            };
+            let Ok(t) = tex() else { return Ok(()) };
+            let stack = StoredStack {
+                axis: Axis::ALL[axis],
+                level,
+                plus: vec![t.clone(); count],
+                minus: minus.then(|| vec![t.clone(); count]),
+            };
+            let mut stored = vec![stack.clone()];
+            if twice {
+                stored.push(stack);
+            }
+            match SliceData::from_stored(dims, voxel, MergeRule::ALL[rule], false, stored) {
+                Ok(d) => {
+                    prop_assert!(n.is_power_of_two() && voxel > 0.0 && !twice && !nan);
+                    prop_assert_eq!(d.stacks().len(), 1);
+                }
+                Err(_) => {}
+            }
+        }
+    }
+}

@@ -10,8 +10,9 @@
 //! Representations drawn: images with parallax ([`parallax::ParallaxDisplay`], the twin of
 //! `altrep::parallax::{render, render_bounded}`), cylindrical impostors
 //! ([`cylinder::CylinderDisplay`]), texture pyramids ([`pyramid::PyramidDisplay`]), images with parallax from
-//! any direction ([`sphere::SphereDisplay`], the twin of `altrep::sphere::render`) and slices of
-//! an object ([`slices::SlicesDisplay`], the twin of `altrep::slices::render_object`). A further
+//! any direction ([`sphere::SphereDisplay`], the twin of `altrep::sphere::render`), slices of
+//! an object ([`slices::SlicesDisplay`], the twin of `altrep::slices::render_object`) and the
+//! ellipsoid octree ([`octree::OctreeDisplay`], the twin of `Octree::render_view_counted`). A further
 //! representation is one more module with its own WGSL file, taking the same [`Gpu`].
 //!
 //! ## Conventions
@@ -36,6 +37,7 @@
 
 pub mod check;
 pub mod cylinder;
+pub mod octree;
 mod offscreen;
 pub mod parallax;
 pub mod pyramid;

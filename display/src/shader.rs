@@ -31,16 +31,19 @@ pub enum Shader {
     Pyramid,
     /// Slices of an object (`shaders/slices.wgsl`, `f32` only).
     Slices,
+    /// The ellipsoid octree (`shaders/octree.wgsl`, `f32` only).
+    Octree,
 }
 
 impl Shader {
     /// Every shader.
-    pub const ALL: [Shader; 5] = [
+    pub const ALL: [Shader; 6] = [
         Shader::Parallax,
         Shader::Cylinder,
         Shader::Sphere,
         Shader::Pyramid,
         Shader::Slices,
+        Shader::Octree,
     ];
 
     /// The shader's own code (without the prelude).
@@ -51,6 +54,7 @@ impl Shader {
             Shader::Sphere => include_str!("shaders/sphere.wgsl"),
             Shader::Pyramid => include_str!("shaders/pyramid.wgsl"),
             Shader::Slices => include_str!("shaders/slices.wgsl"),
+            Shader::Octree => include_str!("shaders/octree.wgsl"),
         }
     }
 
@@ -62,6 +66,7 @@ impl Shader {
             Shader::Sphere => "sphere",
             Shader::Pyramid => "pyramid",
             Shader::Slices => "slices",
+            Shader::Octree => "octree",
         };
         let p = match precision {
             Precision::F32 => "f32",
@@ -71,15 +76,16 @@ impl Shader {
     }
 
     /// Whether the fragment stage writes depth (an `FsOut` with a depth target): every opaque
-    /// impostor; the pyramid's plane and the translucent slices write colour only.
+    /// impostor; the pyramid's plane and the translucent volumes (slices, octree) write colour
+    /// only.
     pub fn writes_depth(self) -> bool {
-        !matches!(self, Shader::Pyramid | Shader::Slices)
+        !matches!(self, Shader::Pyramid | Shader::Slices | Shader::Octree)
     }
 
     /// The precisions the shader exists in.
     pub fn precisions(self) -> &'static [Precision] {
         match self {
-            Shader::Pyramid | Shader::Slices => &[Precision::F32],
+            Shader::Pyramid | Shader::Slices | Shader::Octree => &[Precision::F32],
             _ => &[Precision::F32, Precision::F64],
         }
     }
@@ -129,8 +135,8 @@ mod tests {
         let variants = variants();
         assert_eq!(
             variants.len(),
-            8,
-            "3 impostors × 2 precisions + the pyramid + the slices"
+            9,
+            "3 impostors × 2 precisions + the pyramid, the slices and the octree"
         );
         for (shader, precision, source) in variants {
             let label = shader.label(precision);

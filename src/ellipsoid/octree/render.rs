@@ -117,6 +117,20 @@ impl Octree {
         params: &OctreeRenderParams,
         view: &OctreeView,
     ) -> Result<altrep_data_gen::RgbaImage, EllipsoidError> {
+        Ok(self.render_view_counted(level, params, view)?.0)
+    }
+
+    /// The per-node shading of [`Self::render_view`] along `view_dir` (unit, toward the camera):
+    /// per stored node, in node order, its extinction per voxel length `σ = τ ρ A(v)/π` and its
+    /// emitted linear RGB `albedo × (ambient + (1 − ambient) π ρ_d(l, v))` (zero for a node
+    /// without a micro-primitive). Constant over an orthographic view: a GPU twin uploads it per
+    /// draw. Errors: a light that is not finite and non-zero, `tau` or `ambient` not finite and
+    /// ≥ 0. Cost: one reflectance (72 samples) per stored node, in parallel.
+    pub fn node_shading(
+        &self,
+        params: &OctreeRenderParams,
+        view_dir: [f64; 3],
+    ) -> Result<Vec<(f64, [f64; 3])>, EllipsoidError> {
         let light = params.light;
         let ln = light.norm();
         if !ln.is_finite() || ln == 0.0 {
@@ -131,23 +145,14 @@ impl Octree {
                 });
             }
         }
-        if params.steps_per_voxel == 0 {
-            return Err(EllipsoidError::BadParameter {
-                name: "steps_per_voxel",
-                reason: "must be ≥ 1".into(),
-            });
-        }
-        view.validate()?;
-        let [dir, right, up] = [view.dir, view.right, view.up].map(Vector3::from);
-        let centre = Vector3::from(view.centre);
+        let dir = Vector3::from(view_dir);
         let lambert = crate::ellipsoid::primitive::Phong {
             diffuse: 1.0,
             specular: 0.0,
             exponent: 0.0,
         };
         let ambient = params.ambient.min(1.0);
-        // Per node: (extinction per voxel length, emitted linear RGB).
-        let shading: Vec<(f64, [f64; 3])> = self
+        Ok(self
             .nodes
             .par_iter()
             .map(|n| match n.ellipsoid.and_then(|e| e.unpack().ok()) {
@@ -162,18 +167,42 @@ impl Octree {
                 }
                 _ => (0.0, [0.0; 3]),
             })
-            .collect();
+            .collect())
+    }
+
+    /// [`Self::render_view`] with, per pixel (row-major), the samples its ray took (each a
+    /// descent of the tree to `level`; the march stops when the transmittance falls below
+    /// `10⁻⁴`): the steps a display's fragments take. Errors and cost: as
+    /// [`Self::render_view`].
+    pub fn render_view_counted(
+        &self,
+        level: u32,
+        params: &OctreeRenderParams,
+        view: &OctreeView,
+    ) -> Result<(altrep_data_gen::RgbaImage, Vec<u32>), EllipsoidError> {
+        if params.steps_per_voxel == 0 {
+            return Err(EllipsoidError::BadParameter {
+                name: "steps_per_voxel",
+                reason: "must be ≥ 1".into(),
+            });
+        }
+        view.validate()?;
+        let shading = self.node_shading(params, view.dir)?;
+        let [dir, right, up] = [view.dir, view.right, view.up].map(Vector3::from);
+        let centre = Vector3::from(view.centre);
         let side = (1u64 << self.depth) as f64;
         let ds = 1.0 / params.steps_per_voxel as f64;
         let (w, h) = (view.width, view.height);
         let mut image = altrep_data_gen::RgbaImage::new(w, h);
+        let mut counts = vec![0u32; w * h];
         image
             .pixels
             .par_chunks_mut(w)
+            .zip(counts.par_chunks_mut(w))
             .enumerate()
-            .for_each(|(j, row)| {
+            .for_each(|(j, (row, count))| {
                 let y = 1.0 - 2.0 * (j as f64 + 0.5) / h as f64;
-                for (i, px) in row.iter_mut().enumerate() {
+                for (i, (px, taken)) in row.iter_mut().zip(count.iter_mut()).enumerate() {
                     let x = -1.0 + 2.0 * (i as f64 + 0.5) / w as f64;
                     let p0 = centre + view.half_width * (x * right + y * up);
                     // The points p0 + s·dir inside the cube, s ∈ [s_min, s_max]; the camera is at +s.
@@ -197,6 +226,7 @@ impl Octree {
                     let mut t = 1.0f64;
                     let mut c = [0.0f64; 3];
                     for k in 0..steps {
+                        *taken += 1;
                         let p = p0 + (s_max - (k as f64 + 0.5) * ds) * dir;
                         let Some((index, _)) = self.find([p.x, p.y, p.z], level) else {
                             continue;
@@ -217,7 +247,7 @@ impl Octree {
                     *px = [c[0] as f32, c[1] as f32, c[2] as f32, (1.0 - t) as f32];
                 }
             });
-        Ok(image)
+        Ok((image, counts))
     }
 
     /// [`Self::lookup`] at the level chosen by [`Self::level_for_footprint`].

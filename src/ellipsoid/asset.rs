@@ -320,9 +320,13 @@ impl Representation for OctreeRepr {
         let mut scores = Vec::new();
         let mut images = Vec::new();
         let views = measure_views(needs, 4);
+        // Samples marched (tree descents) per pixel whose ray crosses the cube.
+        let (mut samples, mut crossing) = (0u64, 0usize);
         for (i, &v) in views.iter().enumerate() {
             let reference = window.truth(source, v, Supersample::of(3))?;
-            let img = tree.render_view(base, &params, &view_of(v))?;
+            let (img, counts) = tree.render_view_counted(base, &params, &view_of(v))?;
+            samples += counts.iter().map(|&c| u64::from(c)).sum::<u64>();
+            crossing += counts.iter().filter(|&&c| c > 0).count();
             scores.push(window.score(&img, &reference)?);
             if i == 0 {
                 images.push(reference);
@@ -347,11 +351,12 @@ impl Representation for OctreeRepr {
             image: altrep_data_gen::RgbaImage::side_by_side(&refs),
         };
         let method = format!(
-            "volume rendering of octree level {base} of {side}³ leaves ({size}³ voxels) at {} needed directions, vs truth 3×3 supersampled{}",
+            "volume rendering of octree level {base} of {side}³ leaves ({size}³ voxels, 2 samples per voxel length; steps: samples per pixel whose ray crosses the cube) at {} needed directions, vs truth 3×3 supersampled{}",
             scores.len(),
             elevation_note(needs, window)
         );
-        let mut m = fold(method, &scores, None);
+        let steps = (crossing > 0).then(|| samples as f64 / crossing as f64);
+        let mut m = fold(method, &scores, steps);
         m.size = size;
         Ok((m, vec![picture]))
     }

@@ -107,6 +107,14 @@ fn estimates_are_within_twice_the_measured_peak() {
                 .replace("quality_db = 1\n", "quality_db = 1\nlighting = \"baked\"\n"),
         ));
     }
+    for (kind, n) in [("grass", 32), ("fur", 64)] {
+        cases.push((
+            format!("slices of a {n}³ {kind} tile"),
+            format!(
+                "[[asset]]\nname = \"t\"\ntile = {{ kind = \"{kind}\", size = {n} }}\n[asset.needs]\nscreen_px = [1, 4096]\nquality_db = 1\nlighting = \"baked\"\n[asset.slices]\n"
+            ),
+        ));
+    }
     for (g, s) in [(4, 32), (8, 64), (16, 64)] {
         cases.push((
             format!("sphere {g}² frames of {s}²"),

@@ -109,6 +109,7 @@ fn source<'a>(shape: &'a (dyn altrep_data_gen::Shape + Sync)) -> Source<'a> {
         name: "obj",
         geometry: Some(shape),
         texture: None,
+        tile: None,
         light: Light::default(),
         placement: None,
     }

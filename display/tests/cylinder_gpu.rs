@@ -56,6 +56,7 @@ fn asset(shape: &str, dir: &Path) -> (CylinderData, OffsetTexture) {
         name: shape,
         geometry: Some(&s),
         texture: None,
+        tile: None,
         light: Light::default(),
         placement: None,
     };
@@ -413,6 +414,7 @@ fn bad_draw_parameters_are_typed_errors() {
             name: "pear",
             geometry: Some(&s),
             texture: None,
+            tile: None,
             light: Light::default(),
             placement: None,
         };

@@ -36,6 +36,7 @@ fn asset(shape: &str, dir: &Path) -> Octree {
         name: shape,
         geometry: Some(&s),
         texture: None,
+        tile: None,
         light: Light::default(),
         placement: None,
     };

@@ -45,6 +45,7 @@ fn asset(shape: &str, dir: &Path) -> ParallaxData {
         name: shape,
         geometry: Some(&s),
         texture: None,
+        tile: None,
         light: Light::default(),
         placement: None,
     };

@@ -73,6 +73,7 @@ fn asset(tex: &Texture, grazing: f64, dir: &Path) -> PyramidAsset {
         name: &name,
         geometry: None,
         texture: Some(tex),
+        tile: None,
         light: Light::default(),
         placement: None,
     };

@@ -46,6 +46,7 @@ fn asset(shape: &str, dir: &Path) -> SlicesAsset {
         name: shape,
         geometry: Some(&s),
         texture: None,
+        tile: None,
         light: Light::default(),
         placement: None,
     };

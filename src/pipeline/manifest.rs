@@ -31,6 +31,16 @@
 //! resolution = 64
 //!
 //! [[asset]]
+//! name = "lawn"
+//! tile = { kind = "grass", size = 32, seed = 1 }  # a procedural volume tile (grass, fur, perlin,
+//!                              # tree), repeated over a surface: slices only
+//! [asset.needs]
+//! screen_px = [16, 64]         # on-screen size of one tile
+//! grazing_deg = 80             # views from the surface normal up to this angle
+//! lighting = "baked"
+//! [asset.slices]
+//!
+//! [[asset]]
 //! name = "bark"
 //! texture = "bark.png"         # a texture (PNG/EXR, relative to the manifest), or:
 //!                              # test_texture = { size = 256, seed = 1 } (procedural, no file)
@@ -97,6 +107,8 @@ macro_rules! asset_structs {
             #[serde(default)]
             test_texture: Option<TestTexture>,
             #[serde(default)]
+            tile: Option<Spanned<TileSource>>,
+            #[serde(default)]
             needs: Option<Spanned<Needs>>,
             $(
                 #[serde(default)]
@@ -121,12 +133,17 @@ macro_rules! asset_structs {
 
         impl RawAsset {
             /// The representations asked for, in the registry's order: the key, the span of
-            /// its table, and whether it is built from a texture.
-            fn asked(&self) -> Vec<(&'static str, Range<usize>, bool)> {
+            /// its table, and whether it is built from a texture and whether from a tile.
+            fn asked(&self) -> Vec<(&'static str, Range<usize>, bool, bool)> {
                 let mut v = Vec::new();
                 $(
                     if let Some(s) = &self.$key {
-                        v.push((stringify!($key), s.span(), <$repr>::FROM_TEXTURE));
+                        v.push((
+                            stringify!($key),
+                            s.span(),
+                            <$repr>::FROM_TEXTURE,
+                            <$repr>::FROM_TILE,
+                        ));
                     }
                 )*
                 v
@@ -163,6 +180,17 @@ macro_rules! asset_structs {
             )*
             v
         }
+
+        /// The keys of the representations built from a tile, as `[asset.KEY]`.
+        fn tile_keys() -> Vec<String> {
+            let mut v = Vec::new();
+            $(
+                if <$repr>::FROM_TILE {
+                    v.push(format!("[asset.{}]", stringify!($key)));
+                }
+            )*
+            v
+        }
     };
 }
 for_each_representation!(asset_structs);
@@ -177,6 +205,34 @@ pub struct TestTexture {
     /// Noise seed.
     #[serde(default)]
     pub seed: u64,
+}
+
+/// A procedural volume tile ([`crate::slices::test_tile_lit`]), repeated over a surface:
+/// `grass`, `fur`, `perlin` or `tree`, `size³` voxels, seeded.
+#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TileSource {
+    /// Which tile: `grass`, `fur`, `perlin` or `tree`.
+    pub kind: String,
+    /// Voxels per side (a power of two, 4 to 128). Default 32.
+    #[serde(default = "TileSource::default_size")]
+    pub size: usize,
+    /// Seed of its random placement.
+    #[serde(default)]
+    pub seed: u64,
+}
+
+impl TileSource {
+    fn default_size() -> usize {
+        32
+    }
+
+    /// The tile named by `kind`, if any.
+    pub fn tile(&self) -> Option<crate::slices::TestTile> {
+        crate::slices::TestTile::ALL
+            .into_iter()
+            .find(|t| t.name() == self.kind)
+    }
 }
 
 #[derive(Clone, Debug, Deserialize)]
@@ -218,12 +274,19 @@ pub enum SourceSpec {
     Texture(PathBuf),
     /// The procedural test texture.
     TestTexture(TestTexture),
+    /// A procedural volume tile (slices).
+    Tile(TileSource),
 }
 
 impl SourceSpec {
     /// Whether the asset is a texture (pyramids) rather than geometry.
     pub fn is_texture(&self) -> bool {
         matches!(self, Self::Texture(_) | Self::TestTexture(_))
+    }
+
+    /// Whether the asset is a volume tile (slices).
+    pub fn is_tile(&self) -> bool {
+        matches!(self, Self::Tile(_))
     }
 }
 
@@ -394,14 +457,41 @@ impl Manifest {
                 a.mesh.take(),
                 a.texture.take(),
                 a.test_texture.take(),
+                a.tile.take(),
             ) {
-                (Some(s), None, None, None) => {
+                (None, None, None, None, Some(t)) => {
+                    let tile = t.get_ref();
+                    if tile.tile().is_none() {
+                        return Err(err(
+                            path,
+                            text,
+                            t.span(),
+                            format!(
+                                "asset.tile.kind = '{}' must be grass, fur, perlin or tree",
+                                tile.kind
+                            ),
+                        ));
+                    }
+                    if !tile.size.is_power_of_two() || !(4..=128).contains(&tile.size) {
+                        return Err(err(
+                            path,
+                            text,
+                            t.span(),
+                            format!(
+                                "asset.tile.size = {} must be a power of two in 4..=128",
+                                tile.size
+                            ),
+                        ));
+                    }
+                    SourceSpec::Tile(t.into_inner())
+                }
+                (Some(s), None, None, None, None) => {
                     altrep_data_gen::scene_shape(&s).map_err(|e| {
                         err(path, text, name_span.clone(), format!("asset.shape: {e}"))
                     })?;
                     SourceSpec::Shape(s)
                 }
-                (None, Some(m), None, None) => {
+                (None, Some(m), None, None, None) => {
                     let up = match a.up.take() {
                         Some(u) => u.get_ref().parse().map_err(|e: String| {
                             err(path, text, u.span(), format!("asset.up: {e}"))
@@ -414,8 +504,8 @@ impl Manifest {
                         node: a.node.take().map(Spanned::into_inner),
                     }
                 }
-                (None, None, Some(t), None) => SourceSpec::Texture(base.join(t)),
-                (None, None, None, Some(t)) => {
+                (None, None, Some(t), None, None) => SourceSpec::Texture(base.join(t)),
+                (None, None, None, Some(t), None) => {
                     if !(4..=4096).contains(&t.size) {
                         return Err(err(
                             path,
@@ -432,7 +522,7 @@ impl Manifest {
                         text,
                         name_span,
                         format!(
-                            "asset '{name}': give exactly one of `shape`, `mesh`, `texture` or `test_texture`"
+                            "asset '{name}': give exactly one of `shape`, `mesh`, `texture`, `test_texture` or `tile`"
                         ),
                     ));
                 }
@@ -451,8 +541,23 @@ impl Manifest {
             };
             check_needs(&needs).map_err(|m| err(path, text, needs_span, m))?;
             let asked = a.asked();
-            if let Some((key, span, from_texture)) =
-                asked.iter().find(|(_, _, t)| *t != source.is_texture())
+            if source.is_tile()
+                && let Some((key, span, _, _)) = asked.iter().find(|(_, _, _, tile)| !*tile)
+            {
+                return Err(err(
+                    path,
+                    text,
+                    span.clone(),
+                    format!(
+                        "asset '{name}' is a volume tile: it may only ask for {}; [asset.{key}] \
+                         needs a `shape` or `mesh`",
+                        tile_keys().join(", ")
+                    ),
+                ));
+            }
+            if let Some((key, span, from_texture, _)) = asked
+                .iter()
+                .find(|(_, _, t, _)| !source.is_tile() && *t != source.is_texture())
             {
                 let message = if *from_texture {
                     format!(

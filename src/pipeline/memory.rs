@@ -209,6 +209,7 @@ fn source_size(spec: &AssetSpec) -> Result<(InputSize, u64), PipelineError> {
             (
                 InputSize {
                     texture: Some((w, h, c)),
+                    ..InputSize::default()
                 },
                 (w * h * c * 4) as u64,
             )
@@ -216,8 +217,17 @@ fn source_size(spec: &AssetSpec) -> Result<(InputSize, u64), PipelineError> {
         SourceSpec::TestTexture(t) => (
             InputSize {
                 texture: Some((t.size, t.size, 1)),
+                ..InputSize::default()
             },
             (t.size * t.size * 4) as u64,
+        ),
+        // The tile's premultiplied RGBA f32 voxels.
+        SourceSpec::Tile(t) => (
+            InputSize {
+                tile: Some(t.size),
+                ..InputSize::default()
+            },
+            (t.size.pow(3) * 16) as u64,
         ),
     })
 }

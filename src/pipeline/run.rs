@@ -327,7 +327,7 @@ pub fn plan_scene(
         if options.shard.is_some_and(|s| !s.owns(&spec.name)) {
             continue;
         }
-        let (loaded, _) = load_source(spec)?;
+        let (loaded, _) = load_source(spec, &light)?;
         let source = loaded.source(&spec.name, light);
         macro_rules! plan_each {
             ($(($key:ident, $variant:ident, $repr:ty, $doc:literal)),* $(,)?) => {$(
@@ -383,7 +383,7 @@ pub fn run_scene(manifest: &Manifest, options: &RunOptions) -> Result<RunSummary
     let source_notes = std::sync::Mutex::new(std::collections::BTreeMap::new());
     let one = |spec: &&AssetSpec| {
         let t_asset = Instant::now();
-        let loaded = load_source(spec);
+        let loaded = load_source(spec, &light);
         let load_seconds = t_asset.elapsed().as_secs_f64();
         // The needs built for, by a representation that relights and by one that does not
         // (they differ under `--everything` only).

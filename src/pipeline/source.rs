@@ -19,19 +19,23 @@ pub(super) enum Loaded {
     ),
     /// A texture.
     Texture(crate::pyramid::Texture),
+    /// A volume tile.
+    Tile(crate::slices::TexelVolume),
 }
 
 impl Loaded {
     /// The [`Source`] of asset `name` lit by `light`.
     pub(super) fn source<'a>(&'a self, name: &'a str, light: Light) -> Source<'a> {
-        let (geometry, texture, placement) = match self {
-            Self::Geometry(g, p, _) => (Some(g.as_ref() as &(dyn Shape + Sync)), None, *p),
-            Self::Texture(t) => (None, Some(t), None),
+        let (geometry, texture, tile, placement) = match self {
+            Self::Geometry(g, p, _) => (Some(g.as_ref() as &(dyn Shape + Sync)), None, None, *p),
+            Self::Texture(t) => (None, Some(t), None, None),
+            Self::Tile(v) => (None, None, Some(v), None),
         };
         Source {
             name,
             geometry,
             texture,
+            tile,
             light,
             placement,
         }
@@ -41,7 +45,7 @@ impl Loaded {
     pub(super) fn notes(&self) -> &[String] {
         match self {
             Self::Geometry(_, _, n) => n,
-            Self::Texture(_) => &[],
+            Self::Texture(_) | Self::Tile(_) => &[],
         }
     }
 }
@@ -65,8 +69,12 @@ pub(super) fn load_texture(
     Ok((tex, bytes))
 }
 
-/// The geometry or texture of an asset and the hash of its input bytes.
-pub(super) fn load_source(spec: &AssetSpec) -> Result<(Loaded, String), PipelineError> {
+/// The geometry, texture or tile of an asset and the hash of its input bytes; a tile is shaded
+/// with `light` (the scene's), which its hash covers.
+pub(super) fn load_source(
+    spec: &AssetSpec,
+    light: &Light,
+) -> Result<(Loaded, String), PipelineError> {
     match &spec.source {
         SourceSpec::Shape(name) => Ok((
             Loaded::Geometry(Box::new(scene_shape(name)?), None, Vec::new()),
@@ -110,5 +118,17 @@ pub(super) fn load_source(spec: &AssetSpec) -> Result<(Loaded, String), Pipeline
             Loaded::Texture(crate::pyramid::truth::test_texture(t.size, t.seed)),
             crate::asset::hash_hex(format!("test_texture:{}:{}", t.size, t.seed).as_bytes()),
         )),
+        SourceSpec::Tile(t) => {
+            let kind = t
+                .tile()
+                .ok_or_else(|| PipelineError::Spec(format!("tile '{}'", t.kind)))?;
+            let lighting = crate::slices::SliceLighting {
+                direction: light.direction.to_array(),
+                ambient: light.ambient,
+            };
+            let volume = crate::slices::test_tile_lit(kind, t.size, t.seed, &lighting)?;
+            let key = format!("tile:{}:{}:{}:{:?}", t.kind, t.size, t.seed, lighting);
+            Ok((Loaded::Tile(volume), crate::asset::hash_hex(key.as_bytes())))
+        }
     }
 }

@@ -462,6 +462,7 @@ pub fn octree(quick: bool) -> Result<RepresentationReport, ReportError> {
         name: "tree",
         geometry: Some(&shape),
         texture: None,
+        tile: None,
         light: altrep_data_gen::Light::default(),
         placement: None,
     };

@@ -187,6 +187,8 @@ pub struct Estimate {
 pub struct InputSize {
     /// A texture's `(width, height, channels)`, from its file's header (or the procedural size).
     pub texture: Option<(usize, usize, usize)>,
+    /// A volume tile's voxels per side.
+    pub tile: Option<usize>,
 }
 
 /// `bytes_per · count` plus a fixed `base`, saturating, as an [`Estimate`] field.
@@ -255,6 +257,8 @@ pub struct Source<'a> {
     pub geometry: Option<&'a (dyn Shape + Sync)>,
     /// The texture, for assets given by `texture` (pyramids).
     pub texture: Option<&'a crate::pyramid::Texture>,
+    /// The volume tile, for assets given by `tile` (slices), lit by the scene's light.
+    pub tile: Option<&'a crate::slices::TexelVolume>,
     /// The scene's light (baked lighting and every measured image).
     pub light: Light,
     /// For a mesh: the map from the source file's coordinates to the object frame, recorded
@@ -338,6 +342,9 @@ pub trait Representation {
     /// Whether the representation is built from a texture (assets given by `texture` or
     /// `test_texture`) instead of geometry (`shape` or `mesh`).
     const FROM_TEXTURE: bool = false;
+    /// Whether the representation is also built from a procedural volume tile (assets given by
+    /// `tile`, [`Source::tile`]), repeated over a surface.
+    const FROM_TILE: bool = false;
     /// Whether the representation can follow a moving light (stores normals, or shades from
     /// its data at draw time). One that cannot stores colour shaded with the scene's light: its
     /// plan refuses dynamic lighting, and `--everything` (which builds for dynamic lighting)
@@ -731,6 +738,7 @@ mod tests {
             name: "chair",
             geometry: Some(&shape),
             texture: None,
+            tile: None,
             light: Light::default(),
             placement: None,
         };

@@ -26,12 +26,15 @@ use serde_json::json;
 use super::build::{ShapeParams, SliceLighting, from_shape};
 use super::merge::{MergeRule, Side, SliceData, SliceParams, StoredStack, build_slices};
 use super::object::{choose_stored, render_object};
+use super::render::{SliceRenderParams, StackView, render_slices};
 use super::stack::{Axis, choose_direction, level_for_slices, slices_needed};
+use super::truth::{VolumeTruthParams, render_truth};
 use crate::asset::{AssetReader, AssetWriter, Channel, CodeImage, Encoding};
 use crate::mip::Texture;
 use crate::representation::{
     Estimate, InputSize, Lighting, Measurement, Needs, Picture, PipelineError, Plan,
-    Representation, Source, Window, elevation_note, fold, linear_bytes, measure_views, secs,
+    Representation, Source, Window, elevation_note, fold, linear_bytes, measure_angles,
+    measure_views, score, secs,
 };
 
 /// Lower corner of the voxelised box (object units): the bounding cylinder's box.
@@ -115,6 +118,13 @@ pub struct SlicesDecisions {
     pub axes: [bool; 3],
     /// Merge levels some needed view and screen size draws, ascending (every built axis).
     pub levels: Vec<usize>,
+    /// Built from a tile (repeated over a surface) rather than an object.
+    #[serde(default)]
+    pub tiled: bool,
+    /// Picture side (pixels) of the measurement: the voxels per side for an object, the largest
+    /// screen size of one tile for a tile.
+    #[serde(default)]
+    pub measure_px: usize,
 }
 
 /// Slices as loaded from an asset folder: the stacks and the criterion's visible depth.
@@ -179,6 +189,34 @@ fn needed_views(needs: &Needs) -> Vec<DVec3> {
     v
 }
 
+/// Unit view vectors (toward the viewer) sampling the views of a tile lying on a surface: polar
+/// angles from the normal (`+y`) 0 to `grazing_deg` (9, ends included), the needed azimuths (72
+/// round a full circle, else 37 over the range, ends included; `v = (sin θ cos φ, cos θ,
+/// sin θ sin φ)`, the slices module's convention).
+fn tile_views(needs: &Needs) -> Vec<DVec3> {
+    let [a0, a1] = needs.azimuth_deg;
+    let azimuths: Vec<f64> = if needs.all_azimuths() {
+        (0..72).map(|k| f64::from(k) * 5.0).collect()
+    } else {
+        (0..=36)
+            .map(|k| a0 + (a1 - a0) * f64::from(k) / 36.0)
+            .collect()
+    };
+    let mut v = Vec::new();
+    for k in 0..=8 {
+        let polar = (needs.grazing_deg * f64::from(k) / 8.0).to_radians();
+        for a in &azimuths {
+            let a = a.to_radians();
+            v.push(DVec3::new(
+                polar.sin() * a.cos(),
+                polar.cos(),
+                polar.sin() * a.sin(),
+            ));
+        }
+    }
+    v
+}
+
 /// Nine screen sizes from the smallest needed to the largest, spaced geometrically.
 fn needed_sizes(needs: &Needs) -> Vec<f64> {
     let [p0, p1] = needs.screen_px;
@@ -191,6 +229,7 @@ impl Representation for SlicesRepr {
     const NAME: &'static str = "slices";
     const CASTS_RAYS: bool = false;
     const RELIGHTS: bool = false;
+    const FROM_TILE: bool = true;
     type Spec = SlicesSpec;
     type Data = SlicesAsset;
     type Decisions = SlicesDecisions;
@@ -204,14 +243,26 @@ impl Representation for SlicesRepr {
                 "elevation_deg": needs.elevation_deg, "lighting": needs.lighting })
     }
 
-    fn estimate(spec: &SlicesSpec, needs: &Needs, _input: &InputSize) -> Estimate {
+    fn estimate(spec: &SlicesSpec, needs: &Needs, input: &InputSize) -> Estimate {
         // ~150 B per voxel at 64³ (data-gen's voxelisation, the volume, the f32 slices with
         // their 2D mips and minus sides, the read-back copy), fitted to the peaks
         // `tests/memory.rs` measures, and a few MB of fixed cost.
-        let n = closest_resolution(needs).min(spec.resolution) as f64;
+        // A tile is cut at its own size (and not voxelised here).
+        let n = input
+            .tile
+            .unwrap_or_else(|| closest_resolution(needs).min(spec.resolution))
+            as f64;
         let ss = spec.supersample.get() as f64 / 2.0;
+        // A tile is measured on pictures of 1.5 tiles at up to 256 px a tile: the truth, the
+        // drawing and their working copies, ~8 RGBA f32 images.
+        let pictures = if input.tile.is_some() {
+            let side = 1.5 * needs.screen_px[1].clamp(8.0, 256.0);
+            8.0 * 16.0 * side * side
+        } else {
+            0.0
+        };
         Estimate {
-            peak_bytes: linear_bytes(3e6, 40.0 * ss.max(1.0) + 110.0, n * n * n),
+            peak_bytes: linear_bytes(3e6 + pictures, 40.0 * ss.max(1.0) + 110.0, n * n * n),
             // RGBA8, three axes, level 0 plus merged levels on two sides (≤ 2 N³ texels).
             output_bytes: linear_bytes(0.0, 3.0 * 4.0 * 3.0, n * n * n),
         }
@@ -220,15 +271,36 @@ impl Representation for SlicesRepr {
     fn plan(
         spec: &SlicesSpec,
         needs: &Needs,
-        _source: &Source,
+        source: &Source,
     ) -> Result<(Plan, SlicesDecisions), PipelineError> {
         let mut plan = Plan::default();
-        let closest = closest_resolution(needs);
-        let resolution = closest.min(spec.resolution);
+        // An object: its box at the closest footprint's resolution, seen from the needed
+        // azimuths and elevations, `screen_px` across the box. A tile: at its own resolution,
+        // seen from the surface's side up to the grazing angle, `screen_px` across one tile.
+        let (resolution, voxel, lengths, views, across) = match source.tile {
+            Some(tile) => {
+                let d = tile.dims();
+                let s = tile.voxel_size();
+                let l = [d[0] as f64 * s, d[1] as f64 * s, d[2] as f64 * s];
+                (d[0], s, l, tile_views(needs), l[0])
+            }
+            None => {
+                let r = closest_resolution(needs).min(spec.resolution);
+                let views = needed_views(needs);
+                (r, BOX_EDGE / r as f64, [BOX_EDGE; 3], views, BOX_EDGE)
+            }
+        };
+        let tiled = source.tile.is_some();
         let mut decisions = SlicesDecisions {
             resolution,
             axes: [false; 3],
             levels: Vec::new(),
+            tiled,
+            measure_px: if tiled {
+                (needs.screen_px[1].ceil() as usize).clamp(8, 256)
+            } else {
+                resolution
+            },
         };
         if needs.lighting == Lighting::Dynamic {
             plan.refuse(
@@ -240,7 +312,7 @@ impl Representation for SlicesRepr {
             return Ok((plan, decisions));
         }
         let mut l = spec.resolution;
-        while l > resolution {
+        while !tiled && l > resolution {
             plan.skip(
                 format!("{l}³ voxels"),
                 format!(
@@ -250,15 +322,16 @@ impl Representation for SlicesRepr {
             );
             l /= 2;
         }
-        let s = BOX_EDGE / resolution as f64;
+        let s = voxel;
         let mut range: [Option<(usize, usize)>; 3] = [None; 3];
-        for v in needed_views(needs) {
+        for v in views {
             let axis = choose_direction(v, [s; 3], [true; 3])?;
             let i = axis.index();
+            let n = (lengths[i] / s).round() as usize;
             for px in needed_sizes(needs) {
-                let depth = spec.depth_px * BOX_EDGE / px;
-                let needed = slices_needed(BOX_EDGE, v[i].abs().min(1.0).acos(), depth)?;
-                let level = level_for_slices(axis, resolution, needed, false)?;
+                let depth = spec.depth_px * across / px;
+                let needed = slices_needed(lengths[i], v[i].abs().min(1.0).acos(), depth)?;
+                let level = level_for_slices(axis, n, needed, false)?;
                 range[i] =
                     Some(range[i].map_or((level, level), |(a, b)| (a.min(level), b.max(level))));
             }
@@ -319,38 +392,45 @@ impl Representation for SlicesRepr {
         let n = decisions.resolution;
         let rule = rule_of(&spec.rule).ok_or_else(|| PipelineError::Spec(spec.rule.clone()))?;
         let t0 = Instant::now();
-        let voxelising = crate::profile::timer("voxelise");
-        let volume = from_shape(
-            source.shape()?,
-            &ShapeParams {
-                dims: [n; 3],
-                voxel: BOX_EDGE / n as f64,
-                min: BOX_MIN,
-                supersample: spec.supersample,
-                lighting: SliceLighting {
-                    direction: source.light.direction.to_array(),
-                    ambient: source.light.ambient,
-                },
-                tiled: false,
-            },
-        )?;
-        voxelising.stop();
+        let voxelised;
+        let volume = match source.tile {
+            Some(tile) => tile,
+            None => {
+                let voxelising = crate::profile::timer("voxelise");
+                voxelised = from_shape(
+                    source.shape()?,
+                    &ShapeParams {
+                        dims: [n; 3],
+                        voxel: BOX_EDGE / n as f64,
+                        min: BOX_MIN,
+                        supersample: spec.supersample,
+                        lighting: SliceLighting {
+                            direction: source.light.direction.to_array(),
+                            ambient: source.light.ambient,
+                        },
+                        tiled: false,
+                    },
+                )?;
+                voxelising.stop();
+                &voxelised
+            }
+        };
         let voxelize_s = secs(t0);
         if volume.rgba().iter().all(|v| v[3] <= 0.0) {
             return Err(PipelineError::Invisible {
                 asset: source.name.into(),
-                what: format!("the {n}³ voxelisation"),
+                what: format!("the {n}³ voxels"),
             });
         }
         let cutting = crate::profile::timer("slices");
         let (slices, report) = build_slices(
-            &volume,
+            volume,
             &SliceParams {
                 axes: decisions.axes,
                 levels: Some(decisions.levels.clone()),
                 rule,
                 mip_2d: true,
-                tiled: false,
+                tiled: source.tile.is_some(),
             },
         )?;
         cutting.stop();
@@ -404,9 +484,11 @@ impl Representation for SlicesRepr {
                                 "slices": stack.count(), "plus": role,
                                 "minus": stack.per_side().then(|| format!("{role}-minus")) }));
         }
+        let box_min = if data.tiled() { [0.0; 3] } else { BOX_MIN };
         Ok(
-            json!({ "dims": data.dims(), "voxel": data.voxel_size(), "box_min": BOX_MIN,
-                   "rule": data.rule().name(), "depth_px": asset.depth_px, "stacks": stacks }),
+            json!({ "dims": data.dims(), "voxel": data.voxel_size(), "box_min": box_min,
+                   "tiled": data.tiled(), "rule": data.rule().name(), "depth_px": asset.depth_px,
+                   "stacks": stacks }),
         )
     }
 
@@ -417,12 +499,17 @@ impl Representation for SlicesRepr {
         let dims: [usize; 3] =
             serde_json::from_value(m["dims"].clone()).map_err(|_| field("dims"))?;
         let voxel = m["voxel"].as_f64().ok_or_else(|| field("voxel"))?;
+        let tiled = match &m["tiled"] {
+            serde_json::Value::Null => false,
+            t => t.as_bool().ok_or_else(|| field("tiled"))?,
+        };
         let box_min: [f64; 3] =
             serde_json::from_value(m["box_min"].clone()).map_err(|_| field("box_min"))?;
-        if box_min != BOX_MIN {
+        let expected = if tiled { [0.0; 3] } else { BOX_MIN };
+        if box_min != expected {
             return Err(r
                 .content(format!(
-                    "metadata.box_min = {box_min:?}, expected {BOX_MIN:?}"
+                    "metadata.box_min = {box_min:?}, expected {expected:?}"
                 ))
                 .into());
         }
@@ -482,13 +569,17 @@ impl Representation for SlicesRepr {
                 minus,
             });
         }
-        let slices = SliceData::from_stored(dims, voxel, rule, false, stored)
+        let slices = SliceData::from_stored(dims, voxel, rule, tiled, stored)
             .map_err(|e| r.content(format!("metadata.stacks: {e}")))?;
         Ok(SlicesAsset { slices, depth_px })
     }
 
     fn measure_size(d: &SlicesDecisions) -> usize {
-        d.resolution
+        if d.measure_px > 0 {
+            d.measure_px
+        } else {
+            d.resolution
+        }
     }
 
     fn measure(
@@ -497,6 +588,9 @@ impl Representation for SlicesRepr {
         size: usize,
         source: &Source,
     ) -> Result<(Measurement, Vec<Picture>), PipelineError> {
+        if asset.slices.tiled() {
+            return measure_tile(asset, needs, size, source);
+        }
         let size = size.max(1);
         let window = Window::for_needs(needs, size);
         let side = window.side();
@@ -562,6 +656,84 @@ impl Representation for SlicesRepr {
         m.size = size;
         Ok((m, vec![picture]))
     }
+}
+
+/// Measures slices cut from a tile against the ray-marched tile (docs/design.md §9): 4 views at
+/// the needed azimuths ([`measure_angles`]) and polar angles spread over `[0, grazing_deg]`,
+/// one tile `size` pixels across in a window of 1.5 tiles, the stack the direction rule and the
+/// criterion pick per view, 1 sample per pixel with trilinear 2D reads (as a display draws);
+/// the truth marches the tile's trilinear medium with `⌈2p⌉²` rays per pixel (`p` voxels per
+/// pixel).
+fn measure_tile(
+    asset: &SlicesAsset,
+    needs: &Needs,
+    size: usize,
+    source: &Source,
+) -> Result<(Measurement, Vec<Picture>), PipelineError> {
+    let volume = source.tile.ok_or_else(|| PipelineError::WrongSource {
+        asset: source.name.into(),
+        needed: "the volume tile the slices were cut from",
+    })?;
+    let data = &asset.slices;
+    let px = size.max(1) as f64;
+    let p = data.dims()[0] as f64 / px;
+    let side = ((1.5 * px).ceil() as usize).clamp(8, 384);
+    let k = ((2.0 * p).ceil() as usize).clamp(1, 8);
+    let draw = SliceRenderParams {
+        width: side,
+        height: side,
+        pixel_voxels: p,
+        supersample: Supersample::ONE,
+        mip_2d: true,
+        ..SliceRenderParams::default()
+    };
+    let fine = SliceRenderParams {
+        supersample: Supersample::of(k),
+        ..draw.clone()
+    };
+    let (mut scores, mut images, mut drawn) = (Vec::new(), Vec::new(), Vec::new());
+    let azimuths = measure_angles(needs, 4);
+    for (i, a) in azimuths.iter().enumerate() {
+        let polar = needs.grazing_deg * (i as f64 + 0.5) / azimuths.len() as f64;
+        let view = StackView::degrees(polar, a.to_degrees());
+        let c = choose_stored(data, view.vector(), asset.depth_px * p * data.voxel_size())?;
+        let img = render_slices(data, c.axis, c.level, &view, &draw)?;
+        let truth = render_truth(volume, &view, &fine, &VolumeTruthParams::default())?;
+        if truth.pixels.iter().all(|q| q[3] <= 0.0) {
+            return Err(PipelineError::Invisible {
+                asset: source.name.into(),
+                what: format!("the tile at {polar:.0}° from its normal"),
+            });
+        }
+        scores.push(score(&img, &truth)?);
+        drawn.push(format!("{:.0}°: {}{}", polar, c.axis.name(), c.level));
+        if i == 0 {
+            images.push(truth);
+            images.push(img);
+        }
+    }
+    let refs: Vec<_> = images.iter().collect();
+    let picture = Picture {
+        file: format!("{}-slices.png", source.name),
+        caption: format!(
+            "{}: ray-marched tile | slices, {}",
+            source.name,
+            drawn.first().map_or("", String::as_str)
+        ),
+        image: RgbaImage::side_by_side(&refs),
+    };
+    let method = format!(
+        "slices of a {}³ tile ({}), the stack the direction rule and the criterion (d = {} px) pick per view ({}), \
+         trilinear 2D filtering, 1 sample per pixel, one tile {size} px across in a {side}² window, vs the \
+         ray-marched tile with {k}×{k} rays per pixel",
+        data.dims()[0],
+        data.rule().name(),
+        asset.depth_px,
+        drawn.join(", ")
+    );
+    let mut m = fold(method, &scores, None);
+    m.size = size;
+    Ok((m, vec![picture]))
 }
 
 /// The atlas of a stack's slices (level 0 of each), one under another, as RGBA8.

@@ -605,10 +605,22 @@ fn segment(p: DVec3, a: DVec3, b: DVec3) -> (f64, f64) {
 }
 
 /// A test tile of `n³` voxels (`n` a power of two for slicing), unit tile (`s = 1/n`) except the
-/// tree (`s = 2/n`, data-gen's bounding cylinder), seeded.
+/// tree (`s = 2/n`, data-gen's bounding cylinder), seeded, lit by data-gen's default light.
 pub fn test_tile(tile: TestTile, n: usize, seed: u64) -> Result<TexelVolume, SliceError> {
+    test_tile_lit(tile, n, seed, &SliceLighting::default())
+}
+
+/// [`test_tile`] with its colours shaded by `lighting` (the same tile for
+/// [`SliceLighting::default`]).
+pub fn test_tile_lit(
+    tile: TestTile,
+    n: usize,
+    seed: u64,
+    lighting: &SliceLighting,
+) -> Result<TexelVolume, SliceError> {
     let mut rng = SplitMix64::new(seed);
     let implicit = ImplicitParams {
+        lighting: lighting.clone(),
         dims: [n; 3],
         voxel: 1.0 / n.max(1) as f64,
         // Union of tapered capsules: the taper (at most 0.022 over 0.5) keeps K ≤ 1.001.
@@ -666,6 +678,7 @@ pub fn test_tile(tile: TestTile, n: usize, seed: u64) -> Result<TexelVolume, Sli
             &HeightFieldParams {
                 dims: [n; 3],
                 voxel: 1.0 / n.max(1) as f64,
+                lighting: lighting.clone(),
                 ..HeightFieldParams::default()
             },
         ),
@@ -675,6 +688,7 @@ pub fn test_tile(tile: TestTile, n: usize, seed: u64) -> Result<TexelVolume, Sli
                 dims: [n; 3],
                 voxel: 2.0 / n.max(1) as f64,
                 supersample: Supersample::of(2),
+                lighting: lighting.clone(),
                 ..ShapeParams::default()
             },
         ),

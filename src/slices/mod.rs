@@ -75,7 +75,7 @@ pub mod volume;
 
 pub use build::{
     HeightField, HeightFieldParams, ImplicitParams, ShapeParams, SliceLighting, TestTile,
-    from_height_field, from_implicit, from_shape, perlin_periodic, test_tile,
+    from_height_field, from_implicit, from_shape, perlin_periodic, test_tile, test_tile_lit,
 };
 pub use curved::{CurvedParams, render_curved_slices, render_curved_truth};
 pub use measure::{

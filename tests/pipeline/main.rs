@@ -31,6 +31,7 @@ fn source<'a>(name: &'a str, shape: &'a (dyn altrep_data_gen::Shape + Sync)) -> 
         name,
         geometry: Some(shape),
         texture: None,
+        tile: None,
         light: Light::default(),
         placement: None,
     }
@@ -120,6 +121,7 @@ fn texture_source(tex: &altrep::pyramid::Texture) -> Source<'_> {
         name: "grain",
         geometry: None,
         texture: Some(tex),
+        tile: None,
         light: Light::default(),
         placement: None,
     }

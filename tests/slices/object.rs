@@ -141,6 +141,7 @@ fn source<'a>(shape: &'a (dyn altrep_data_gen::Shape + Sync)) -> Source<'a> {
         name: "tree",
         geometry: Some(shape),
         texture: None,
+        tile: None,
         light: Light::default(),
         placement: None,
     }
@@ -342,5 +343,136 @@ mod adversarial {
                 prop_assert_eq!(d.stacks().len(), 1);
             }
         }
+    }
+}
+
+/// A procedural tile as an asset source (`tile = { … }`): slices only, measured against the
+/// ray-marched tile; read back as a tiling volume that writes the same files again.
+mod tiles {
+    use super::*;
+    use altrep::asset::AssetReader;
+    use altrep::pipeline::PipelineError;
+
+    const LAWN: &str = r#"
+[[asset]]
+name = "lawn"
+tile = { kind = "grass", size = 32, seed = 1 }
+[asset.needs]
+screen_px = [16, 64]
+grazing_deg = 80
+lighting = "baked"
+[asset.slices]
+[[asset]]
+name = "pelt"
+tile = { kind = "fur", size = 32, seed = 1 }
+[asset.needs]
+screen_px = [8, 32]
+grazing_deg = 60
+lighting = "baked"
+[asset.slices]
+"#;
+
+    /// The grass tile seen up to 64 px and 80° from its normal measures 39.22 dB mean PSNR
+    /// against the ray-marched tile, the fur tile up to 32 px and 60° 33.58 dB (1 dB of margin
+    /// here), silhouettes 0.981 and 0.959 (0.94 asserted); the folder opens as tiling slices
+    /// (box from the origin) that write the same files again.
+    #[test]
+    fn tile_slices_measure_against_the_ray_marched_tile() {
+        let dir = tempfile::tempdir().unwrap();
+        let m = Manifest::parse(LAWN, std::path::Path::new("scene.toml")).unwrap();
+        let run = altrep::pipeline::run_scene(&m, &RunOptions::new(dir.path())).unwrap();
+        assert!(run.ok(), "{}", run.table());
+        for (asset, psnr) in [("lawn", 39.22), ("pelt", 33.58)] {
+            let o = run.outcomes.iter().find(|o| o.asset == asset).unwrap();
+            assert_eq!(o.outcome, Outcome::Built);
+            let m = o.measurement.as_ref().unwrap();
+            assert!(m.psnr_db > psnr - 1.0, "{asset}: {m:?}");
+            assert!(m.iou > 0.94, "{asset}: {m:?}");
+        }
+        let folder = dir.path().join("lawn/slices");
+        let r = AssetReader::open(&folder).unwrap();
+        assert_eq!(r.description().metadata["tiled"], true);
+        let loaded = SlicesRepr::read(&r).unwrap();
+        assert!(loaded.slices.tiled());
+        let again = tempfile::tempdir().unwrap();
+        let mut w = altrep::asset::AssetWriter::new(again.path(), "lawn", "slices").unwrap();
+        let meta = SlicesRepr::write(&loaded, &mut w).unwrap();
+        assert_eq!(meta, r.description().metadata);
+        let desc = w
+            .commit(
+                "slices",
+                "lawn",
+                "key",
+                altrep::asset::Conventions::new(1.0, 2.0),
+                meta,
+                serde_json::Value::Null,
+            )
+            .unwrap();
+        let hashes = |d: &altrep::asset::AssetDescription| -> Vec<(String, String)> {
+            d.files
+                .iter()
+                .map(|f| (f.path.clone(), f.blake3.clone()))
+                .collect()
+        };
+        assert_eq!(hashes(&desc), hashes(r.description()));
+    }
+
+    /// Views from straight above only (grazing 0°) draw the height stack at one slice (one
+    /// composite is exact along the normal); the other stacks and levels are skipped.
+    #[test]
+    fn a_tile_seen_from_above_keeps_one_merged_height_slice() {
+        let volume = altrep::slices::test_tile(altrep::slices::TestTile::Grass, 16, 1).unwrap();
+        let src = Source {
+            name: "lawn",
+            geometry: None,
+            texture: None,
+            tile: Some(&volume),
+            light: Light::default(),
+            placement: None,
+        };
+        let needs = Needs {
+            grazing_deg: 0.0,
+            lighting: Lighting::Baked,
+            ..Needs::default()
+        };
+        let (plan, d) = SlicesRepr::plan(&SlicesSpec::default(), &needs, &src).unwrap();
+        assert!(plan.refused.is_none());
+        assert_eq!(
+            (d.resolution, d.axes, d.levels.clone()),
+            (16, [false, true, false], vec![4])
+        );
+        assert!(d.tiled);
+    }
+
+    /// A tile asks for slices only; an unknown tile or a size that is not a power of two is
+    /// refused with its line.
+    #[test]
+    fn the_manifest_refuses_what_a_tile_cannot_give() {
+        let parse = |t: &str| Manifest::parse(t, std::path::Path::new("scene.toml"));
+        let e = parse("[[asset]]\nname = \"a\"\ntile = { kind = \"grass\" }\n[asset.parallax]\n")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("volume tile") && e.contains("[asset.slices]"),
+            "{e}"
+        );
+        let e = parse("[[asset]]\nname = \"a\"\ntile = { kind = \"moss\" }\n[asset.slices]\n")
+            .unwrap_err();
+        assert!(
+            matches!(&e, PipelineError::Manifest { line: 3, message, .. } if message.contains("moss")),
+            "{e}"
+        );
+        let e = parse(
+            "[[asset]]\nname = \"a\"\ntile = { kind = \"fur\", size = 24 }\n[asset.slices]\n",
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(e.contains("power of two"), "{e}");
+        let e = parse(
+            "[[asset]]\nname = \"a\"\ntile = { kind = \"fur\" }\nshape = \"pear\"\n[asset.slices]\n",
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(e.contains("exactly one"), "{e}");
     }
 }

@@ -84,6 +84,7 @@ fn precompute(args: &Args) -> Result<CylinderData, String> {
         name: &args.shape,
         geometry: Some(&shape),
         texture: None,
+        tile: None,
         light: Light::default(),
         placement: None,
     };

@@ -74,6 +74,7 @@ fn run(args: &Args) -> Result<(), String> {
                 name: &args.shape,
                 geometry: Some(&shape),
                 texture: None,
+                tile: None,
                 light,
                 placement: None,
             };

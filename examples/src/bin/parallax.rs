@@ -70,6 +70,7 @@ fn precompute(args: &Args, kind: BoundKind) -> Result<ParallaxData, String> {
         name: &args.shape,
         geometry: Some(&shape),
         texture: None,
+        tile: None,
         light: Light::default(),
         placement: None,
     };

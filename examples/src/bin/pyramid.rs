@@ -91,6 +91,7 @@ fn precompute(args: &Args, tex: &Texture, grazing: f64) -> Result<PyramidAsset, 
         name: &name,
         geometry: None,
         texture: Some(tex),
+        tile: None,
         light: Light::default(),
         placement: None,
     };

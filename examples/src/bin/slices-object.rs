@@ -76,6 +76,7 @@ fn precompute(args: &Args) -> Result<SlicesAsset, String> {
         name: &args.shape,
         geometry: Some(&shape),
         texture: None,
+        tile: None,
         light: Light::default(),
         placement: None,
     };

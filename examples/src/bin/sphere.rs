@@ -85,6 +85,7 @@ fn precompute(args: &Args) -> Result<SphereImages, String> {
         name: &args.shape,
         geometry: Some(&shape),
         texture: None,
+        tile: None,
         light: Light::default(),
         placement: None,
     };

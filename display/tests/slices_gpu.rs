@@ -9,20 +9,18 @@
 
 use std::path::Path;
 
-use altrep::asset::{AssetWriter, Conventions};
 use altrep::metrics::psnr;
 use altrep::pipeline::{Lighting, Needs, Representation, Source};
 use altrep::slices::asset::{BOX_MIN, SlicesAsset, SlicesRepr, SlicesSpec};
 use altrep::slices::render_object;
 use altrep_data_gen::{Light, RgbaImage, Supersample, render_truth_frame, scene_shape};
 use altrep_display::check::{pixel_errors, quantile, write_artefacts};
-use altrep_display::load;
 use altrep_display::slices::{SlicesDisplay, SlicesDraw};
 use approx::assert_abs_diff_eq;
 use glam::DVec3;
 
 mod common;
-use common::{assert_floor, failures_dir, gpu};
+use common::{assert_floor, failures_dir, gpu, volume_directions, written_and_loaded};
 
 /// Screen size of the checks.
 const SIZE: usize = 64;
@@ -54,34 +52,7 @@ fn asset(shape: &str, dir: &Path) -> SlicesAsset {
     let (plan, dec) = SlicesRepr::plan(&spec, &needs(), &src).unwrap();
     assert!(plan.refused.is_none(), "{plan:?}");
     let (data, _) = SlicesRepr::build(&spec, &needs(), &dec, &src).unwrap();
-    let mut w = AssetWriter::new(dir, shape, SlicesRepr::NAME).unwrap();
-    let meta = SlicesRepr::write(&data, &mut w).unwrap();
-    w.commit(
-        SlicesRepr::NAME,
-        shape,
-        "test",
-        Conventions::new(1.0, 2.0),
-        meta,
-        serde_json::Value::Null,
-    )
-    .unwrap();
-    load::<SlicesRepr>(&dir.join(shape).join(SlicesRepr::NAME)).unwrap()
-}
-
-/// Test directions (toward the camera): oblique horizontal, from above at 40°, from below,
-/// straight down, and exactly along the x axis.
-fn directions() -> Vec<DVec3> {
-    let polar = |az: f64, el: f64| {
-        let (a, e) = (az.to_radians(), el.to_radians());
-        DVec3::new(e.cos() * a.cos(), e.sin(), e.cos() * a.sin())
-    };
-    vec![
-        polar(33.0, 0.0),
-        polar(120.0, 40.0),
-        polar(250.0, -25.0),
-        DVec3::Y,
-        DVec3::X,
-    ]
+    written_and_loaded::<SlicesRepr>(dir, shape, &data)
 }
 
 /// Floors against the ray-cast truth (PSNR of the GPU image at 64², the stack the library
@@ -108,7 +79,7 @@ fn gpu_slices_match_the_cpu_and_the_truth() {
         let s = scene_shape(shape).unwrap();
         let mut truth_db = 0.0;
         for size in [SIZE, 16] {
-            for d in directions() {
+            for d in volume_directions() {
                 let draw = SlicesDraw::new(d, size).unwrap();
                 let frame = disp.render(gpu, &draw).unwrap();
                 levels.push(frame.stack.1);
@@ -155,7 +126,8 @@ fn gpu_slices_match_the_cpu_and_the_truth() {
                         &Light::default(),
                     )
                     .unwrap();
-                    truth_db += psnr(&frame.image, &truth).unwrap() / directions().len() as f64;
+                    truth_db +=
+                        psnr(&frame.image, &truth).unwrap() / volume_directions().len() as f64;
                 }
             }
         }

@@ -159,10 +159,10 @@ fn closest_resolution(needs: &Needs) -> usize {
         .max(4)
 }
 
-/// Unit view vectors (toward the camera) sampling the needed azimuths and elevations: 72
-/// azimuths round a full circle, else 37 over the range, ends included; 9 elevations over a
-/// range, ends included.
-fn needed_views(needs: &Needs) -> Vec<DVec3> {
+/// Unit view vectors (toward the camera) sampling the needed azimuths and the elevations
+/// `[e0, e1]` (degrees): 72 azimuths round a full circle, else 37 over the range, ends included;
+/// 9 elevations over a range, ends included.
+fn sampled_views(needs: &Needs, [e0, e1]: [f64; 2]) -> Vec<DVec3> {
     let [a0, a1] = needs.azimuth_deg;
     let azimuths: Vec<f64> = if needs.all_azimuths() {
         (0..72).map(|k| f64::from(k) * 5.0).collect()
@@ -171,7 +171,6 @@ fn needed_views(needs: &Needs) -> Vec<DVec3> {
             .map(|k| a0 + (a1 - a0) * f64::from(k) / 36.0)
             .collect()
     };
-    let [e0, e1] = needs.elevation_deg;
     let elevations: Vec<f64> = if e0 == e1 {
         vec![e0]
     } else {
@@ -189,32 +188,17 @@ fn needed_views(needs: &Needs) -> Vec<DVec3> {
     v
 }
 
-/// Unit view vectors (toward the viewer) sampling the views of a tile lying on a surface: polar
-/// angles from the normal (`+y`) 0 to `grazing_deg` (9, ends included), the needed azimuths (72
-/// round a full circle, else 37 over the range, ends included; `v = (sin θ cos φ, cos θ,
-/// sin θ sin φ)`, the slices module's convention).
+/// The views of an object: [`sampled_views`] over the needed elevations.
+fn needed_views(needs: &Needs) -> Vec<DVec3> {
+    sampled_views(needs, needs.elevation_deg)
+}
+
+/// The views of a tile lying on a surface (normal `+y`), from the normal to `grazing_deg` away
+/// from it: [`sampled_views`] over the elevations `90° − grazing_deg` to `90°` (a view at polar
+/// angle `θ` from the normal has elevation `90° − θ`: `v = (sin θ cos φ, cos θ, sin θ sin φ)`,
+/// the slices module's convention).
 fn tile_views(needs: &Needs) -> Vec<DVec3> {
-    let [a0, a1] = needs.azimuth_deg;
-    let azimuths: Vec<f64> = if needs.all_azimuths() {
-        (0..72).map(|k| f64::from(k) * 5.0).collect()
-    } else {
-        (0..=36)
-            .map(|k| a0 + (a1 - a0) * f64::from(k) / 36.0)
-            .collect()
-    };
-    let mut v = Vec::new();
-    for k in 0..=8 {
-        let polar = (needs.grazing_deg * f64::from(k) / 8.0).to_radians();
-        for a in &azimuths {
-            let a = a.to_radians();
-            v.push(DVec3::new(
-                polar.sin() * a.cos(),
-                polar.cos(),
-                polar.sin() * a.sin(),
-            ));
-        }
-    }
-    v
+    sampled_views(needs, [90.0 - needs.grazing_deg, 90.0])
 }
 
 /// Nine screen sizes from the smallest needed to the largest, spaced geometrically.

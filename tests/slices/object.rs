@@ -241,28 +241,8 @@ lighting = "baked"
 
 mod adversarial {
     use super::*;
-    use altrep::slices::{Axis, SliceData, SliceError, StoredStack, TexelVolume};
-    use altrep_data_gen::SplitMix64;
+    use altrep::slices::{Axis, SliceData, SliceError, StoredStack};
     use proptest::prelude::*;
-
-    fn random_volume(dims: [usize; 3], seed: u64) -> TexelVolume {
-        let mut rng = SplitMix64::new(seed);
-        let rgba = (0..dims[0] * dims[1] * dims[2])
-            .map(|_| {
-                let r = rng.next_f64();
-                let a = if r < 0.3 {
-                    0.0
-                } else if r < 0.4 {
-                    1.0
-                } else {
-                    rng.next_f64() as f32
-                };
-                let c = rng.next_f64() as f32 * a;
-                [c, c * 0.5, c * 0.25, a]
-            })
-            .collect();
-        TexelVolume::new(dims, 2.0 / dims[0] as f64, rgba).unwrap()
-    }
 
     proptest! {
         #![proptest_config(ProptestConfig { cases: 64, rng_seed: proptest::test_runner::RngSeed::Fixed(20261206), ..ProptestConfig::default() })]
@@ -277,7 +257,7 @@ mod adversarial {
             dx in -1.0f64..1.0, dy in -1.0f64..1.0, dz in -1.0f64..1.0, snap in 0usize..4,
             radius in 0.01f64..4.0, level in 0usize..4, axis in 0usize..3, side in 1usize..6,
         ) {
-            let vol = random_volume([1 << lx, 1 << ly, 1 << lz], seed);
+            let vol = crate::random_volume([1 << lx, 1 << ly, 1 << lz], seed);
             let (data, _) = build_slices(&vol, &SliceParams { tiled: false, ..SliceParams::default() }).unwrap();
             let mut dir = DVec3::new(dx, dy, dz);
             if snap < 3 {

@@ -73,3 +73,42 @@ pub fn assert_floor(table: &[(&str, f64)], name: &str, db: f64) {
          {measured:.2} dB {MEASURED_ON})"
     );
 }
+
+/// View directions (toward the camera) of the volume twins' checks: oblique horizontal, from
+/// above at 40°, from below at 25°, straight down, and exactly along the x axis.
+#[allow(dead_code)] // each test binary uses what it needs of this module
+pub fn volume_directions() -> Vec<glam::DVec3> {
+    let polar = |az: f64, el: f64| {
+        let (a, e) = (az.to_radians(), el.to_radians());
+        glam::DVec3::new(e.cos() * a.cos(), e.sin(), e.cos() * a.sin())
+    };
+    vec![
+        polar(33.0, 0.0),
+        polar(120.0, 40.0),
+        polar(250.0, -25.0),
+        glam::DVec3::Y,
+        glam::DVec3::X,
+    ]
+}
+
+/// Writes `data` of representation `R` with the pipeline's writer into `dir/name/R::NAME` and
+/// loads it back through the display's loader, as a user's folder would be.
+#[allow(dead_code)] // each test binary uses what it needs of this module
+pub fn written_and_loaded<R: altrep::pipeline::Representation>(
+    dir: &Path,
+    name: &str,
+    data: &R::Data,
+) -> R::Data {
+    let mut w = altrep::asset::AssetWriter::new(dir, name, R::NAME).unwrap();
+    let meta = R::write(data, &mut w).unwrap();
+    w.commit(
+        R::NAME,
+        name,
+        "test",
+        altrep::asset::Conventions::new(1.0, 2.0),
+        meta,
+        serde_json::Value::Null,
+    )
+    .unwrap();
+    altrep_display::load::<R>(&dir.join(name).join(R::NAME)).unwrap()
+}

@@ -310,7 +310,7 @@ pub struct Measurement {
     /// figures above come from the renderer a display runs (a bounded march): the two draw the
     /// same image by design, so a gap of more than [`EXACT_GAP_DB`] flags a broken renderer or
     /// damaged data ([`crate::pipeline::RunSummary::below_exact`]). `None` where the measured
-    /// renderer is the only one (octree, frames over the sphere, pyramids).
+    /// renderer is the only one (octree, slices, frames over the sphere, pyramids).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub exact_psnr_db: Option<f64>,
 }

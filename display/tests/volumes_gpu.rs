@@ -18,12 +18,13 @@ mod slices {
     use altrep::slices::asset::{BOX_MIN, SlicesAsset, SlicesRepr, SlicesSpec};
     use altrep::slices::render_object;
     use altrep_data_gen::{Light, RgbaImage, Supersample, render_truth_frame, scene_shape};
-    use altrep_display::check::{pixel_errors, quantile, write_artefacts};
     use altrep_display::slices::{SlicesDisplay, SlicesDraw};
     use approx::assert_abs_diff_eq;
     use glam::DVec3;
 
-    use crate::common::{assert_floor, failures_dir, gpu, volume_directions, written_and_loaded};
+    use crate::common::{
+        assert_floor, check_against_cpu, gpu, volume_directions, written_and_loaded,
+    };
 
     /// Screen size of the checks.
     const SIZE: usize = 64;
@@ -96,17 +97,7 @@ mod slices {
                     )
                     .unwrap();
                     let name = format!("slices-{shape}-{size}-{:.2}-{:.2}-{:.2}", d.x, d.y, d.z);
-                    let db = psnr(&frame.image, &want.image).unwrap();
-                    let p99 = quantile(&pixel_errors(&frame.image, &want.image).unwrap(), 0.99);
-                    if db < 40.0 || p99 > 0.01 {
-                        let out =
-                            write_artefacts(&failures_dir(), &name, &frame.image, &want.image)
-                                .unwrap();
-                        panic!(
-                            "{name}: PSNR {db:.2} dB, p99 {p99:.4}; artefacts in {}",
-                            out.display()
-                        );
-                    }
+                    let db = check_against_cpu(&name, &frame.image, &want.image, 40.0, 0.01);
                     worst_db = worst_db.min(db);
                     assert_eq!(frame.covered, want.covered, "{name}: pixels covered");
                     for (g, c) in frame.steps.iter().zip(&want.steps) {
@@ -187,12 +178,13 @@ mod octree {
     use altrep::metrics::psnr;
     use altrep::pipeline::{Needs, Representation, Source};
     use altrep_data_gen::{Light, OrthoFrame, Supersample, render_truth_frame, scene_shape};
-    use altrep_display::check::{pixel_errors, quantile, write_artefacts};
     use altrep_display::octree::OctreeDisplay;
     use approx::assert_abs_diff_eq;
     use glam::DVec3;
 
-    use crate::common::{assert_floor, failures_dir, gpu, volume_directions, written_and_loaded};
+    use crate::common::{
+        assert_floor, check_against_cpu, gpu, volume_directions, written_and_loaded,
+    };
 
     /// Leaves per side of the trees, and the screen size of the checks (one pixel per leaf).
     const SIZE: usize = 32;
@@ -263,16 +255,7 @@ mod octree {
                     let got = disp.render(gpu, level, &params, &view).unwrap();
                     let (want, steps) = tree.render_view_counted(level, &params, &view).unwrap();
                     let name = format!("octree-{shape}-{level}-{:.2}-{:.2}-{:.2}", d.x, d.y, d.z);
-                    let db = psnr(&got.image, &want).unwrap();
-                    let p99 = quantile(&pixel_errors(&got.image, &want).unwrap(), 0.99);
-                    if db < 40.0 || p99 > 0.01 {
-                        let out =
-                            write_artefacts(&failures_dir(), &name, &got.image, &want).unwrap();
-                        panic!(
-                            "{name}: PSNR {db:.2} dB, p99 {p99:.4}; artefacts in {}",
-                            out.display()
-                        );
-                    }
+                    let db = check_against_cpu(&name, &got.image, &want, 40.0, 0.01);
                     worst_db = worst_db.min(db);
                     for (g, c) in got.steps.iter().zip(&steps) {
                         total += 1;

@@ -112,3 +112,28 @@ pub fn written_and_loaded<R: altrep::pipeline::Representation>(
     .unwrap();
     altrep_display::load::<R>(&dir.join(name).join(R::NAME)).unwrap()
 }
+
+/// PSNR (dB) of the GPU image `actual` against the CPU twin's `expected`, after asserting it is
+/// at least `min_db` and that the 99th percentile of the per-pixel largest channel error is at
+/// most `max_p99`; on failure the images and their difference go to [`failures_dir`] under
+/// `name`.
+#[allow(dead_code)] // each test binary uses what it needs of this module
+pub fn check_against_cpu(
+    name: &str,
+    actual: &altrep_display::RgbaImage,
+    expected: &altrep_display::RgbaImage,
+    min_db: f64,
+    max_p99: f32,
+) -> f64 {
+    use altrep_display::check::{pixel_errors, quantile, write_artefacts};
+    let db = altrep::metrics::psnr(actual, expected).unwrap();
+    let p99 = quantile(&pixel_errors(actual, expected).unwrap(), 0.99);
+    if db < min_db || p99 > max_p99 {
+        let out = write_artefacts(&failures_dir(), name, actual, expected).unwrap();
+        panic!(
+            "{name}: PSNR {db:.2} dB (need ≥ {min_db}), p99 error {p99:.4} (need ≤ {max_p99}); artefacts in {}",
+            out.display()
+        );
+    }
+    db
+}

@@ -1,8 +1,10 @@
-//! Slices of an object on the GPU: the fragment-shader twin of `altrep::slices::render_object`
-//! at one sample per pixel, in `f32` (what an engine ships).
+//! Slices on the GPU: the fragment-shader twin of `altrep::slices::render_object` (an object's
+//! slices) and of `altrep::slices::render_slices` (a tile's slices over a ground patch) at one
+//! sample per pixel, in `f32` (what an engine ships).
 //!
 //! Per fragment, the shader (`slices.wgsl`) clips the ray through the pixel centre to the
-//! object's box and composites the slices of one stack it crosses, nearest first, each read with
+//! object's box or to the patch of tiles ([`SlicesDraw::patch`]; a tile repeats along `x` and
+//! `z`, its slices wrap) and composites the slices of one stack it crosses, nearest first, each read with
 //! trilinear 2D filtering and its opacity raised to the path length (docs/design.md §9.4). The
 //! stack (axis and merge level) is chosen on the host as the library chooses it
 //! ([`altrep::slices::asset::SlicesAsset::choose`]), and so are the two 2D levels read and their
@@ -36,6 +38,11 @@ pub struct SlicesDraw {
     /// The on-screen size of the box's width (pixels) at which the stack is chosen when `stack`
     /// is `None`: `size / radius` for a frame over the box.
     pub choose_px: f64,
+    /// Tiles of a tiled asset drawn along `x` and `z`: the ground patch
+    /// `[0, n_x·L_x] × [0, L_y] × [0, n_z·L_z]` (`L` one tile's extent); `0` leaves that direction
+    /// unbounded, as `altrep::slices::render_slices` draws it. An object's slices take `[1, 1]`
+    /// (its box).
+    pub patch: [u32; 2],
 }
 
 impl SlicesDraw {
@@ -55,6 +62,7 @@ impl SlicesDraw {
             size,
             stack: None,
             choose_px: size as f64,
+            patch: [1, 1],
         })
     }
 }
@@ -191,6 +199,13 @@ impl SlicesDisplay {
         {
             return Err(invalid("frame", format!("{f:?}"), "must be finite"));
         }
+        if !self.asset.slices.tiled() && d.patch != [1, 1] {
+            return Err(invalid(
+                "patch",
+                format!("{:?}", d.patch),
+                "an object's slices draw one box: [1, 1] (a patch of tiles needs a tiled asset)",
+            ));
+        }
         let t0 = Instant::now();
         let stack = match d.stack {
             Some(s) => s,
@@ -263,8 +278,15 @@ impl SlicesDisplay {
         let l0 = lod.floor() as usize;
         let blend = (lod - l0 as f64) as f32;
         let l1 = (l0 + 1).min(slot.levels.len() - 1);
-        let min = DVec3::from_array(BOX_MIN);
+        let min = if slices.tiled() {
+            DVec3::ZERO
+        } else {
+            DVec3::from_array(BOX_MIN)
+        };
         let c = f.centre - min;
+        // The box rays are clipped to: the patch of tiles, unbounded along a direction of 0.
+        let tiles = |n: u32| if n == 0 { 1.0 } else { f64::from(n) };
+        let clip = extent * DVec3::new(tiles(d.patch[0]), 1.0, tiles(d.patch[1]));
         let scalars: Vec<f32> = [
             d.size as f64,
             c.x,
@@ -289,6 +311,7 @@ impl SlicesDisplay {
         .iter()
         .map(|&v| v as f32)
         .chain([blend, (1.0f64 - 1e-7) as f32])
+        .chain([clip.x as f32, clip.y as f32, clip.z as f32])
         .collect();
         let repeat = |a: usize| u32::from(slices.tiled() && a != 1);
         let ints: Vec<u32> = [
@@ -306,6 +329,9 @@ impl SlicesDisplay {
             slot.levels[l1].2 as u32,
             repeat(ua),
             repeat(va),
+            u32::from(d.patch[0] == 0),
+            u32::from(d.patch[1] == 0),
+            u32::from(slices.tiled() && axis != Axis::Y),
         ]
         .to_vec();
         let fbuf = storage(gpu, "slice scalars", bytemuck::cast_slice(&scalars));

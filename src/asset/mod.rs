@@ -395,20 +395,23 @@ impl<T: Copy + Default> CodeImage<T> {
 impl CodeImage<u8> {
     /// Premultiplied linear RGBA (`channels ≥ 4` floats per pixel, the first four read) as
     /// RGBA8: straight colour in sRGB codes, alpha (coverage or opacity) linear. The encoding
-    /// of every colour atlas of the asset format (`docs/asset-format.md`); a pixel of alpha 0
-    /// stores colour 0. Cost: one pass.
+    /// of every colour atlas of the asset format (`docs/asset-format.md`); a pixel whose alpha
+    /// code is 0 stores colour 0. Cost: one pass.
     pub fn from_premultiplied(width: usize, height: usize, channels: usize, data: &[f32]) -> Self {
         let mut img = CodeImage::<u8>::new(width, height, 4);
         for idx in 0..width * height {
             let px = &data[idx * channels..idx * channels + 4];
             let a = px[3].clamp(0.0, 1.0);
+            let alpha = (a * 255.0).round() as u8;
             let out = img.pixel_mut(idx);
             for c in 0..3 {
-                let straight = if a > 0.0 { px[c] / a } else { 0.0 };
+                // A pixel whose alpha code is 0 stores no colour: it decodes to 0 whatever the
+                // colour codes, and rewriting what was read gives the same bytes.
+                let straight = if alpha > 0 { px[c] / a } else { 0.0 };
                 out[c] = (altrep_data_gen::linear_to_srgb(straight.clamp(0.0, 1.0)) * 255.0).round()
                     as u8;
             }
-            out[3] = (a * 255.0).round() as u8;
+            out[3] = alpha;
         }
         img
     }

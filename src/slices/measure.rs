@@ -347,6 +347,7 @@ pub fn measure(params: &SliceMeasureParams) -> Result<MeasureReport, SliceError>
                 &volume,
                 &SliceParams {
                     rule,
+                    fit_bilinear: params.filter == SliceReconstruction::Linear,
                     ..SliceParams::default()
                 },
             )?;

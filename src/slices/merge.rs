@@ -6,6 +6,7 @@ use std::time::Instant;
 
 use rayon::prelude::*;
 
+use super::filtered::{Direction, fit_slice};
 use super::volume::{over, rescale_thickness};
 use super::{Axis, SliceError, TexelVolume};
 use crate::mip::{Pyramid, PyramidParams, Texture, WrapMode};
@@ -76,12 +77,17 @@ pub struct SliceParams {
     /// those directions when filtered. Off for a volume holding one object: every direction
     /// clamps to the edge texel (the renderer draws nothing outside the volume's box).
     pub tiled: bool,
+    /// Fit the merged slices (levels ≥ 1, every rule but [`MergeRule::Drop`]) to the bilinear
+    /// filter that reads them (docs/design.md §9.5): least squares against
+    /// the slab composited from the bilinearly read layers. Off: the composites at the texel
+    /// centres, exact for nearest reconstruction ([`super::SliceReconstruction::Nearest`]).
+    pub fit_bilinear: bool,
 }
 
 impl Default for SliceParams {
     /// All three axes, every level, [`MergeRule::PerSide`] (the most accurate rule from both
     /// sides in `altrep slices`; see the README's "Measured" section), 2D mip-maps counted, a
-    /// tiling volume.
+    /// tiling volume, merged slices fitted to bilinear filtering.
     fn default() -> Self {
         Self {
             axes: [true; 3],
@@ -89,6 +95,7 @@ impl Default for SliceParams {
             rule: MergeRule::PerSide,
             mip_2d: true,
             tiled: true,
+            fit_bilinear: true,
         }
     }
 }
@@ -281,14 +288,15 @@ pub struct SliceReport {
     pub bytes_level0: usize,
     /// `(axis, level, slices per tile)` of each stack built.
     pub stacks: Vec<(Axis, usize, usize)>,
-    /// Largest `|a_slice − (1 − Π(1 − a_layer))|` over every texel of every merged slice
-    /// (opacity conservation; 0 up to rounding for every merge rule, large for `Drop`).
+    /// Largest `|a_slice − (1 − Π(1 − a_layer))|` over every texel of every merged slice before
+    /// the fit to bilinear filtering (opacity conservation; 0 up to rounding for every merge
+    /// rule, large for `Drop`).
     pub opacity_error_max: f64,
 }
 
-/// The premultiplied value of the slab of `layers` (lowest index first) under `rule`, with the
-/// composite's exact opacity `1 − Π(1 − a)` for the check.
-fn merge_column(layers: &[[f64; 4]], rule: MergeRule, side: Side) -> [f64; 4] {
+/// The premultiplied value of the slab of `layers` (lowest index first) under `rule` seen from
+/// `side`.
+pub(crate) fn merge_column(layers: &[[f64; 4]], rule: MergeRule, side: Side) -> [f64; 4] {
     let plus = || layers.iter().fold([0.0; 4], |acc, l| over(*l, acc));
     let minus = || layers.iter().rev().fold([0.0; 4], |acc, l| over(*l, acc));
     match (rule, side) {
@@ -311,7 +319,7 @@ fn build_stack_side(
     (axis, level): (Axis, usize),
     rule: MergeRule,
     side: Side,
-    tiled: bool,
+    (tiled, fit): (bool, bool),
 ) -> Result<(Vec<Pyramid>, f64), SliceError> {
     let dims = volume.dims();
     let (ua, va) = axis.plane_axes();
@@ -319,6 +327,14 @@ fn build_stack_side(
     let g = 1usize << level;
     let count = dims[axis.index()] / g;
     let params = slice_pyramid_params(axis, tiled);
+    let fit = if fit && level > 0 && rule != MergeRule::Drop {
+        Some((
+            Direction::new(w, params.wrap[0])?,
+            Direction::new(h, params.wrap[1])?,
+        ))
+    } else {
+        None
+    };
     let built: Vec<Result<(Pyramid, f64), SliceError>> = (0..count)
         .into_par_iter()
         .map(|j| {
@@ -341,6 +357,16 @@ fn build_stack_side(
                     err = err.max((m[3] - (1.0 - transmit)).abs());
                     data.extend(m.iter().map(|x| *x as f32));
                 }
+            }
+            if let Some((du, dv)) = &fit {
+                data = fit_slice(
+                    volume,
+                    axis,
+                    j * g..(j + 1) * g,
+                    (rule, side),
+                    (du, dv),
+                    data,
+                );
             }
             let pyramid = Pyramid::build(Texture::new(w, h, 4, data)?, params)?;
             Ok((pyramid, err))
@@ -394,9 +420,10 @@ pub fn build_slices(
         for &level in levels {
             let two_sides = level > 0 && params.rule == MergeRule::PerSide;
             let at = (axis, level);
-            let (plus, e1) = build_stack_side(volume, at, params.rule, Side::Plus, params.tiled)?;
+            let how = (params.tiled, params.fit_bilinear);
+            let (plus, e1) = build_stack_side(volume, at, params.rule, Side::Plus, how)?;
             let minus = if two_sides {
-                let (m, e2) = build_stack_side(volume, at, params.rule, Side::Minus, params.tiled)?;
+                let (m, e2) = build_stack_side(volume, at, params.rule, Side::Minus, how)?;
                 opacity_error_max = opacity_error_max.max(e2);
                 Some(m)
             } else {

@@ -65,6 +65,7 @@
 pub mod asset;
 pub mod build;
 pub mod curved;
+pub(crate) mod filtered;
 pub mod measure;
 pub mod merge;
 pub mod object;

@@ -29,9 +29,9 @@ fn chair_volume(n: usize) -> altrep::slices::TexelVolume {
 }
 
 /// Seen along an axis with one pixel per voxel, pixel centres on texel centres, every level of
-/// a per-side merge draws the composite of the voxel column: level 0 equals the `over`
-/// composite of the voxels computed here (1e-5), and every merged level equals level 0 (1e-5),
-/// from both sides of all three axes.
+/// a per-side merge (composites, not fitted to bilinear filtering) draws the composite of the
+/// voxel column: level 0 equals the `over` composite of the voxels computed here (1e-5), and
+/// every merged level equals level 0 (1e-5), from both sides of all three axes.
 #[test]
 fn seen_along_an_axis_every_level_draws_the_composite_of_the_voxel_column() {
     let n = 16;
@@ -40,6 +40,7 @@ fn seen_along_an_axis_every_level_draws_the_composite_of_the_voxel_column() {
         &volume,
         &SliceParams {
             tiled: false,
+            fit_bilinear: false,
             ..SliceParams::default()
         },
     )
@@ -236,6 +237,77 @@ lighting = "baked"
         assert!(m.iou > 0.88, "{asset}: {m:?}");
         let steps = m.mean_steps.unwrap();
         assert!(steps > 1.0 && steps < voxels, "{asset}: {m:?}");
+    }
+}
+
+/// Merging beats dropping slices on a volume voxelised from a mesh (docs/design.md §9.5): the
+/// chair in its box at 32³, seen from 8 directions 16 px across the box (every view merges),
+/// the stack the rule and the criterion pick, 1 sample per pixel with trilinear 2D reads;
+/// per-side merges fitted to bilinear filtering against one layer kept per slab, both measured
+/// against the object's ray-cast truth (3 × 3 rays per pixel): mean gain ≥ 3 dB (4.25 dB
+/// measured). The solid tree loses instead (−1.30 dB; −0.88 dB unfitted): docs/design.md §9.5.
+#[test]
+fn merging_beats_dropping_on_a_volume_from_a_mesh() {
+    let n = 32;
+    let size = 16;
+    for shape in ["chair"] {
+        let object = scene_shape(shape).unwrap();
+        let volume = from_shape(
+            &object,
+            &ShapeParams {
+                dims: [n; 3],
+                voxel: 2.0 / n as f64,
+                min: [-1.0, 0.0, -1.0],
+                supersample: Supersample::of(2),
+                tiled: false,
+                ..ShapeParams::default()
+            },
+        )
+        .unwrap();
+        let build = |rule| {
+            let params = SliceParams {
+                rule,
+                tiled: false,
+                ..SliceParams::default()
+            };
+            build_slices(&volume, &params).unwrap().0
+        };
+        let (merged, dropped) = (build(MergeRule::PerSide), build(MergeRule::Drop));
+        let min = DVec3::new(-1.0, 0.0, -1.0);
+        let mut gains = Vec::new();
+        for k in 0..8 {
+            let az = (f64::from(k) * 45.0 + 10.0).to_radians();
+            let el = (f64::from(k % 4) * 25.0 - 20.0).to_radians();
+            let dir = DVec3::new(el.cos() * az.cos(), el.sin(), el.cos() * az.sin());
+            let frame = OrthoFrame::new(DVec3::Y, 1.0, dir).unwrap();
+            let c = choose_stored(&merged, dir, 2.0 / size as f64).unwrap();
+            assert!(c.level >= 1, "{shape} {k}: {c:?}");
+            let truth = altrep_data_gen::render_truth_frame(
+                &object,
+                &frame,
+                size,
+                size,
+                Supersample::of(3),
+                &Light::default(),
+            )
+            .unwrap();
+            let db = |data| {
+                let img = render_object(
+                    data,
+                    (c.axis, c.level),
+                    &frame,
+                    min,
+                    (size, size),
+                    Supersample::ONE,
+                )
+                .unwrap();
+                altrep::metrics::psnr(&img.image, &truth).unwrap()
+            };
+            gains.push(db(&merged) - db(&dropped));
+        }
+        let mean = gains.iter().sum::<f64>() / gains.len() as f64;
+        eprintln!("{shape}: merge − drop {mean:+.2} dB mean, per view {gains:.2?}");
+        assert!(mean >= 3.0, "{shape}: merge − drop {mean:.2} dB");
     }
 }
 

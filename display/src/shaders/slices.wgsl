@@ -1,6 +1,7 @@
-// Slices of an object: the GPU twin of `altrep::slices::render_object` at one sample per pixel
-// (src/slices/object.rs), in f32. Per fragment, the ray through the pixel centre is clipped to the
-// object's box, and the slices of the chosen stack it crosses are composited nearest first, each
+// Slices: the GPU twin of `altrep::slices::render_object` (src/slices/object.rs) and, for a tile
+// over a ground patch, of `altrep::slices::render_slices` (src/slices/render.rs), at one sample
+// per pixel, in f32. Per fragment, the ray through the pixel centre is clipped to the object's box
+// or the patch of tiles, and the slices of the chosen stack it crosses are composited nearest first, each
 // read with trilinear 2D filtering (the two 2D levels and their blend weight are the host's,
 // constant over a draw) and its opacity raised to the path length (src/slices/volume.rs
 // `rescale_thickness`). Conventions: src/slices/mod.rs and docs/design.md §9.4.
@@ -8,12 +9,14 @@
 // Scalars: 0 screen size (pixels), 1..3 frame centre minus the box's lower corner, 4 frame radius,
 // 5..7 screen right, 8..10 screen up, 11..13 direction toward the camera, 14..16 box extent,
 // 17 slice spacing h, 18 opacity ratio 1/|v_axis|, 19 blend weight of the coarser 2D level,
-// 20 largest alpha (volume.rs `MAX_ALPHA`).
+// 20 largest alpha (volume.rs `MAX_ALPHA`), 21..23 extent of the box rays are clipped to (the
+// object's box, or the patch of tiles).
 @group(0) @binding(0) var<storage, read> F: array<f32>;
 // Integers: 0 slice axis, 1 and 2 the plane's u and v axes, 3 slices in the stack, 4 offset of
 // slice 0's texels (the viewer's side), 5 texels per slice (all 2D levels), 6..8 offset in a slice,
 // width and height of the finer 2D level read, 9..11 the same of the coarser, 12 and 13 whether u
-// and v repeat (else they clamp).
+// and v repeat (else they clamp), 14 and 15 whether the patch is unbounded along x and z, 16
+// whether slice indices wrap (a tile's x and z stacks: render.rs `shade_stack`).
 @group(0) @binding(1) var<storage, read> I: array<u32>;
 // Premultiplied linear RGBA texels of every slice of every stored stack and side.
 @group(0) @binding(2) var<storage, read> TX: array<vec4<f32>>;
@@ -57,10 +60,14 @@ fn bilinear(offset: u32, w: u32, h: u32, u: f32, v: f32) -> vec4<f32> {
 
 // The parameter interval of the line o + t·dir inside the box [0, extent] (object.rs `box_span`);
 // `x > y` when it misses.
+// An axis flagged unbounded (I[14] for x, I[15] for z) is not clipped.
 fn box_span(o: vec3<f32>, dir: vec3<f32>, extent: vec3<f32>) -> vec2<f32> {
     var t0 = -3.0e38;
     var t1 = 3.0e38;
     for (var a = 0u; a < 3u; a = a + 1u) {
+        if (a == 0u && I[14] != 0u) || (a == 2u && I[15] != 0u) {
+            continue;
+        }
         if abs(dir[a]) < 1e-15 {
             if o[a] < 0.0 || o[a] > extent[a] {
                 return vec2<f32>(1.0, 0.0);
@@ -88,7 +95,7 @@ fn fs_main(in: VsOut) -> @location(0) vec4<u32> {
     let o = vec3_at(1u) + F[4] * (x * vec3_at(5u) + y * vec3_at(8u));
     let dir = -vec3_at(11u);
     let extent = vec3_at(14u);
-    let span = box_span(o, dir, extent);
+    let span = box_span(o, dir, vec3_at(21u));
     let i = I[0];
     let d_i = dir[i];
     if span.x > span.y || abs(d_i) < 1e-12 {
@@ -100,8 +107,13 @@ fn fs_main(in: VsOut) -> @location(0) vec4<u32> {
     let lo = min(qa, qb);
     let hi = max(qa, qb);
     let count = i32(I[3]);
-    let m_lo = max(i32(ceil(lo / h - 0.5)), 0);
-    let m_hi = min(i32(floor(hi / h - 0.5)), count - 1);
+    let wraps = I[16] != 0u;
+    var m_lo = i32(ceil(lo / h - 0.5));
+    var m_hi = i32(floor(hi / h - 0.5));
+    if !wraps {
+        m_lo = max(m_lo, 0);
+        m_hi = min(m_hi, count - 1);
+    }
     if m_lo > m_hi {
         return colour_bits(vec4<f32>(0.0));
     }
@@ -120,7 +132,7 @@ fn fs_main(in: VsOut) -> @location(0) vec4<u32> {
         let hit = o + t * dir;
         let u = hit[ua] / extent[ua];
         let v = hit[va] / extent[va];
-        let base = I[4] + u32(m) * I[5];
+        let base = I[4] + u32(((m % count) + count) % count) * I[5];
         var sample = bilinear(base + I[6], I[7], I[8], u, v);
         if blend > 0.0 {
             let b = bilinear(base + I[9], I[10], I[11], u, v);

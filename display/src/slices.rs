@@ -67,6 +67,62 @@ impl SlicesDraw {
     }
 }
 
+impl SlicesDraw {
+    /// A tile's slices over the unbounded ground patch, framed as the CPU renderer
+    /// `altrep::slices::render_slices` frames `view` (its twin): `size²` pixels of `pixel_voxels`
+    /// voxels round the tile's centre shifted by `offset` (`x`, `z` world units of the tile), the
+    /// screen basis of the view, the stack chosen at that distance (a tile `N/pixel_voxels`
+    /// pixels across). Errors: an asset that is not a tile, an invalid view, a pixel size that is
+    /// not positive, an offset that is not finite.
+    pub fn over_tile(
+        asset: &SlicesAsset,
+        view: &altrep::slices::StackView,
+        size: usize,
+        pixel_voxels: f64,
+        offset: [f64; 2],
+    ) -> Result<Self, DisplayError> {
+        if !asset.slices.tiled() {
+            return Err(invalid(
+                "asset",
+                "an object's slices",
+                "must be a tile's (`tile = { … }` in the manifest) to draw over a ground patch",
+            ));
+        }
+        view.validate()
+            .map_err(|e| invalid("view", format!("{view:?} ({e})"), "must be valid"))?;
+        if !(pixel_voxels.is_finite() && pixel_voxels > 0.0) {
+            return Err(invalid(
+                "pixel size",
+                pixel_voxels,
+                "must be finite and > 0 voxels",
+            ));
+        }
+        if !offset.iter().all(|o| o.is_finite()) {
+            return Err(invalid("offset", format!("{offset:?}"), "must be finite"));
+        }
+        let d = asset.slices.dims();
+        let s = asset.slices.voxel_size();
+        let (right, up) = view.basis();
+        Ok(Self {
+            frame: OrthoFrame {
+                centre: DVec3::new(
+                    0.5 * d[0] as f64 * s + offset[0],
+                    0.5 * d[1] as f64 * s,
+                    0.5 * d[2] as f64 * s + offset[1],
+                ),
+                radius: 0.5 * size as f64 * pixel_voxels * s,
+                dir: view.vector(),
+                right,
+                up,
+            },
+            size,
+            stack: None,
+            choose_px: d[0] as f64 / pixel_voxels,
+            patch: [0, 0],
+        })
+    }
+}
+
 /// One drawn frame read back from the GPU.
 #[derive(Clone, Debug)]
 pub struct SlicesFrame {

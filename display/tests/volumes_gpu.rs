@@ -184,9 +184,8 @@ mod tiles {
     use altrep::slices::{
         SliceLighting, SliceRenderParams, StackView, TestTile, render_slices, test_tile_lit,
     };
-    use altrep_data_gen::{Light, OrthoFrame, Supersample};
+    use altrep_data_gen::{Light, Supersample};
     use altrep_display::slices::{SlicesDisplay, SlicesDraw};
-    use glam::DVec3;
 
     use crate::common::{check_against_cpu, gpu, written_and_loaded};
 
@@ -223,31 +222,6 @@ mod tiles {
         written_and_loaded::<SlicesRepr>(dir, "lawn", &data)
     }
 
-    /// The frame of the CPU renderer's image: `size²` pixels of `p` voxels round the tile's
-    /// centre shifted by `offset`, looking along `−v` with the view's screen basis.
-    fn frame(
-        a: &SlicesAsset,
-        view: &StackView,
-        size: usize,
-        p: f64,
-        offset: [f64; 2],
-    ) -> OrthoFrame {
-        let d = a.slices.dims();
-        let s = a.slices.voxel_size();
-        let (right, up) = view.basis();
-        OrthoFrame {
-            centre: DVec3::new(
-                0.5 * d[0] as f64 * s + offset[0],
-                0.5 * d[1] as f64 * s,
-                0.5 * d[2] as f64 * s + offset[1],
-            ),
-            radius: 0.5 * size as f64 * p * s,
-            dir: view.vector(),
-            right,
-            up,
-        }
-    }
-
     /// GPU vs CPU over the unbounded patch, one sample per pixel, trilinear 2D reads, the stack
     /// the asset chooses: at 1 and 4 voxels per pixel (all slices and merged levels), from
     /// straight above to 78°, every image at least 40 dB from the CPU's (worst printed; 132.0 dB
@@ -266,13 +240,7 @@ mod tiles {
             for (polar, azimuth) in [(0.0, 0.0), (35.0, 30.0), (60.0, 200.0), (78.0, 115.0)] {
                 let view = StackView::degrees(polar, azimuth);
                 let c = a.choose(view.vector(), n / p).unwrap();
-                let draw = SlicesDraw {
-                    frame: frame(&a, &view, SIZE, p, offset),
-                    size: SIZE,
-                    stack: None,
-                    choose_px: n / p,
-                    patch: [0, 0],
-                };
+                let draw = SlicesDraw::over_tile(&a, &view, SIZE, p, offset).unwrap();
                 let got = disp.render(gpu, &draw).unwrap();
                 assert_eq!(got.stack, (c.axis, c.level));
                 drawn.push(got.stack);
@@ -323,14 +291,11 @@ mod tiles {
         let n = a.slices.dims()[0] as f64;
         let l = n * a.slices.voxel_size();
         // 4 tiles across the screen, centred on the patch's corner region.
-        let f = frame(&a, &view, SIZE, 4.0 * n / SIZE as f64, [0.5 * l, 0.5 * l]);
-        let draw = |patch| SlicesDraw {
-            frame: f,
-            size: SIZE,
-            stack: None,
-            choose_px: SIZE as f64 / 4.0,
-            patch,
-        };
+        let over =
+            SlicesDraw::over_tile(&a, &view, SIZE, 4.0 * n / SIZE as f64, [0.5 * l, 0.5 * l]);
+        let over = over.unwrap();
+        let f = over.frame;
+        let draw = |patch| SlicesDraw { patch, ..over };
         let open = disp.render(gpu, &draw([0, 0])).unwrap();
         let patch = disp.render(gpu, &draw([3, 2])).unwrap();
         let (mut inside, mut outside) = (0, 0);

@@ -14,8 +14,13 @@ use glam::DVec3;
 
 /// The chair voxelised as one object in its box `[−1, 1] × [0, 2] × [−1, 1]`, `n³` voxels.
 fn chair_volume(n: usize) -> altrep::slices::TexelVolume {
+    object_volume("chair", n)
+}
+
+/// data-gen's scene shape `shape` voxelised as one object in its box, `n³` voxels.
+fn object_volume(shape: &str, n: usize) -> altrep::slices::TexelVolume {
     from_shape(
-        &scene_shape("chair").unwrap(),
+        &scene_shape(shape).unwrap(),
         &ShapeParams {
             dims: [n; 3],
             voxel: 2.0 / n as f64,
@@ -252,18 +257,7 @@ fn merging_beats_dropping_on_a_volume_from_a_mesh() {
     let size = 16;
     for shape in ["chair"] {
         let object = scene_shape(shape).unwrap();
-        let volume = from_shape(
-            &object,
-            &ShapeParams {
-                dims: [n; 3],
-                voxel: 2.0 / n as f64,
-                min: [-1.0, 0.0, -1.0],
-                supersample: Supersample::of(2),
-                tiled: false,
-                ..ShapeParams::default()
-            },
-        )
-        .unwrap();
+        let volume = object_volume(shape, n);
         let build = |rule| {
             let params = SliceParams {
                 rule,

@@ -418,9 +418,10 @@ lighting = "baked"
 [asset.slices]
 "#;
 
-    /// The grass tile seen up to 64 px and 80° from its normal measures 39.22 dB mean PSNR
-    /// against the ray-marched tile, the fur tile up to 32 px and 60° 33.58 dB (1 dB of margin
-    /// here), silhouettes 0.981 and 0.959 (0.94 asserted); the folder opens as tiling slices
+    /// The grass tile seen up to 64 px and 80° from its normal measures 40.04 dB mean PSNR
+    /// against the ray-marched tile, the fur tile up to 32 px and 60° 35.57 dB (1 dB of margin
+    /// here; 39.22 and 33.58 dB before the merged slices were fitted to bilinear filtering),
+    /// silhouettes 0.987 and 0.975 (0.94 asserted); the folder opens as tiling slices
     /// (box from the origin) that write the same files again.
     #[test]
     fn tile_slices_measure_against_the_ray_marched_tile() {
@@ -428,7 +429,7 @@ lighting = "baked"
         let m = Manifest::parse(LAWN, std::path::Path::new("scene.toml")).unwrap();
         let run = altrep::pipeline::run_scene(&m, &RunOptions::new(dir.path())).unwrap();
         assert!(run.ok(), "{}", run.table());
-        for (asset, psnr) in [("lawn", 39.22), ("pelt", 33.58)] {
+        for (asset, psnr) in [("lawn", 40.04), ("pelt", 35.57)] {
             let o = run.outcomes.iter().find(|o| o.asset == asset).unwrap();
             assert_eq!(o.outcome, Outcome::Built);
             let m = o.measurement.as_ref().unwrap();

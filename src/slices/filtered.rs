@@ -12,12 +12,15 @@
 //! the small symmetric positive-definite `B = ΦᵀΦ` of each direction (tridiagonal, with corners
 //! when the slice wraps): one Cholesky inverse per direction and stack, then two matrix products
 //! per slice and channel. The fitted values are clamped to a valid premultiplied colour
-//! (`0 ≤ a ≤ 1`, `0 ≤ c ≤ a`).
+//! (`0 ≤ a ≤ 1`, `0 ≤ c ≤ a`). A stack keeps its fitted slices only where they draw it closer to
+//! its layers straight on than the composites do ([`StackChoice`]): each slab is fitted alone,
+//! but a picture composites them.
 //!
-//! Cost per slice of a `w × h` plane and `g` layers: `Q²·w·h·g` bilinear reads of the layers,
+//! Cost per slice of a `w × h` plane and `g` layers: `2·Q²·w·h·g` bilinear reads of the layers,
 //! plus `4·(w²·h + w·h²)` multiply-adds for the products.
 
 use nalgebra::DMatrix;
+use rayon::prelude::*;
 
 use super::merge::{MergeRule, Side, merge_column};
 use super::{SliceError, TexelVolume};
@@ -66,18 +69,23 @@ impl Direction {
             .inverse();
         Ok(Self { taps, inverse })
     }
+
+    /// Fitting positions along this direction.
+    pub(crate) fn taps_len(&self) -> usize {
+        self.taps.len()
+    }
 }
 
-/// The fitted level-0 texels (`w × h × 4`, row-major in `u`) of the slice that merges the
-/// `layers` (voxel indices along `axis`, lowest first) of `volume` under `rule` for `side`.
-pub(crate) fn fit_slice(
+/// The target of the fit: the slab of `layers` (voxel indices along `axis`, lowest first) of
+/// `volume` composited under `rule` for `side` from its bilinearly read layers, at every fitting
+/// position (row-major: `v` positions outer, `u` positions inner). Rows in parallel.
+pub(crate) fn slab_target(
     volume: &TexelVolume,
     axis: super::Axis,
     layers: std::ops::Range<usize>,
     (rule, side): (MergeRule, Side),
     (du, dv): (&Direction, &Direction),
-    composites: Vec<f32>,
-) -> Vec<f32> {
+) -> Vec<[f64; 4]> {
     let (ua, va) = axis.plane_axes();
     let (w, h) = (du.inverse.nrows(), dv.inverse.nrows());
     let g = layers.len();
@@ -94,26 +102,39 @@ pub(crate) fn fit_slice(
             }
         }
     }
-    // The target F at every fitting position, and the right-hand side Φ_uᵀ F Φ_v per channel.
-    let mut rhs = [(); 4].map(|_| DMatrix::<f64>::zeros(w, h));
-    let mut column = vec![[0.0f64; 4]; g];
-    let mut target = Vec::with_capacity(du.taps.len() * dv.taps.len());
-    for tv in &dv.taps {
-        for tu in &du.taps {
-            for (l, value) in column.iter_mut().enumerate() {
-                let mut acc = [0.0f64; 4];
-                for &(v, wv) in tv {
-                    for &(u, wu) in tu {
-                        let texel = planes[(l * h + v) * w + u];
-                        for k in 0..4 {
-                            acc[k] += wu * wv * texel[k];
+    let mut target = vec![[0.0f64; 4]; du.taps.len() * dv.taps.len()];
+    target
+        .par_chunks_mut(du.taps.len())
+        .zip(&dv.taps)
+        .for_each(|(row, tv)| {
+            let mut column = vec![[0.0f64; 4]; g];
+            for (out, tu) in row.iter_mut().zip(&du.taps) {
+                for (l, value) in column.iter_mut().enumerate() {
+                    let mut acc = [0.0f64; 4];
+                    for &(v, wv) in tv {
+                        for &(u, wu) in tu {
+                            let texel = planes[(l * h + v) * w + u];
+                            for k in 0..4 {
+                                acc[k] += wu * wv * texel[k];
+                            }
                         }
                     }
+                    *value = acc;
                 }
-                *value = acc;
+                *out = merge_column(&column, rule, side);
             }
-            let f = merge_column(&column, rule, side);
-            target.push(f);
+        });
+    target
+}
+
+/// The texels (`w × h × 4`, row-major in `u`) whose bilinear reconstruction is closest in least
+/// squares to `target` at the fitting positions, clamped to a valid premultiplied colour.
+pub(crate) fn fit_target(target: &[[f64; 4]], (du, dv): (&Direction, &Direction)) -> Vec<f32> {
+    let (w, h) = (du.inverse.nrows(), dv.inverse.nrows());
+    // The right-hand side Φ_uᵀ F Φ_v per channel.
+    let mut rhs = [(); 4].map(|_| DMatrix::<f64>::zeros(w, h));
+    for (row, tv) in target.chunks_exact(du.taps.len()).zip(&dv.taps) {
+        for (f, tu) in row.iter().zip(&du.taps) {
             for &(v, wv) in tv {
                 for &(u, wu) in tu {
                     for k in 0..4 {
@@ -134,13 +155,18 @@ pub(crate) fn fit_slice(
             out.push(a as f32);
         }
     }
-    // The clamp can undo the fit near sharp opaque edges (a height field's surface): keep the
-    // composites where they are closer to the target over the fitting positions.
-    let error = |texels: &[f32]| {
-        let mut sum = 0.0f64;
-        let mut k = 0;
-        for tv in &dv.taps {
-            for tu in &du.taps {
+    out
+}
+
+/// The bilinear reconstruction of `texels` (`w × h × 4`, row-major in `u`) at every fitting
+/// position, in the order of [`slab_target`]. Rows in parallel.
+pub(crate) fn reconstruct(texels: &[f32], (du, dv): (&Direction, &Direction)) -> Vec<[f64; 4]> {
+    let w = du.inverse.nrows();
+    let mut out = vec![[0.0f64; 4]; du.taps.len() * dv.taps.len()];
+    out.par_chunks_mut(du.taps.len())
+        .zip(&dv.taps)
+        .for_each(|(row, tv)| {
+            for (o, tu) in row.iter_mut().zip(&du.taps) {
                 let mut acc = [0.0f64; 4];
                 for &(v, wv) in tv {
                     for &(u, wu) in tu {
@@ -150,15 +176,141 @@ pub(crate) fn fit_slice(
                         }
                     }
                 }
-                sum += (0..4).map(|c| (acc[c] - target[k][c]).powi(2)).sum::<f64>();
-                k += 1;
+                *o = acc;
             }
+        });
+    out
+}
+
+/// Straight-on composites at the fitting positions, front to back, of a stack's target slabs,
+/// of its fitted slices and of its composites: whether the fit draws the stack closer to its
+/// layers than the composites do (docs/design.md §9.5).
+pub(crate) struct StackChoice {
+    target: Vec<[f64; 4]>,
+    fitted: Vec<[f64; 4]>,
+    composites: Vec<[f64; 4]>,
+    row: usize,
+}
+
+impl StackChoice {
+    /// Nothing composited yet; fitting positions in rows of `row`, `n` in all.
+    pub(crate) fn new(row: usize, n: usize) -> Self {
+        Self {
+            target: vec![[0.0; 4]; n],
+            fitted: vec![[0.0; 4]; n],
+            composites: vec![[0.0; 4]; n],
+            row,
         }
-        sum
-    };
-    if error(&out) <= error(&composites) {
-        out
-    } else {
-        composites
+    }
+
+    /// Adds the next slab behind the ones already added: its target and the reconstructions of
+    /// its fitted slice and of its composites.
+    pub(crate) fn add(
+        &mut self,
+        target: &[[f64; 4]],
+        fitted: &[[f64; 4]],
+        composites: &[[f64; 4]],
+    ) {
+        let under = |acc: &mut [f64; 4], x: [f64; 4]| {
+            let t = 1.0 - acc[3];
+            for k in 0..4 {
+                acc[k] += t * x[k];
+            }
+        };
+        for i in 0..target.len() {
+            under(&mut self.target[i], target[i]);
+            under(&mut self.fitted[i], fitted[i]);
+            under(&mut self.composites[i], composites[i]);
+        }
+    }
+
+    /// Whether the fitted slices' composite is closer to the layers' than the composites', in
+    /// squared error of the means over each texel's `Q × Q` positions (a pixel of one texel, what
+    /// a picture of the stack averages). Ties keep the fit.
+    pub(crate) fn fit_is_better(&self) -> bool {
+        let row = self.row;
+        let (w, h) = (row / Q, self.target.len() / row / Q);
+        let (e_fit, e_comp) = (0..w * h)
+            .into_par_iter()
+            .map(|texel| {
+                let (tu, tv) = (texel % w, texel / w);
+                let mut sums = [[0.0f64; 4]; 3];
+                for fv in tv * Q..(tv + 1) * Q {
+                    for fu in tu * Q..(tu + 1) * Q {
+                        let i = fv * row + fu;
+                        let images = [&self.target, &self.fitted, &self.composites];
+                        for (sum, image) in sums.iter_mut().zip(images) {
+                            for (s, x) in sum.iter_mut().zip(image[i]) {
+                                *s += x;
+                            }
+                        }
+                    }
+                }
+                let d = |s: [f64; 4]| -> f64 { (0..4).map(|k| (s[k] - sums[0][k]).powi(2)).sum() };
+                (d(sums[1]), d(sums[2]))
+            })
+            .reduce(|| (0.0, 0.0), |a, b| (a.0 + b.0, a.1 + b.1));
+        e_fit <= e_comp
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_one_layer_slab_targets_its_own_reconstruction() {
+        let n = 8;
+        let rgba: Vec<[f32; 4]> = (0..n * n * n)
+            .map(|i| {
+                let a = ((i * 37) % 11) as f32 / 10.0;
+                [0.3 * a, 0.5 * a, 0.1 * a, a]
+            })
+            .collect();
+        let vol = TexelVolume::new([n; 3], 1.0 / n as f64, rgba).unwrap();
+        let d = Direction::new(n, WrapMode::Repeat).unwrap();
+        for axis in super::super::Axis::ALL {
+            let (ua, va) = axis.plane_axes();
+            let t = slab_target(&vol, axis, 3..4, (MergeRule::PerSide, Side::Plus), (&d, &d));
+            let mut texels = Vec::new();
+            for v in 0..n {
+                for u in 0..n {
+                    let mut c = [0; 3];
+                    c[ua] = u;
+                    c[va] = v;
+                    c[axis.index()] = 3;
+                    texels.extend(vol.get(c[0], c[1], c[2]));
+                }
+            }
+            let r = reconstruct(&texels, (&d, &d));
+            let worst = t
+                .iter()
+                .zip(&r)
+                .map(|(a, b)| (0..4).map(|k| (a[k] - b[k]).abs()).fold(0.0, f64::max))
+                .fold(0.0, f64::max);
+            assert!(worst < 1e-6, "{axis:?}: {worst}");
+            // Two layers: the upper one's reconstruction over the lower one's.
+            let t2 = slab_target(&vol, axis, 2..4, (MergeRule::PerSide, Side::Plus), (&d, &d));
+            let mut lower = Vec::new();
+            for v in 0..n {
+                for u in 0..n {
+                    let mut c = [0; 3];
+                    c[ua] = u;
+                    c[va] = v;
+                    c[axis.index()] = 2;
+                    lower.extend(vol.get(c[0], c[1], c[2]));
+                }
+            }
+            let r2 = reconstruct(&lower, (&d, &d));
+            let worst = t2
+                .iter()
+                .zip(r.iter().zip(&r2))
+                .map(|(a, (top, low))| {
+                    let o = crate::slices::volume::over(*top, *low);
+                    (0..4).map(|k| (a[k] - o[k]).abs()).fold(0.0, f64::max)
+                })
+                .fold(0.0, f64::max);
+            assert!(worst < 1e-6, "{axis:?} two layers: {worst}");
+        }
     }
 }

@@ -6,7 +6,7 @@ use std::time::Instant;
 
 use rayon::prelude::*;
 
-use super::filtered::{Direction, fit_slice};
+use super::filtered::{Direction, StackChoice, fit_target, reconstruct, slab_target};
 use super::volume::{over, rescale_thickness};
 use super::{Axis, SliceError, TexelVolume};
 use crate::mip::{Pyramid, PyramidParams, Texture, WrapMode};
@@ -335,7 +335,8 @@ fn build_stack_side(
     } else {
         None
     };
-    let built: Vec<Result<(Pyramid, f64), SliceError>> = (0..count)
+    // The composites of every slice, with their worst opacity error, and their fits.
+    let built: Vec<(Vec<f32>, Option<Vec<f32>>, f64)> = (0..count)
         .into_par_iter()
         .map(|j| {
             let mut data = Vec::with_capacity(w * h * 4);
@@ -358,26 +359,60 @@ fn build_stack_side(
                     data.extend(m.iter().map(|x| *x as f32));
                 }
             }
-            if let Some((du, dv)) = &fit {
-                data = fit_slice(
-                    volume,
-                    axis,
-                    j * g..(j + 1) * g,
-                    (rule, side),
-                    (du, dv),
-                    data,
-                );
-            }
-            let pyramid = Pyramid::build(Texture::new(w, h, 4, data)?, params)?;
-            Ok((pyramid, err))
+            let fitted = fit.as_ref().map(|d| {
+                fit_target(
+                    &slab_target(volume, axis, j * g..(j + 1) * g, (rule, side), (&d.0, &d.1)),
+                    (&d.0, &d.1),
+                )
+            });
+            (data, fitted, err)
         })
         .collect();
-    let mut slices = Vec::with_capacity(count);
+    // Keep the fitted slices, or the composites where they draw the stack closer to its layers
+    // straight on from the viewer's side (docs/design.md §9.5).
     let mut worst = 0.0f64;
-    for b in built {
-        let (p, e) = b?;
+    let mut parts = Vec::with_capacity(count);
+    for (data, fitted, e) in built {
         worst = worst.max(e);
-        slices.push(p);
+        parts.push((data, fitted));
+    }
+    let keep_fit = match &fit {
+        Some((du, dv)) => {
+            let mut choice = StackChoice::new(du.taps_len(), du.taps_len() * dv.taps_len());
+            let plus_first = side == Side::Plus && rule != MergeRule::BackOverFront
+                || rule == MergeRule::FrontOverBack;
+            let order: Vec<usize> = if plus_first {
+                (0..count).rev().collect()
+            } else {
+                (0..count).collect()
+            };
+            for j in order {
+                let (data, fitted) = &parts[j];
+                let fitted = fitted
+                    .as_ref()
+                    .expect("every slice is fitted when the stack is");
+                let target = slab_target(volume, axis, j * g..(j + 1) * g, (rule, side), (du, dv));
+                let (rf, rc) = (reconstruct(fitted, (du, dv)), reconstruct(data, (du, dv)));
+                choice.add(&target, &rf, &rc);
+            }
+            choice.fit_is_better()
+        }
+        None => false,
+    };
+    let texels: Vec<Vec<f32>> = parts
+        .into_iter()
+        .map(|(data, fitted)| match fitted {
+            Some(f) if keep_fit => f,
+            _ => data,
+        })
+        .collect();
+    let built: Vec<Result<Pyramid, SliceError>> = texels
+        .into_par_iter()
+        .map(|t| Ok(Pyramid::build(Texture::new(w, h, 4, t)?, params)?))
+        .collect();
+    let mut slices = Vec::with_capacity(count);
+    for b in built {
+        slices.push(b?);
     }
     Ok((slices, worst))
 }

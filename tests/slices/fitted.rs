@@ -45,12 +45,12 @@ fn a_slab_with_one_layer_fits_back_to_that_layer() {
 }
 
 /// Straight on, from above and below, with 4 × 4 sub-samples per voxel (between the texel
-/// centres), merged levels 1–4 against the ray-marched truth: on the tiles of strands and
-/// leaves (grass, fur, tree) the fitted slices beat the composites at every level by at least
-/// 2.5 dB (3.18–8.46 dB measured) and by at least 4.5 dB on the mean (5.10–11.29 dB). The
-/// opaque height field (Perlin) gains nothing on the mean (+0.06 dB measured; level 1 loses
-/// 6.72 dB to the fit's overshoot at its steps, level 4 gains 7.1 dB; docs/design.md §9.5):
-/// asserted at −0.5 dB or better.
+/// centres), merged levels 1–4 against the ray-marched truth: the fitted slices are never
+/// farther from the truth than the composites (a stack whose fit would draw it farther keeps
+/// its composites: the opaque height field at levels 1 and 2), and on the tiles of strands and
+/// leaves (grass, fur, tree) they beat them at every level by at least 2.5 dB (3.18–8.46 dB
+/// measured) and by at least 4.5 dB on the mean (5.10–11.29 dB); the height field by 1.07 dB
+/// on the mean (0.5 asserted).
 #[test]
 fn fitted_merges_are_closer_to_the_truth_between_texel_centres() {
     let rp = SliceRenderParams {
@@ -95,8 +95,9 @@ fn fitted_merges_are_closer_to_the_truth_between_texel_centres() {
         let mean = gains.iter().sum::<f64>() / gains.len() as f64;
         let worst = gains.iter().copied().fold(f64::INFINITY, f64::min);
         eprintln!("{tile:?}: gain mean {mean:.2} dB, worst {worst:.2} dB");
+        assert!(worst >= -1e-9, "{tile:?}: worst gain {worst:.2} dB");
         if tile == TestTile::Perlin {
-            assert!(mean >= -0.5, "{tile:?}: mean gain {mean:.2} dB");
+            assert!(mean >= 0.5, "{tile:?}: mean gain {mean:.2} dB");
         } else {
             assert!(worst >= 2.5, "{tile:?}: worst gain {worst:.2} dB");
             assert!(mean >= 4.5, "{tile:?}: mean gain {mean:.2} dB");

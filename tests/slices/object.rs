@@ -249,7 +249,7 @@ lighting = "baked"
 /// chair in its box at 32³, seen from 8 directions 16 px across the box (every view merges),
 /// the stack the rule and the criterion pick, 1 sample per pixel with trilinear 2D reads;
 /// per-side merges fitted to bilinear filtering against one layer kept per slab, both measured
-/// against the object's ray-cast truth (3 × 3 rays per pixel): mean gain ≥ 3 dB (4.25 dB
+/// against the object's ray-cast truth (3 × 3 rays per pixel): mean gain ≥ 3 dB (3.90 dB
 /// measured). The solid tree loses instead (−1.30 dB; −0.88 dB unfitted): docs/design.md §9.5.
 #[test]
 fn merging_beats_dropping_on_a_volume_from_a_mesh() {

@@ -1,3 +1,42 @@
-//! Shared parts of the example programs (`src/bin/*`): the `--window` viewer.
+//! Shared parts of the example programs (`src/bin/*`): the `--window` viewer, and the
+//! precompute-write-load step every program that precomputes its asset takes.
 
 pub mod window;
+
+use std::path::Path;
+
+use altrep::asset::{AssetWriter, Conventions};
+use altrep::representation::{Needs, Representation, Source};
+
+/// Plans and builds representation `R` of `source` for `needs` with the pipeline's verbs, writes
+/// it with the pipeline's writer under `out/asset/<name>/<R::NAME>` and loads it back through
+/// the library's loader, so that a program draws from the files as any user would. A plan
+/// that refuses the representation is an error naming the reason.
+///
+/// Errors: as text, from the plan, the build, the writer or the loader.
+pub fn precompute<R: Representation>(
+    spec: &R::Spec,
+    needs: &Needs,
+    source: &Source,
+    out: &Path,
+) -> Result<R::Data, String> {
+    let e = |e: &dyn std::fmt::Display| e.to_string();
+    let (plan, decisions) = R::plan(spec, needs, source).map_err(|x| e(&x))?;
+    if let Some(why) = &plan.refused {
+        return Err(format!("{} refused: {why}", R::NAME));
+    }
+    let (data, _) = R::build(spec, needs, &decisions, source).map_err(|x| e(&x))?;
+    let dir = out.join("asset");
+    let mut w = AssetWriter::new(&dir, source.name, R::NAME).map_err(|x| e(&x))?;
+    let meta = R::write(&data, &mut w).map_err(|x| e(&x))?;
+    w.commit(
+        R::NAME,
+        source.name,
+        "example",
+        Conventions::new(1.0, 2.0),
+        meta,
+        serde_json::Value::Null,
+    )
+    .map_err(|x| e(&x))?;
+    altrep_display::load::<R>(&dir.join(source.name).join(R::NAME)).map_err(|x| e(&x))
+}

@@ -18,11 +18,10 @@
 use std::path::PathBuf;
 use std::process::ExitCode;
 
-use altrep::asset::{AssetWriter, Conventions};
 use altrep::parallax::BoundKind;
 use altrep::parallax::Reconstruction;
 use altrep::parallax::asset::{Parallax, ParallaxData, ParallaxSpec};
-use altrep::representation::{Needs, Representation, Source};
+use altrep::representation::{Needs, Source};
 use altrep_data_gen::{
     BoundingCylinder, Light, RgbaImage, Supersample, TruthParams, render_truth, scene_shape,
 };
@@ -80,23 +79,8 @@ fn precompute(args: &Args, kind: BoundKind) -> Result<ParallaxData, String> {
         ..ParallaxSpec::default()
     };
     let needs = Needs::default();
-    let e = |e: &dyn std::fmt::Display| e.to_string();
-    let (_, dec) = Parallax::plan(&spec, &needs, &src).map_err(|x| e(&x))?;
-    let (data, _) = Parallax::build(&spec, &needs, &dec, &src).map_err(|x| e(&x))?;
-    let dir = args.out.join("asset");
-    let mut w = AssetWriter::new(&dir, &args.shape, Parallax::NAME).map_err(|x| e(&x))?;
-    let meta = Parallax::write(&data, &mut w).map_err(|x| e(&x))?;
-    w.commit(
-        Parallax::NAME,
-        &args.shape,
-        "example",
-        Conventions::new(1.0, 2.0),
-        meta,
-        serde_json::Value::Null,
-    )
-    .map_err(|x| e(&x))?;
     // Drawn from the files, through the library's loader, as any user would.
-    load::<Parallax>(&dir.join(&args.shape).join(Parallax::NAME)).map_err(|x| e(&x))
+    altrep_examples::precompute::<Parallax>(&spec, &needs, &src, &args.out)
 }
 
 fn run(args: &Args) -> Result<(), String> {

@@ -22,9 +22,8 @@
 use std::path::PathBuf;
 use std::process::ExitCode;
 
-use altrep::asset::{AssetWriter, Conventions};
 use altrep::metrics::psnr;
-use altrep::representation::{Lighting, Needs, Representation, Source};
+use altrep::representation::{Lighting, Needs, Source};
 use altrep::slices::asset::{SlicesAsset, SlicesRepr, SlicesSpec};
 use altrep::sphere::azimuth_elevation;
 use altrep_data_gen::{Light, RgbaImage, Supersample, render_truth_frame, scene_shape};
@@ -93,22 +92,8 @@ fn precompute(args: &Args) -> Result<SlicesAsset, String> {
         lighting: Lighting::Baked,
         ..Needs::default()
     };
-    let (_, dec) = SlicesRepr::plan(&spec, &needs, &src).map_err(|x| e(&x))?;
-    let (data, _) = SlicesRepr::build(&spec, &needs, &dec, &src).map_err(|x| e(&x))?;
-    let dir = args.out.join("asset");
-    let mut w = AssetWriter::new(&dir, &args.shape, SlicesRepr::NAME).map_err(|x| e(&x))?;
-    let meta = SlicesRepr::write(&data, &mut w).map_err(|x| e(&x))?;
-    w.commit(
-        SlicesRepr::NAME,
-        &args.shape,
-        "example",
-        Conventions::new(1.0, 2.0),
-        meta,
-        serde_json::Value::Null,
-    )
-    .map_err(|x| e(&x))?;
     // Drawn from the files, through the library's loader, as any user would.
-    load::<SlicesRepr>(&dir.join(&args.shape).join(SlicesRepr::NAME)).map_err(|x| e(&x))
+    altrep_examples::precompute::<SlicesRepr>(&spec, &needs, &src, &args.out)
 }
 
 fn run(args: &Args) -> Result<(), String> {

@@ -21,9 +21,8 @@
 use std::path::PathBuf;
 use std::process::ExitCode;
 
-use altrep::asset::{AssetWriter, Conventions};
 use altrep::metrics::psnr;
-use altrep::representation::{Lighting, Needs, Representation, Source};
+use altrep::representation::{Lighting, Needs, Source};
 use altrep::slices::asset::{SlicesAsset, SlicesRepr, SlicesSpec};
 use altrep::slices::{
     SliceLighting, SliceRenderParams, StackView, TestTile, VolumeTruthParams, render_truth,
@@ -102,7 +101,6 @@ fn tile_volume(args: &Args) -> Result<altrep::slices::TexelVolume, String> {
 /// Plans, builds, writes and loads back the slices of `volume` as the pipeline does for a tile
 /// seen from its normal to 85°, from 8 pixels across a tile to one pixel per voxel.
 fn precompute(args: &Args, volume: &altrep::slices::TexelVolume) -> Result<SlicesAsset, String> {
-    let e = |e: &dyn std::fmt::Display| e.to_string();
     let src = Source {
         name: &args.tile,
         geometry: None,
@@ -118,22 +116,8 @@ fn precompute(args: &Args, volume: &altrep::slices::TexelVolume) -> Result<Slice
         lighting: Lighting::Baked,
         ..Needs::default()
     };
-    let (_, dec) = SlicesRepr::plan(&spec, &needs, &src).map_err(|x| e(&x))?;
-    let (data, _) = SlicesRepr::build(&spec, &needs, &dec, &src).map_err(|x| e(&x))?;
-    let dir = args.out.join("asset");
-    let mut w = AssetWriter::new(&dir, &args.tile, SlicesRepr::NAME).map_err(|x| e(&x))?;
-    let meta = SlicesRepr::write(&data, &mut w).map_err(|x| e(&x))?;
-    w.commit(
-        SlicesRepr::NAME,
-        &args.tile,
-        "example",
-        Conventions::new(1.0, 2.0),
-        meta,
-        serde_json::Value::Null,
-    )
-    .map_err(|x| e(&x))?;
     // Drawn from the files, through the library's loader, as any user would.
-    load::<SlicesRepr>(&dir.join(&args.tile).join(SlicesRepr::NAME)).map_err(|x| e(&x))
+    altrep_examples::precompute::<SlicesRepr>(&spec, &needs, &src, &args.out)
 }
 
 fn run(args: &Args) -> Result<(), String> {

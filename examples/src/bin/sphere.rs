@@ -22,9 +22,8 @@
 use std::path::PathBuf;
 use std::process::ExitCode;
 
-use altrep::asset::{AssetWriter, Conventions};
 use altrep::metrics::psnr;
-use altrep::representation::{Needs, Representation, Source};
+use altrep::representation::{Needs, Source};
 use altrep::sphere::asset::{SphereRepr, SphereSpec};
 use altrep::sphere::{
     SphereImages, SphereRenderParams, azimuth_elevation, render_engine_baseline, truth_images,
@@ -100,23 +99,8 @@ fn precompute(args: &Args) -> Result<SphereImages, String> {
         screen_px: [1.0, args.size as f64],
         ..Needs::default()
     };
-    let e = |e: &dyn std::fmt::Display| e.to_string();
-    let (_, dec) = SphereRepr::plan(&spec, &needs, &src).map_err(|x| e(&x))?;
-    let (data, _) = SphereRepr::build(&spec, &needs, &dec, &src).map_err(|x| e(&x))?;
-    let dir = args.out.join("asset");
-    let mut w = AssetWriter::new(&dir, &args.shape, SphereRepr::NAME).map_err(|x| e(&x))?;
-    let meta = SphereRepr::write(&data, &mut w).map_err(|x| e(&x))?;
-    w.commit(
-        SphereRepr::NAME,
-        &args.shape,
-        "example",
-        Conventions::new(1.0, 2.0),
-        meta,
-        serde_json::Value::Null,
-    )
-    .map_err(|x| e(&x))?;
     // Drawn from the files, through the library's loader, as any user would.
-    load::<SphereRepr>(&dir.join(&args.shape).join(SphereRepr::NAME)).map_err(|x| e(&x))
+    altrep_examples::precompute::<SphereRepr>(&spec, &needs, &src, &args.out)
 }
 
 fn run(args: &Args) -> Result<(), String> {

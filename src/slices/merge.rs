@@ -78,9 +78,11 @@ pub struct SliceParams {
     /// clamps to the edge texel (the renderer draws nothing outside the volume's box).
     pub tiled: bool,
     /// Fit the merged slices (levels ≥ 1, every rule but [`MergeRule::Drop`]) to the bilinear
-    /// filter that reads them (docs/design.md §9.5): least squares against
-    /// the slab composited from the bilinearly read layers. Off: the composites at the texel
-    /// centres, exact for nearest reconstruction ([`super::SliceReconstruction::Nearest`]).
+    /// filter that reads them (docs/design.md §9.5): least squares against the slab composited
+    /// from the bilinearly read layers; a stack keeps its composites instead where, straight on
+    /// from the viewer's side, they draw it closer to its layers. Cost: about twice the
+    /// composites' build per fitted stack. Off: the composites at the texel centres, exact for
+    /// nearest reconstruction ([`super::SliceReconstruction::Nearest`]).
     pub fit_bilinear: bool,
 }
 

@@ -1,9 +1,9 @@
 // Slices: the GPU twin of `altrep::slices::render_object` (src/slices/object.rs) and, for a tile
 // over a ground patch, of `altrep::slices::render_slices` (src/slices/render.rs), at one sample
 // per pixel, in f32. Per fragment, the ray through the pixel centre is clipped to the object's box
-// or the patch of tiles, and the slices of the chosen stack it crosses are composited nearest first, each
-// read with trilinear 2D filtering (the two 2D levels and their blend weight are the host's,
-// constant over a draw) and its opacity raised to the path length (src/slices/volume.rs
+// or the patch of tiles, and the slices of the chosen stack it crosses are composited nearest
+// first, each read with trilinear 2D filtering (the two 2D levels and their blend weight are the
+// host's, constant over a draw) and its opacity raised to the path length (src/slices/volume.rs
 // `rescale_thickness`). Conventions: src/slices/mod.rs and docs/design.md §9.4.
 
 // Scalars: 0 screen size (pixels), 1..3 frame centre minus the box's lower corner, 4 frame radius,

@@ -438,7 +438,9 @@ impl Representation for SlicesRepr {
             },
             json!({ "voxelize_s": voxelize_s, "build_s": report.build_seconds,
                     "stacks": report.stacks.iter().map(|(a, l, c)| format!("{}{l}: {c} slices", a.name())).collect::<Vec<_>>(),
-                    "bytes_rgba8": report.bytes, "opacity_error_max": report.opacity_error_max }),
+                    "bytes_rgba8": report.bytes, "opacity_error_max": report.opacity_error_max,
+                    "fitted": report.fitted.iter().map(|(a, l, side)| format!("{}{l}{}", a.name(),
+                        if *side == Side::Minus { "-minus" } else { "" })).collect::<Vec<_>>() }),
         ))
     }
 

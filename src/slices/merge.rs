@@ -294,6 +294,10 @@ pub struct SliceReport {
     /// the fit to bilinear filtering (opacity conservation; 0 up to rounding for every merge
     /// rule, large for `Drop`).
     pub opacity_error_max: f64,
+    /// `(axis, level, side)` of each merged stack side that kept its fit to bilinear filtering
+    /// ([`SliceParams::fit_bilinear`]); the others hold their composites (a stack built for
+    /// both sides by one rule is listed under [`Side::Plus`]).
+    pub fitted: Vec<(Axis, usize, Side)>,
 }
 
 /// The premultiplied value of the slab of `layers` (lowest index first) under `rule` seen from
@@ -322,7 +326,7 @@ fn build_stack_side(
     rule: MergeRule,
     side: Side,
     (tiled, fit): (bool, bool),
-) -> Result<(Vec<Pyramid>, f64), SliceError> {
+) -> Result<(Vec<Pyramid>, f64, bool), SliceError> {
     let dims = volume.dims();
     let (ua, va) = axis.plane_axes();
     let (w, h) = (dims[ua], dims[va]);
@@ -416,7 +420,7 @@ fn build_stack_side(
     for b in built {
         slices.push(b?);
     }
-    Ok((slices, worst))
+    Ok((slices, worst, keep_fit))
 }
 
 /// Cuts `volume` into stacks along the axes asked for, every level merged by `params.rule`.
@@ -439,6 +443,7 @@ pub fn build_slices(
         }
     }
     let mut stacks = Vec::new();
+    let mut fitted = Vec::new();
     let mut opacity_error_max = 0.0f64;
     for axis in Axis::ALL {
         if !params.axes[axis.index()] {
@@ -458,10 +463,16 @@ pub fn build_slices(
             let two_sides = level > 0 && params.rule == MergeRule::PerSide;
             let at = (axis, level);
             let how = (params.tiled, params.fit_bilinear);
-            let (plus, e1) = build_stack_side(volume, at, params.rule, Side::Plus, how)?;
+            let (plus, e1, f1) = build_stack_side(volume, at, params.rule, Side::Plus, how)?;
+            if f1 {
+                fitted.push((axis, level, Side::Plus));
+            }
             let minus = if two_sides {
-                let (m, e2) = build_stack_side(volume, at, params.rule, Side::Minus, how)?;
+                let (m, e2, f2) = build_stack_side(volume, at, params.rule, Side::Minus, how)?;
                 opacity_error_max = opacity_error_max.max(e2);
+                if f2 {
+                    fitted.push((axis, level, Side::Minus));
+                }
                 Some(m)
             } else {
                 None
@@ -491,6 +502,7 @@ pub fn build_slices(
             .map(|s| (s.axis, s.level, s.count()))
             .collect(),
         opacity_error_max,
+        fitted,
     };
     let data = SliceData {
         dims,

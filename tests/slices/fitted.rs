@@ -70,9 +70,18 @@ fn fitted_merges_are_closer_to_the_truth_between_texel_centres() {
                 },
             )
             .unwrap()
-            .0
         };
-        let (fitted, composites) = (build(true), build(false));
+        let ((fitted, report), (composites, none)) = (build(true), build(false));
+        assert!(none.fitted.is_empty());
+        // The report names the stacks that kept their fit: the strands' and leaves' from above at
+        // level 1, not the opaque height field's.
+        let kept = report.fitted.contains(&(Axis::Y, 1, Side::Plus));
+        assert_eq!(
+            kept,
+            tile != TestTile::Perlin,
+            "{tile:?}: {:?}",
+            report.fitted
+        );
         let mut gains = Vec::new();
         for polar in [0.0, 180.0] {
             let view = StackView::degrees(polar, 0.0);

@@ -7,6 +7,7 @@ use std::path::Path;
 
 use altrep::asset::{AssetWriter, Conventions};
 use altrep::representation::{Needs, Representation, Source};
+use altrep_display::Gpu;
 
 /// Plans and builds representation `R` of `source` for `needs` with the pipeline's verbs, writes
 /// it with the pipeline's writer under `out/asset/<name>/<R::NAME>` and loads it back through
@@ -39,4 +40,17 @@ pub fn precompute<R: Representation>(
     )
     .map_err(|x| e(&x))?;
     altrep_display::load::<R>(&dir.join(source.name).join(R::NAME)).map_err(|x| e(&x))
+}
+
+/// The line every program prints after its animation: the median of `ms` (milliseconds per
+/// frame, sorted here) and what the time measures on `gpu` (a CPU adapter emulates the GPU).
+pub fn median_frame_time(gpu: &Gpu, ms: &mut [f64]) -> String {
+    ms.sort_by(f64::total_cmp);
+    let median = ms.get(ms.len() / 2).copied().unwrap_or(f64::NAN);
+    let what = if gpu.info.device_type == altrep_display::wgpu::DeviceType::Cpu {
+        "CPU emulation, not GPU time"
+    } else {
+        "GPU"
+    };
+    format!("median {median:.2} ms per frame incl. read-back ({what})")
 }

@@ -271,18 +271,22 @@ mod tests {
         let d = Direction::new(n, WrapMode::Repeat).unwrap();
         for axis in super::super::Axis::ALL {
             let (ua, va) = axis.plane_axes();
-            let t = slab_target(&vol, axis, 3..4, (MergeRule::PerSide, Side::Plus), (&d, &d));
-            let mut texels = Vec::new();
-            for v in 0..n {
-                for u in 0..n {
-                    let mut c = [0; 3];
-                    c[ua] = u;
-                    c[va] = v;
-                    c[axis.index()] = 3;
-                    texels.extend(vol.get(c[0], c[1], c[2]));
+            // The texels of voxel layer `k` along the axis, as a slice stores them.
+            let layer = |k: usize| -> Vec<f32> {
+                let mut texels = Vec::new();
+                for v in 0..n {
+                    for u in 0..n {
+                        let mut c = [0; 3];
+                        c[ua] = u;
+                        c[va] = v;
+                        c[axis.index()] = k;
+                        texels.extend(vol.get(c[0], c[1], c[2]));
+                    }
                 }
-            }
-            let r = reconstruct(&texels, (&d, &d));
+                texels
+            };
+            let t = slab_target(&vol, axis, 3..4, (MergeRule::PerSide, Side::Plus), (&d, &d));
+            let r = reconstruct(&layer(3), (&d, &d));
             let worst = t
                 .iter()
                 .zip(&r)
@@ -291,17 +295,7 @@ mod tests {
             assert!(worst < 1e-6, "{axis:?}: {worst}");
             // Two layers: the upper one's reconstruction over the lower one's.
             let t2 = slab_target(&vol, axis, 2..4, (MergeRule::PerSide, Side::Plus), (&d, &d));
-            let mut lower = Vec::new();
-            for v in 0..n {
-                for u in 0..n {
-                    let mut c = [0; 3];
-                    c[ua] = u;
-                    c[va] = v;
-                    c[axis.index()] = 2;
-                    lower.extend(vol.get(c[0], c[1], c[2]));
-                }
-            }
-            let r2 = reconstruct(&lower, (&d, &d));
+            let r2 = reconstruct(&layer(2), (&d, &d));
             let worst = t2
                 .iter()
                 .zip(r.iter().zip(&r2))

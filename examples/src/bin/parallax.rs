@@ -180,18 +180,12 @@ fn run(args: &Args) -> Result<(), String> {
         );
         enc.encode_frame(frame).map_err(|e| e.to_string())?;
     }
-    ms.sort_by(f64::total_cmp);
+    let n = ms.len();
     println!(
-        "{} frames of {w}×{h} ({}): median {:.2} ms per frame incl. read-back ({}), {:.2} march steps per fragment (two views)",
-        ms.len(),
+        "{n} frames of {w}×{h} ({}): {}, {:.2} march steps per fragment (two views)",
         kind.name(),
-        ms[ms.len() / 2],
-        if gpu.info.device_type == altrep_display::wgpu::DeviceType::Cpu {
-            "CPU emulation, not GPU time"
-        } else {
-            "GPU"
-        },
-        steps / ms.len() as f64
+        altrep_examples::median_frame_time(&gpu, &mut ms),
+        steps / n as f64
     );
     println!(
         "wrote {} and still-*.png (impostor | ray-cast original)",

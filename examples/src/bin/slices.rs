@@ -231,16 +231,10 @@ fn run(args: &Args) -> Result<(), String> {
         );
         enc.encode_frame(frame).map_err(|x| e(&x))?;
     }
-    ms.sort_by(f64::total_cmp);
     println!(
-        "{} frames of {screen}²: median {:.2} ms per frame incl. read-back ({}), worst PSNR {worst:.2} dB",
+        "{} frames of {screen}²: {}, worst PSNR {worst:.2} dB",
         ms.len(),
-        ms[ms.len() / 2],
-        if gpu.info.device_type == altrep_display::wgpu::DeviceType::Cpu {
-            "CPU emulation, not GPU time"
-        } else {
-            "GPU"
-        },
+        altrep_examples::median_frame_time(&gpu, &mut ms)
     );
     println!(
         "wrote {}, {} and still-*.png (slices | ray-marched tile)",

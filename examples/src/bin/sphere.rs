@@ -194,17 +194,11 @@ fn run(args: &Args) -> Result<(), String> {
         );
         enc.encode_frame(frame).map_err(|e| e.to_string())?;
     }
-    ms.sort_by(f64::total_cmp);
+    let n = ms.len();
     println!(
-        "{} frames of {screen}²: median {:.2} ms per frame incl. read-back ({}), {:.1} texel fetches per ray",
-        ms.len(),
-        ms[ms.len() / 2],
-        if gpu.info.device_type == altrep_display::wgpu::DeviceType::Cpu {
-            "CPU emulation, not GPU time"
-        } else {
-            "GPU"
-        },
-        steps / ms.len() as f64
+        "{n} frames of {screen}²: {}, {:.1} texel fetches per ray",
+        altrep_examples::median_frame_time(&gpu, &mut ms),
+        steps / n as f64
     );
     println!(
         "wrote {} and still-*.png (exact warp | engine blend | ray-cast original)",

@@ -4,7 +4,8 @@
 //! builder against `fast_image_resize`. That crate's resizer is generic over every pixel type
 //! and filter, and whoever calls it compiles its SIMD kernels again (about a third of the
 //! library's generated code when it lived there). Behind the plain functions of this crate they
-//! are compiled once, beside the library, and not again in each of its test builds.
+//! are compiled once, beside the library, and not again in each of its test builds. Its tests
+//! live with the caller (`altrep::pyramid::speed`): this crate has no test build of its own.
 
 #![warn(missing_docs)]
 
@@ -81,25 +82,4 @@ pub fn fir_mip_chain(src: &[u8], n: usize, filter: ChainFilter) -> Result<Vec<Ve
             Ok(dst8.into_vec())
         })
         .collect()
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn a_chain_has_every_level_and_keeps_a_flat_image_flat() {
-        let n = 32;
-        let src: Vec<u8> = [200u8, 100, 50, 255].repeat(n * n);
-        let chain = fir_mip_chain(&src, n, ChainFilter::Box).unwrap();
-        assert_eq!(chain.len(), 5);
-        for (level, (w, h)) in chain.iter().zip(level_sizes(n)) {
-            assert_eq!(level.len(), w * h * 4);
-            for t in level.chunks_exact(4) {
-                for (c, want) in t.iter().zip([200u8, 100, 50, 255]) {
-                    assert!(c.abs_diff(want) <= 1, "{t:?}");
-                }
-            }
-        }
-    }
 }

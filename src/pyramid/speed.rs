@@ -297,4 +297,22 @@ mod tests {
         assert_eq!(chain.len(), 5);
         assert_eq!(chain[0].len(), 16 * 16 * 4);
     }
+
+    /// `fast_image_resize`'s chain keeps a flat image flat at every level (within one sRGB8
+    /// step): the comparison library is driven as documented.
+    #[test]
+    fn fir_chain_keeps_a_flat_image_flat() {
+        let n = 32;
+        let src: Vec<u8> = [200u8, 100, 50, 255].repeat(n * n);
+        let chain = fir_chain(&src, n, Filter::Box).unwrap();
+        assert_eq!(chain.len(), 5);
+        for (level, (w, h)) in chain.iter().zip(altrep_compare::level_sizes(n)) {
+            assert_eq!(level.len(), w * h * 4);
+            for t in level.chunks_exact(4) {
+                for (c, want) in t.iter().zip([200u8, 100, 50, 255]) {
+                    assert!(c.abs_diff(want) <= 1, "{t:?}");
+                }
+            }
+        }
+    }
 }

@@ -15,7 +15,7 @@
 //!
 //! ```text
 //! cargo run -p altrep-examples --bin cylinder -- --shape pear --out target/examples/cylinder
-//! cargo run -p altrep-examples --bin cylinder -- --shape pear --window
+//! cargo run -p altrep-examples --features window --bin cylinder -- --shape pear --window
 //! ```
 
 use std::path::PathBuf;

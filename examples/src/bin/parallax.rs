@@ -11,7 +11,7 @@
 //! cargo run -p altrep-examples --bin parallax -- --shape truck --out target/examples/parallax
 //! ```
 //!
-//! `--window` opens a winit window instead (drag: azimuth, wheel: zoom; images with parallax are
+//! `--window` (built with `--features window`) opens a winit window instead (drag: azimuth, wheel: zoom; images with parallax are
 //! captured from horizontal views, so there is no elevation); without a display it fails with
 //! "no display: set DISPLAY or WAYLAND_DISPLAY".
 

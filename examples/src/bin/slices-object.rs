@@ -16,7 +16,7 @@
 //! cargo run -p altrep-examples --bin slices-object -- --shape tree --out target/examples/slices-object
 //! ```
 //!
-//! `--window` opens a winit window instead (drag: azimuth and elevation, wheel: zoom); without a
+//! `--window` (built with `--features window`) opens a winit window instead (drag: azimuth and elevation, wheel: zoom); without a
 //! display it fails with "no display: set DISPLAY or WAYLAND_DISPLAY".
 
 use std::path::PathBuf;

@@ -1,5 +1,5 @@
 //! Cylindrical textures: run time against error (docs/design.md §13).
-//! `cargo bench --bench cylinder`.
+//! `cargo bench -p altrep-benches --bench cylinder`.
 //!
 //! * `cylinder_render/<method>` — one 64 × 64 image of the pear, one sample per pixel (as a
 //!   shader draws it), per renderer; each renderer's PSNR against the ground truth and mean steps

@@ -1,6 +1,6 @@
 //! Time per 3×3 symmetric eigen-decomposition: altrep's hybrid solver against nalgebra's
 //! `SymmetricEigen`, in f64 and f32, over 1024 random symmetric matrices and over the adversarial
-//! suite. `cargo bench --bench eigen`; criterion reports time per matrix (throughput = 1 element).
+//! suite. `cargo bench -p altrep-benches --bench eigen`; criterion reports time per matrix (throughput = 1 element).
 
 use std::hint::black_box;
 

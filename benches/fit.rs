@@ -3,7 +3,7 @@
 //! million defined). Groups: assembly (normal equations, design matrix), one solve per solver
 //! configuration, and the CSR product (sprs serial vs altrep parallel).
 //!
-//! Run: `cargo bench --bench fit` (add `-- --quick` for a short run).
+//! Run: `cargo bench -p altrep-benches --bench fit` (add `-- --quick` for a short run).
 
 use std::hint::black_box;
 use std::time::Duration;

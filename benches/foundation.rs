@@ -1,6 +1,6 @@
 //! Foundation benchmarks: ray-casting throughput of captures (procedural and mesh), the
 //! coverage check's silhouettes against full truths, and the mip pyramid's build and trilinear
-//! sampling. `cargo bench --bench foundation`.
+//! sampling. `cargo bench -p altrep-benches --bench foundation`.
 
 use altrep::cylinder::CoverageParams;
 use altrep::mip::{Pyramid, PyramidParams, Texture, WrapMode};

@@ -5,7 +5,7 @@
 //! The shipped meshes are read from `../shared/data/meshes` (or `$ALTREP_MESHES`); without them
 //! the bounds group prints that it is skipped and times nothing.
 //!
-//! Run: `cargo bench --bench precompute_speed` (add `-- --quick` for a short run).
+//! Run: `cargo bench -p altrep-benches --bench precompute_speed` (add `-- --quick` for a short run).
 
 use std::hint::black_box;
 use std::time::Duration;

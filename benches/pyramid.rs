@@ -1,6 +1,6 @@
 //! RGBA8 sRGB mip-chain builds (linear light, straight alpha premultiplied for filtering, every
 //! level from level 0), box and Kaiser: ours against `image` and `fast_image_resize` configured
-//! alike ([`altrep::pyramid::speed`]). `cargo bench --bench pyramid`; the 4096² figures with the
+//! alike ([`altrep::pyramid::speed`]). `cargo bench -p altrep-benches --bench pyramid`; the 4096² figures with the
 //! exactness check come from `altrep pyramid-bench`.
 
 use altrep::pyramid::Filter;

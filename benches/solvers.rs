@@ -18,7 +18,7 @@
 //!   multiply-add rate used for the lower bound (bench/RESULTS.md: multiply-adds of the solve
 //!   ÷ this rate).
 //!
-//! Run: `cargo bench --bench solvers` (add `-- --quick` for a short run).
+//! Run: `cargo bench -p altrep-benches --bench solvers` (add `-- --quick` for a short run).
 
 use std::hint::black_box;
 use std::time::Duration;

@@ -1,6 +1,6 @@
 //! # altrep-compare: the libraries altrep is measured against
 //!
-//! `altrep pyramid-bench` and `cargo bench --bench pyramid` time altrep's RGBA8 sRGB mip-chain
+//! `altrep pyramid-bench` and `cargo bench -p altrep-benches --bench pyramid` time altrep's RGBA8 sRGB mip-chain
 //! builder against `fast_image_resize`. That crate's resizer is generic over every pixel type
 //! and filter, and whoever calls it compiles its SIMD kernels again (about a third of the
 //! library's generated code when it lived there). Behind the plain functions of this crate they

@@ -31,10 +31,10 @@
 //! its triangles over grids with at least ¾ as many rays as triangles and runs the BVH walk's own
 //! triangle test on each ray's few candidates (exactly the nearest hit over all triangles; see
 //! the `binned` module), and walks its BVH per ray on smaller grids. Criterion
-//! (`cargo bench --bench foundation -- ray_casting`) times both on the shipped meshes. The
+//! (`cargo bench -p altrep-benches --bench foundation -- ray_casting`) times both on the shipped meshes. The
 //! cylindrical captures cast grids of radial rays ([`RadialRays`]) through
 //! [`Shape::radial_tracer`], which a [`Mesh`] bins by height and angle in the same way (the
-//! `radial` module; `cargo bench --bench foundation -- cylinder_rays`).
+//! `radial` module; `cargo bench -p altrep-benches --bench foundation -- cylinder_rays`).
 
 mod albedo;
 mod analytic;

@@ -55,7 +55,7 @@ pub trait LinearOperator: Sync {
 /// rows, 45 344 non-zeros) a rayon split and join costs more than the product itself: we
 /// measured 77 µs per PCG iteration split against about 30 µs for a serial loop. The split pays
 /// once each thread gets a few hundred µs of work, hence 2^18 entries (about 0.1–0.2 ms serially
-/// on the project's machine). `cargo bench --bench solvers` (group `csr_product_split`: serial
+/// on the project's machine). `cargo bench -p altrep-benches --bench solvers` (group `csr_product_split`: serial
 /// and split products on 27-point stencils of 97 k to 1.2 M entries) chose it: on 2 cores the
 /// split lost at 97 k entries (230 vs 154 µs), tied at 262 k (496 vs 487 µs) and won at 551 k
 /// (0.63 vs 1.30 ms), measured under a load average of 4–7 (bench/RESULTS.md).

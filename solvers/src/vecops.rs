@@ -17,7 +17,7 @@ pub const PAR_CHUNK: usize = 1 << 15;
 /// Vectors at least this long are processed in parallel (under [`crate::Parallelism::Auto`]):
 /// below it the rayon split (a few µs) costs more than the work it shares. The fit's normal
 /// equations (a few thousand unknowns) stay far below it; LSQR's sample-space vectors (about a
-/// million entries) far above. `cargo bench --bench solvers`, group `vecops_split`.
+/// million entries) far above. `cargo bench -p altrep-benches --bench solvers`, group `vecops_split`.
 pub const PAR_MIN_LEN: usize = 2 * PAR_CHUNK;
 
 /// `xᵀy`. Cost: `2n` flops.

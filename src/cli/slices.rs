@@ -62,6 +62,14 @@ pub struct SlicesArgs {
     /// Print every row of the sweep (default: the rows at the first distance).
     #[arg(long)]
     pub all_rows: bool,
+    /// Skip the direction table (the direction chosen by measured error, docs/design.md §9.6):
+    /// it costs one truth march per node and a render per stack there, about twice the sweep.
+    #[arg(long)]
+    pub no_direction_table: bool,
+    /// Azimuth step of the direction table's nodes (degrees); the sweep's views lie half a step
+    /// from them, at the centre of their cells.
+    #[arg(long, default_value_t = 30.0)]
+    pub table_azimuth_step: f64,
     /// Write images to this folder: per tile, slices (criterion's choice, default rule) beside
     /// the truth at 0°, 60° and 85°, and the tile over a cylinder (all shells, 8 shells, truth).
     #[arg(long)]
@@ -219,6 +227,35 @@ fn print_report(r: &MeasureReport, all_rows: bool) {
             t.volume_seconds
         );
     }
+    if r.tiles.iter().any(|t| t.table_shortfall_max_db.is_some()) {
+        println!(
+            "\nDirection chosen by the measured table (nodes between the sweep's views), against the direction rule:\n"
+        );
+        println!(
+            "| tile | rule below best: worst / mean | table below best: worst / mean | slices drawn/tile, rule → table | table s |"
+        );
+        println!("|---|---|---|---|---|");
+        for t in &r.tiles {
+            if let (Some(w), Some(m), Some(n), Some(sec)) = (
+                t.table_shortfall_max_db,
+                t.table_shortfall_mean_db,
+                t.table_slices_drawn_mean,
+                t.table_seconds,
+            ) {
+                println!(
+                    "| {} | {:.2} / {:.2} | {:.2} / {:.2} | {:.1} → {:.1} | {:.1} |",
+                    t.tile.name(),
+                    t.direction_shortfall_max_db,
+                    t.direction_shortfall_mean_db,
+                    w,
+                    m,
+                    t.slices_drawn_mean,
+                    n,
+                    sec
+                );
+            }
+        }
+    }
     println!("\nmeasured in {:.1} s", r.seconds);
 }
 
@@ -372,6 +409,8 @@ pub fn run(args: SlicesArgs) -> CliResult {
             FilterArg::Nearest => SliceReconstruction::Nearest,
         },
         seed: args.seed,
+        direction_table: !args.no_direction_table,
+        table_azimuth_step_deg: args.table_azimuth_step,
         ..SliceMeasureParams::default()
     };
     let report = measure(&params)?;

@@ -370,6 +370,7 @@ pub fn slices(quick: bool) -> Result<RepresentationReport, ReportError> {
             pixel_voxels: vec![1.0],
             both_sides: false,
             truth_steps: 4,
+            direction_table: false,
             ..SliceMeasureParams::default()
         }
     } else {
@@ -377,6 +378,7 @@ pub fn slices(quick: bool) -> Result<RepresentationReport, ReportError> {
             tiles: vec![TestTile::Grass, TestTile::Perlin, TestTile::Tree],
             angles_deg: vec![0.0, 20.0, 40.0, 60.0, 70.0, 80.0],
             pixel_voxels: vec![1.0],
+            direction_table: false,
             ..SliceMeasureParams::default()
         }
     };

@@ -24,6 +24,7 @@ use serde::{Deserialize, Serialize};
 use serde_json::json;
 
 use super::build::{ShapeParams, SliceLighting, from_shape};
+use super::direction::{DirectionGrid, DirectionTable};
 use super::merge::{MergeRule, Side, SliceData, SliceParams, StoredStack, build_slices};
 use super::object::{choose_stored, render_object};
 use super::render::{SliceRenderParams, StackView, render_slices};
@@ -64,6 +65,17 @@ pub struct SlicesSpec {
     /// straight on against the ray-marched tile), off for an object (the tree and the chair
     /// lose 1.67 and 1.47 dB against their ray-cast truth when fitted).
     pub fit_bilinear: Option<bool>,
+    /// Choose the direction drawn per view by measured error (docs/design.md §9.6), not by the
+    /// direction rule alone: the build measures a [`DirectionTable`] over the needed views (polar
+    /// nodes at most 10° apart from the normal to `grazing_deg`, azimuths at most 30° apart, three
+    /// screen sizes), one truth march per node and one render per built stack there, and a
+    /// display draws, among the built axes, the stack it predicts closest to the truth. The
+    /// planner then builds every axis at the levels its own criterion asks for the needed views,
+    /// not only the axis the rule picks. A tile only (the table is measured against the
+    /// ray-marched tile). Default `false`: it costs one truth march per node and one render
+    /// per stack there (the 32³ fur tile at 8 px, 81 nodes: 2.0 s beside 0.5 s for the slices;
+    /// more at larger screen sizes).
+    pub direction_table: bool,
 }
 
 impl Default for SlicesSpec {
@@ -74,6 +86,7 @@ impl Default for SlicesSpec {
             supersample: Supersample::of(2),
             depth_px: 1.0,
             fit_bilinear: None,
+            direction_table: false,
         }
     }
 }
@@ -131,6 +144,9 @@ pub struct SlicesDecisions {
     /// screen size of one tile for a tile.
     #[serde(default)]
     pub measure_px: usize,
+    /// Nodes of the direction table to measure ([`SlicesSpec::direction_table`]), if asked.
+    #[serde(default)]
+    pub direction_grid: Option<DirectionGrid>,
 }
 
 /// Slices as loaded from an asset folder: the stacks and the criterion's visible depth.
@@ -143,17 +159,38 @@ pub struct SlicesAsset {
     /// The merged slices were fitted to bilinear filtering ([`SlicesSpec::fit_bilinear`]);
     /// recorded, not needed to draw them.
     pub fitted: bool,
+    /// The measured direction table ([`SlicesSpec::direction_table`]), if built: then
+    /// [`Self::choose`] draws the direction it predicts closest to the truth.
+    pub direction: Option<DirectionTable>,
 }
 
 impl SlicesAsset {
     /// The stack a display draws for `view` (unit, toward the camera) at screen size `size_px`
     /// (pixels across the box's width): the criterion's depth is `depth_px` pixels of that size.
+    /// The direction is the table's ([`DirectionTable::choose`]) when the asset has one and the
+    /// view is at least 1° from the surface plane, else the direction rule's
+    /// ([`choose_stored`]); the level is the criterion's for that direction.
     pub fn choose(
         &self,
         view: DVec3,
         size_px: f64,
     ) -> Result<super::ViewChoice, super::SliceError> {
-        let width = self.slices.dims()[0] as f64 * self.slices.voxel_size();
+        let n = self.slices.dims()[0] as f64;
+        let width = n * self.slices.voxel_size();
+        if let Some(table) = &self.direction
+            && view.is_finite()
+            && view.length_squared() > 1e-24
+        {
+            let v = view.normalize();
+            let sv = StackView {
+                polar: v.y.clamp(-1.0, 1.0).acos(),
+                azimuth: v.z.atan2(v.x),
+            };
+            let p = n / size_px;
+            if sv.validate().is_ok() && p.is_finite() && (1e-3..=64.0).contains(&p) {
+                return table.choose(&self.slices, &sv, p, [true; 3]);
+            }
+        }
         choose_stored(&self.slices, view, self.depth_px * width / size_px)
     }
 }
@@ -217,6 +254,63 @@ fn needed_sizes(needs: &Needs) -> Vec<f64> {
     (0..=8)
         .map(|k| p0 * (p1 / p0).powf(f64::from(k) / 8.0))
         .collect()
+}
+
+/// The nodes of a tile's direction table ([`SlicesSpec::direction_table`]): polar angles from
+/// the normal to `grazing_deg` (at most 88°), at most 10° apart; the needed azimuths at most 30°
+/// apart (12 round a full circle); the pixel sizes (voxels per pixel, `n` voxels across a tile)
+/// of the smallest, middle and largest needed screen sizes.
+fn tile_grid(needs: &Needs, n: usize) -> DirectionGrid {
+    let spread = |a: f64, b: f64, step: f64| -> Vec<f64> {
+        let k = ((b - a) / step).ceil().max(0.0) as usize;
+        if k == 0 {
+            return vec![a];
+        }
+        (0..=k).map(|i| a + (b - a) * i as f64 / k as f64).collect()
+    };
+    let polar_deg = spread(0.0, needs.grazing_deg.clamp(0.0, 88.0), 10.0);
+    let azimuth_deg = if needs.all_azimuths() {
+        (0..12).map(|k| f64::from(k) * 30.0).collect()
+    } else {
+        let [a0, a1] = needs.azimuth_deg;
+        let mut a = spread(a0, a1.min(a0 + 359.0), 30.0);
+        a.dedup();
+        a
+    };
+    let [s0, s1] = needs.screen_px;
+    let mut pixel_voxels: Vec<f64> = [s1, (s0 * s1).sqrt(), s0]
+        .iter()
+        .map(|s| (n as f64 / s).clamp(1e-3, 64.0))
+        .collect();
+    pixel_voxels.dedup_by(|a, b| (*a - *b).abs() <= 1e-9 * b.abs());
+    DirectionGrid {
+        polar_deg,
+        azimuth_deg,
+        pixel_voxels,
+    }
+}
+
+/// How a tile is drawn and its truth rendered at `p` voxels per pixel (`n` voxels across a
+/// tile), for the direction table and [`measure_tile`] alike: the slices at one sample per pixel
+/// with trilinear 2D reads, as a display draws them, in a window of 1.5 tiles (8 to 384 pixels),
+/// the truth with `⌈2p⌉²` rays per pixel (at most 8 × 8).
+fn tile_render(n: usize, p: f64) -> (SliceRenderParams, SliceRenderParams) {
+    let px = n as f64 / p;
+    let side = ((1.5 * px).ceil() as usize).clamp(8, 384);
+    let k = ((2.0 * p).ceil() as usize).clamp(1, 8);
+    let draw = SliceRenderParams {
+        width: side,
+        height: side,
+        pixel_voxels: p,
+        supersample: Supersample::ONE,
+        mip_2d: true,
+        ..SliceRenderParams::default()
+    };
+    let fine = SliceRenderParams {
+        supersample: Supersample::of(k),
+        ..draw.clone()
+    };
+    (draw, fine)
 }
 
 impl Representation for SlicesRepr {
@@ -295,7 +389,27 @@ impl Representation for SlicesRepr {
             } else {
                 resolution
             },
+            direction_grid: None,
         };
+        if spec.direction_table {
+            if !tiled {
+                return Err(PipelineError::WrongSource {
+                    asset: source.name.into(),
+                    needed: "a tile (`tile = { kind, size, seed }`) for `direction_table = true`: \
+                             the table is measured against the ray-marched tile",
+                });
+            }
+            let grid = tile_grid(needs, resolution);
+            plan.build(format!(
+                "direction table: {} polar angles × {} azimuths × {} screen sizes = {} nodes, \
+                 one truth march and one render per built stack each (docs/design.md §9.6)",
+                grid.polar_deg.len(),
+                grid.azimuth_deg.len(),
+                grid.pixel_voxels.len(),
+                grid.polar_deg.len() * grid.azimuth_deg.len() * grid.pixel_voxels.len()
+            ));
+            decisions.direction_grid = Some(grid);
+        }
         if needs.lighting == Lighting::Dynamic {
             plan.refuse(
                 "slices store colour with the light baked in (no normals), and the needs ask for \
@@ -318,16 +432,24 @@ impl Representation for SlicesRepr {
         }
         let s = voxel;
         let mut range: [Option<(usize, usize)>; 3] = [None; 3];
+        // The rule's axis for each view; with a direction table, every axis (the table chooses
+        // among the built ones by measured error), each at the levels its criterion asks.
         for v in views {
-            let axis = choose_direction(v, [s; 3], [true; 3])?;
-            let i = axis.index();
-            let n = (lengths[i] / s).round() as usize;
-            for px in needed_sizes(needs) {
-                let depth = spec.depth_px * across / px;
-                let needed = slices_needed(lengths[i], v[i].abs().min(1.0).acos(), depth)?;
-                let level = level_for_slices(axis, n, needed, false)?;
-                range[i] =
-                    Some(range[i].map_or((level, level), |(a, b)| (a.min(level), b.max(level))));
+            let rule = choose_direction(v, [s; 3], [true; 3])?;
+            for axis in Axis::ALL {
+                if axis != rule && !spec.direction_table {
+                    continue;
+                }
+                let i = axis.index();
+                let n = (lengths[i] / s).round() as usize;
+                for px in needed_sizes(needs) {
+                    let depth = spec.depth_px * across / px;
+                    let needed = slices_needed(lengths[i], v[i].abs().min(1.0).acos(), depth)?;
+                    let level = level_for_slices(axis, n, needed, false)?;
+                    range[i] = Some(
+                        range[i].map_or((level, level), |(a, b)| (a.min(level), b.max(level))),
+                    );
+                }
             }
         }
         let lo = range.iter().flatten().map(|r| r.0).min().unwrap_or(0);
@@ -430,15 +552,41 @@ impl Representation for SlicesRepr {
             },
         )?;
         cutting.stop();
+        let t1 = Instant::now();
+        let direction = match (&decisions.direction_grid, source.tile) {
+            (Some(grid), Some(tile)) => {
+                let measuring = crate::profile::timer("direction table");
+                let table = DirectionTable::measure(
+                    tile,
+                    &slices,
+                    grid,
+                    spec.depth_px,
+                    &|p| tile_render(tile.dims()[0], p),
+                    &VolumeTruthParams::default(),
+                )?;
+                measuring.stop();
+                Some(table)
+            }
+            (Some(_), None) => {
+                return Err(PipelineError::WrongSource {
+                    asset: source.name.into(),
+                    needed: "the volume tile the direction table is measured against",
+                });
+            }
+            (None, _) => None,
+        };
+        let direction_s = secs(t1);
         Ok((
             SlicesAsset {
                 slices,
                 depth_px: spec.depth_px,
                 fitted,
+                direction,
             },
             json!({ "voxelize_s": voxelize_s, "build_s": report.build_seconds,
                     "stacks": report.stacks.iter().map(|(a, l, c)| format!("{}{l}: {c} slices", a.name())).collect::<Vec<_>>(),
                     "bytes_rgba8": report.bytes, "opacity_error_max": report.opacity_error_max,
+                    "direction_table_s": decisions.direction_grid.as_ref().map(|_| direction_s),
                     "fitted": report.fitted.iter().map(|(a, l, side)| format!("{}{l}{}", a.name(),
                         if *side == Side::Minus { "-minus" } else { "" })).collect::<Vec<_>>() }),
         ))
@@ -488,7 +636,8 @@ impl Representation for SlicesRepr {
             json!({ "dims": data.dims(), "voxel": data.voxel_size(), "box_min": box_min,
                    "tiled": data.tiled(), "rule": data.rule().name(),
                    "merged_fit": if asset.fitted { "bilinear" } else { "none" },
-                   "depth_px": asset.depth_px, "stacks": stacks }),
+                   "depth_px": asset.depth_px, "stacks": stacks,
+                   "direction_table": asset.direction }),
         )
     }
 
@@ -576,10 +725,31 @@ impl Representation for SlicesRepr {
         }
         let slices = SliceData::from_stored(dims, voxel, rule, tiled, stored)
             .map_err(|e| r.content(format!("metadata.stacks: {e}")))?;
+        let direction = match &m["direction_table"] {
+            serde_json::Value::Null => None,
+            t => {
+                let table: DirectionTable =
+                    serde_json::from_value(t.clone()).map_err(|_| field("direction_table"))?;
+                table
+                    .check()
+                    .map_err(|e| r.content(format!("metadata.direction_table: {e}")))?;
+                if table.dims() != dims || !tiled {
+                    return Err(r
+                        .content(format!(
+                            "metadata.direction_table: measured on {:?} voxels{}, the slices are {dims:?}",
+                            table.dims(),
+                            if tiled { "" } else { " of a tile" }
+                        ))
+                        .into());
+                }
+                Some(table)
+            }
+        };
         Ok(SlicesAsset {
             slices,
             depth_px,
             fitted,
+            direction,
         })
     }
 
@@ -686,26 +856,14 @@ fn measure_tile(
     let data = &asset.slices;
     let px = size.max(1) as f64;
     let p = data.dims()[0] as f64 / px;
-    let side = ((1.5 * px).ceil() as usize).clamp(8, 384);
-    let k = ((2.0 * p).ceil() as usize).clamp(1, 8);
-    let draw = SliceRenderParams {
-        width: side,
-        height: side,
-        pixel_voxels: p,
-        supersample: Supersample::ONE,
-        mip_2d: true,
-        ..SliceRenderParams::default()
-    };
-    let fine = SliceRenderParams {
-        supersample: Supersample::of(k),
-        ..draw.clone()
-    };
+    let (draw, fine) = tile_render(data.dims()[0], p);
+    let (side, k) = (draw.width, fine.supersample.get());
     let (mut scores, mut images, mut drawn) = (Vec::new(), Vec::new(), Vec::new());
     let azimuths = measure_angles(needs, 4);
     for (i, a) in azimuths.iter().enumerate() {
         let polar = needs.grazing_deg * (i as f64 + 0.5) / azimuths.len() as f64;
         let view = StackView::degrees(polar, a.to_degrees());
-        let c = choose_stored(data, view.vector(), asset.depth_px * p * data.voxel_size())?;
+        let c = asset.choose(view.vector(), px)?;
         let img = render_slices(data, c.axis, c.level, &view, &draw)?;
         let truth = render_truth(volume, &view, &fine, &VolumeTruthParams::default())?;
         if truth.pixels.iter().all(|q| q[3] <= 0.0) {
@@ -732,11 +890,16 @@ fn measure_tile(
         image: RgbaImage::side_by_side(&refs),
     };
     let method = format!(
-        "slices of a {}³ tile ({}), the stack the direction rule and the criterion (d = {} px) pick per view ({}), \
+        "slices of a {}³ tile ({}), the stack the {} and the criterion (d = {} px) pick per view ({}), \
          trilinear 2D filtering, 1 sample per pixel, one tile {size} px across in a {side}² window, vs the \
          ray-marched tile with {k}×{k} rays per pixel",
         data.dims()[0],
         data.rule().name(),
+        if asset.direction.is_some() {
+            "measured direction table"
+        } else {
+            "direction rule"
+        },
         asset.depth_px,
         drawn.join(", ")
     );

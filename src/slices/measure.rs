@@ -15,6 +15,7 @@ use altrep_data_gen::Supersample;
 
 use super::build::{TestTile, test_tile};
 use super::curved::{CurvedParams, render_curved_slices, render_curved_truth};
+use super::direction::{DirectionGrid, DirectionTable};
 use super::merge::{MergeRule, SliceData, SliceParams, build_slices};
 use super::render::{SliceRenderParams, StackView, render_slices};
 use super::stack::{Axis, ViewChoice, choose};
@@ -53,12 +54,20 @@ pub struct SliceMeasureParams {
     pub filter: SliceReconstruction,
     /// Seed of the tiles.
     pub seed: u64,
+    /// Also choose the direction by a measured [`DirectionTable`] and measure that choice. Its
+    /// nodes lie between the sweep's views, so every choice is interpolated: polar angles at 0°,
+    /// the midpoints of the sweep's angles and 88° on each side, azimuths half of
+    /// [`Self::table_azimuth_step_deg`] either side of the sweep's (the cell's centre, the
+    /// farthest from its nodes), the sweep's pixel sizes.
+    pub direction_table: bool,
+    /// Azimuth step of the direction table's nodes (degrees, in `(0, 180]`).
+    pub table_azimuth_step_deg: f64,
 }
 
 impl Default for SliceMeasureParams {
     /// 32³ tiles, all four; angles 0–80° by 10° and 85°; azimuth 30°; distances 1, 2, 4 voxels
     /// per pixel; `d` one pixel; 48-voxel images; both sides; 8 truth steps per voxel; linear
-    /// reconstruction; seed 1.
+    /// reconstruction; seed 1; the direction table measured, nodes 30° apart in azimuth.
     fn default() -> Self {
         Self {
             size: 32,
@@ -72,6 +81,8 @@ impl Default for SliceMeasureParams {
             truth_steps: 8,
             filter: SliceReconstruction::Linear,
             seed: 1,
+            direction_table: true,
+            table_azimuth_step_deg: 30.0,
         }
     }
 }
@@ -105,6 +116,13 @@ impl SliceMeasureParams {
             super::check_range("pixel size", *p, 1e-3, 64.0, "in [0.001, 64] voxels")?;
         }
         super::check_range("d (pixels)", self.d_pixels, 1e-3, 1e3, "in [0.001, 1000]")?;
+        super::check_range(
+            "direction table azimuth step",
+            self.table_azimuth_step_deg,
+            1e-3,
+            180.0,
+            "in (0°, 180°]",
+        )?;
         super::check_range(
             "image size",
             self.image_voxels,
@@ -145,6 +163,9 @@ pub struct SliceSweepRow {
     /// PSNR of each direction (`X`, `Y`, `Z`) at the level the criterion picks for it, default
     /// rule: what the direction rule chooses among (`psnr_three` is one of them).
     pub psnr_axis: [f64; 3],
+    /// The choice of the measured [`DirectionTable`] (same levels as the criterion's), when
+    /// measured.
+    pub table: Option<ViewChoice>,
 }
 
 impl SliceSweepRow {
@@ -152,6 +173,14 @@ impl SliceSweepRow {
     pub fn direction_shortfall_db(&self) -> f64 {
         let best = self.psnr_axis.iter().copied().fold(f64::MIN, f64::max);
         (best - self.psnr_three).max(0.0)
+    }
+
+    /// How far the [`DirectionTable`]'s choice falls below the best direction (dB, ≥ 0), when
+    /// measured.
+    pub fn table_shortfall_db(&self) -> Option<f64> {
+        let best = self.psnr_axis.iter().copied().fold(f64::MIN, f64::max);
+        self.table
+            .map(|c| (best - self.psnr_axis[c.axis.index()]).max(0.0))
     }
 }
 
@@ -258,6 +287,17 @@ pub struct TileSummary {
     pub direction_shortfall_max_db: f64,
     /// The same, mean over the sweep.
     pub direction_shortfall_mean_db: f64,
+    /// How far below the best direction the [`DirectionTable`]'s choice falls: the worst view
+    /// (dB, ≥ 0), when measured.
+    pub table_shortfall_max_db: Option<f64>,
+    /// The same, mean over the sweep.
+    pub table_shortfall_mean_db: Option<f64>,
+    /// Mean slices drawn per tile over the sweep with the table's choice.
+    pub table_slices_drawn_mean: Option<f64>,
+    /// Time to measure the direction tables (seconds), when measured.
+    pub table_seconds: Option<f64>,
+    /// The direction tables measured: above, and below when both sides are measured.
+    pub direction_tables: Option<Vec<DirectionTable>>,
     /// Bytes of the default rule's stacks (RGBA8, all levels and axes, 2D mips).
     pub bytes: usize,
     /// Bytes of the level-0 `y` stack alone (RGBA8).
@@ -358,7 +398,15 @@ pub fn measure(params: &SliceMeasureParams) -> Result<MeasureReport, SliceError>
         }
         let report = default_report.expect("the default rule is among MergeRule::ALL");
         let td = TileData { by_rule };
-        let (rows, level_rows) = sweep_tile(tile, &volume, &td, params, default_rule)?;
+        let t0 = Instant::now();
+        let tables = if params.direction_table {
+            Some(direction_tables(&volume, td.get(default_rule), params)?)
+        } else {
+            None
+        };
+        let table_seconds = tables.as_ref().map(|_| t0.elapsed().as_secs_f64());
+        let (rows, level_rows) =
+            sweep_tile(tile, &volume, &td, params, default_rule, tables.as_ref())?;
         levels.extend(level_rows);
         curved.extend(curved_rows(tile, &volume, &td, params)?);
         let merge_gain = |only_merged: bool| {
@@ -390,6 +438,19 @@ pub fn measure(params: &SliceMeasureParams) -> Result<MeasureReport, SliceError>
                 .map(|r| r.direction_shortfall_db())
                 .fold(0.0, f64::max),
             direction_shortfall_mean_db: mean(rows.iter().map(|r| r.direction_shortfall_db())),
+            table_shortfall_max_db: tables.as_ref().map(|_| {
+                rows.iter()
+                    .filter_map(|r| r.table_shortfall_db())
+                    .fold(0.0, f64::max)
+            }),
+            table_shortfall_mean_db: tables
+                .as_ref()
+                .map(|_| mean(rows.iter().filter_map(|r| r.table_shortfall_db()))),
+            table_slices_drawn_mean: tables
+                .as_ref()
+                .map(|_| mean(rows.iter().filter_map(|r| r.table.map(|c| c.slices as f64)))),
+            table_seconds,
+            direction_tables: tables,
             bytes: report.bytes,
             bytes_y_level0: y0
                 .slices(super::Side::Plus)
@@ -450,6 +511,60 @@ fn views(params: &SliceMeasureParams) -> Vec<(&'static str, f64, StackView)> {
     out
 }
 
+/// The direction tables of one tile: above, and below when both sides are measured (see
+/// [`SliceMeasureParams::direction_table`]).
+fn direction_tables(
+    volume: &TexelVolume,
+    data: &SliceData,
+    params: &SliceMeasureParams,
+) -> Result<Vec<DirectionTable>, SliceError> {
+    let mut angles = params.angles_deg.clone();
+    angles.sort_by(f64::total_cmp);
+    angles.dedup();
+    let mut polar = vec![0.0];
+    polar.extend(angles.windows(2).map(|w| 0.5 * (w[0] + w[1])));
+    polar.push(88.0);
+    polar.dedup();
+    let mut pixels = params.pixel_voxels.clone();
+    pixels.sort_by(f64::total_cmp);
+    pixels.dedup();
+    let truth = VolumeTruthParams {
+        steps_per_voxel: params.truth_steps,
+        filter: params.filter,
+    };
+    let (az, half) = (params.azimuth_deg, 0.5 * params.table_azimuth_step_deg);
+    let render = |p: f64| (render_params(params, p), render_params(params, p));
+    let above = DirectionGrid {
+        polar_deg: polar.clone(),
+        azimuth_deg: vec![az - half, az + half],
+        pixel_voxels: pixels.clone(),
+    };
+    let below = DirectionGrid {
+        polar_deg: polar.iter().rev().map(|p| 180.0 - p).collect(),
+        azimuth_deg: vec![az + 180.0 - half, az + 180.0 + half],
+        pixel_voxels: pixels,
+    };
+    let mut tables = vec![DirectionTable::measure(
+        volume,
+        data,
+        &above,
+        params.d_pixels,
+        &render,
+        &truth,
+    )?];
+    if params.both_sides {
+        tables.push(DirectionTable::measure(
+            volume,
+            data,
+            &below,
+            params.d_pixels,
+            &render,
+            &truth,
+        )?);
+    }
+    Ok(tables)
+}
+
 /// Shells over the cylindrical patch at tilts 0° and 45°: every level and rule.
 fn curved_rows(
     tile: TestTile,
@@ -505,6 +620,7 @@ fn sweep_tile(
     td: &TileData,
     params: &SliceMeasureParams,
     default_rule: MergeRule,
+    tables: Option<&Vec<DirectionTable>>,
 ) -> Result<(Vec<SliceSweepRow>, Vec<LevelRow>), SliceError> {
     let truth = VolumeTruthParams {
         steps_per_voxel: params.truth_steps,
@@ -530,6 +646,13 @@ fn sweep_tile(
             let v = view.vector();
             let one = choose(volume, v, depth, [false, true, false])?;
             let three = choose(volume, v, depth, [true; 3])?;
+            let table = match tables {
+                Some(t) => {
+                    let t = &t[usize::from(side == "below")];
+                    Some(t.choose(td.get(default_rule), &view, p, [true; 3])?)
+                }
+                None => None,
+            };
             let def = td.get(default_rule);
             let mut psnr_axis = [0.0; 3];
             for (k, e) in psnr_axis.iter_mut().enumerate() {
@@ -577,6 +700,7 @@ fn sweep_tile(
                     capped(psnr(&img, &reference)?)
                 },
                 psnr_axis,
+                table,
             });
         }
     }

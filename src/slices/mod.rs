@@ -65,6 +65,7 @@
 pub mod asset;
 pub mod build;
 pub mod curved;
+pub mod direction;
 pub(crate) mod filtered;
 pub mod measure;
 pub mod merge;
@@ -79,6 +80,7 @@ pub use build::{
     from_height_field, from_implicit, from_shape, perlin_periodic, test_tile, test_tile_lit,
 };
 pub use curved::{CurvedParams, render_curved_slices, render_curved_truth};
+pub use direction::{DirectionGrid, DirectionTable};
 pub use measure::{
     CurvedRow, LevelRow, MeasureReport, RuleSummary, SliceMeasureParams, SliceSweepRow,
     TileSummary, ViewError, measure, view_errors,

@@ -43,12 +43,38 @@ pub struct ObjectImage {
 ///
 /// Errors: no stack stored, a zero or non-finite view, a depth that is not positive.
 pub fn choose_stored(data: &SliceData, view: DVec3, depth: f64) -> Result<ViewChoice, SliceError> {
+    let s = data.voxel_size();
+    let axis = choose_direction(view, [s; 3], stored_axes(data))?;
+    stored_level(data, axis, view, depth)
+}
+
+/// The axes `data` holds a stack of (`x, y, z`).
+pub(crate) fn stored_axes(data: &SliceData) -> [bool; 3] {
     let mut allowed = [false; 3];
     for s in data.stacks() {
         allowed[s.axis().index()] = true;
     }
+    allowed
+}
+
+/// What `data` draws along `axis` for view vector `view` at visible depth `depth`: the level the
+/// criterion asks for, or the coarsest stored level finer than it, or else the finest stored
+/// level (see [`choose_stored`]). Errors: no stack of `axis`, a zero or non-finite view, a
+/// depth that is not positive.
+pub(crate) fn stored_level(
+    data: &SliceData,
+    axis: Axis,
+    view: DVec3,
+    depth: f64,
+) -> Result<ViewChoice, SliceError> {
+    if !view.is_finite() || view.length_squared() < 1e-24 {
+        return Err(SliceError::InvalidParameter {
+            name: "view vector",
+            value: format!("{view:?}"),
+            reason: "must be finite and non-zero",
+        });
+    }
     let s = data.voxel_size();
-    let axis = choose_direction(view, [s; 3], allowed)?;
     let i = axis.index();
     let n = data.dims()[i];
     let c = view.normalize()[i].abs().min(1.0);

@@ -18,6 +18,7 @@ use approx::{assert_abs_diff_eq, assert_relative_eq};
 use glam::DVec3;
 use proptest::prelude::*;
 
+mod direction;
 mod fitted;
 mod measured;
 mod object;

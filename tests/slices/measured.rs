@@ -67,6 +67,7 @@ fn the_sweep_measures_every_direction_the_rule_chooses_among() {
         tiles: vec![TestTile::Fur],
         angles_deg: vec![0.0, 50.0, 85.0],
         pixel_voxels: vec![1.0],
+        direction_table: false,
         ..SliceMeasureParams::default()
     };
     let report = measure(&params).unwrap();

@@ -464,27 +464,15 @@ lighting = "baked"
         assert_eq!(hashes(&desc), hashes(r.description()));
     }
 
-    const PELTS: &str = r#"
-[[asset]]
-name = "rule"
-tile = { kind = "fur", size = 32, seed = 1 }
-[asset.needs]
-screen_px = [8, 8]
-grazing_deg = 80
-azimuth_deg = [0, 90]
-lighting = "baked"
-[asset.slices]
-[[asset]]
-name = "table"
-tile = { kind = "fur", size = 32, seed = 1 }
-[asset.needs]
-screen_px = [8, 8]
-grazing_deg = 80
-azimuth_deg = [0, 90]
-lighting = "baked"
-[asset.slices]
-direction_table = true
-"#;
+    /// The fur tile 8 px across, seen up to 80° from its normal over a quarter turn, as asset
+    /// `name`, with `extra` under `[asset.slices]`.
+    fn pelt(name: &str, extra: &str) -> String {
+        format!(
+            "[[asset]]\nname = \"{name}\"\ntile = {{ kind = \"fur\", size = 32, seed = 1 }}\n\
+             [asset.needs]\nscreen_px = [8, 8]\ngrazing_deg = 80\nazimuth_deg = [0, 90]\n\
+             lighting = \"baked\"\n[asset.slices]\n{extra}"
+        )
+    }
 
     /// `direction_table = true` measures the error of every built stack over the needed views
     /// and draws the direction it predicts closest to the truth: measured at the asset's four
@@ -495,7 +483,8 @@ direction_table = true
     #[test]
     fn a_measured_direction_table_draws_no_worse_than_the_rule() {
         let dir = tempfile::tempdir().unwrap();
-        let m = Manifest::parse(PELTS, std::path::Path::new("scene.toml")).unwrap();
+        let text = pelt("rule", "") + &pelt("table", "direction_table = true\n");
+        let m = Manifest::parse(&text, std::path::Path::new("scene.toml")).unwrap();
         let run = altrep::pipeline::run_scene(&m, &RunOptions::new(dir.path())).unwrap();
         assert!(run.ok(), "{}", run.table());
         let psnr = |asset: &str| {

@@ -42,6 +42,40 @@ pub fn precompute<R: Representation>(
     altrep_display::load::<R>(&dir.join(source.name).join(R::NAME)).map_err(|x| e(&x))
 }
 
+/// Writes a looping GIF of `frames` frames to `path`, 80 ms each: frame `k` is
+/// `draw(k as f64 / frames as f64)`, which returns the image (premultiplied linear RGBA, shown
+/// over `background`, each pixel `scale × scale`), its time in milliseconds and its PSNR in dB.
+/// Returns the times and the worst PSNR. Errors: the file, the encoder or `draw`'s.
+pub fn write_turntable(
+    path: &Path,
+    frames: usize,
+    background: [f32; 3],
+    scale: u32,
+    mut draw: impl FnMut(f64) -> Result<(altrep_display::RgbaImage, f64, f64), String>,
+) -> Result<(Vec<f64>, f64), String> {
+    use image::codecs::gif::{GifEncoder, Repeat};
+    use image::{Delay, Frame};
+    let e = |e: &dyn std::fmt::Display| format!("{}: {e}", path.display());
+    let file = std::fs::File::create(path).map_err(|x| e(&x))?;
+    let mut enc = GifEncoder::new_with_speed(std::io::BufWriter::new(file), 10);
+    enc.set_repeat(Repeat::Infinite).map_err(|x| e(&x))?;
+    let frames = frames.max(1);
+    let (mut ms, mut worst) = (Vec::with_capacity(frames), f64::INFINITY);
+    for k in 0..frames {
+        let (img, t, db) = draw(k as f64 / frames as f64)?;
+        ms.push(t);
+        worst = worst.min(db);
+        let frame = Frame::from_parts(
+            altrep_display::to_srgb8(&img, background, scale),
+            0,
+            0,
+            Delay::from_numer_denom_ms(80, 1),
+        );
+        enc.encode_frame(frame).map_err(|x| e(&x))?;
+    }
+    Ok((ms, worst))
+}
+
 /// The line every program prints after its animation: the median of `ms` (milliseconds per
 /// frame, sorted here) and what the time measures on `gpu` (a CPU adapter emulates the GPU).
 pub fn median_frame_time(gpu: &Gpu, ms: &mut [f64]) -> String {

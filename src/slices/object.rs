@@ -15,7 +15,7 @@ use rayon::prelude::*;
 
 use super::merge::{Side, SliceData};
 use super::render::{accumulate, trilinear_into};
-use super::stack::{ViewChoice, choose_direction, level_for_slices, slices_needed};
+use super::stack::{ViewChoice, check_view, choose_direction, level_for_slices, slices_needed};
 use super::volume::rescale_thickness;
 use super::{Axis, SliceError};
 
@@ -67,13 +67,7 @@ pub(crate) fn stored_level(
     view: DVec3,
     depth: f64,
 ) -> Result<ViewChoice, SliceError> {
-    if !view.is_finite() || view.length_squared() < 1e-24 {
-        return Err(SliceError::InvalidParameter {
-            name: "view vector",
-            value: format!("{view:?}"),
-            reason: "must be finite and non-zero",
-        });
-    }
+    check_view(view)?;
     let s = data.voxel_size();
     let i = axis.index();
     let n = data.dims()[i];

@@ -112,6 +112,18 @@ pub fn level_for_slices(
     Ok(k)
 }
 
+/// Errors: a view vector that is not finite or is (nearly) zero.
+pub(crate) fn check_view(view: DVec3) -> Result<(), SliceError> {
+    if !view.is_finite() || view.length_squared() < 1e-24 {
+        return Err(SliceError::InvalidParameter {
+            name: "view vector",
+            value: format!("{view:?}"),
+            reason: "must be finite and non-zero",
+        });
+    }
+    Ok(())
+}
+
 /// Meyer & Neyret's direction rule: the axis minimising `(1/c_i² − 1)·h_i²`, `c_i = |view_i|` (view
 /// a unit vector), `h_i = L_i/N_i` from `spacing`. Among `allowed` axes only; ties go to the
 /// earliest allowed axis in `Y, X, Z` order. Errors: a non-finite or zero view vector, no allowed
@@ -121,13 +133,7 @@ pub fn choose_direction(
     spacing: [f64; 3],
     allowed: [bool; 3],
 ) -> Result<Axis, SliceError> {
-    if !view.is_finite() || view.length_squared() < 1e-24 {
-        return Err(SliceError::InvalidParameter {
-            name: "view vector",
-            value: format!("{view:?}"),
-            reason: "must be finite and non-zero",
-        });
-    }
+    check_view(view)?;
     let v = view.normalize();
     let mut best: Option<(Axis, f64)> = None;
     for axis in [Axis::Y, Axis::X, Axis::Z] {

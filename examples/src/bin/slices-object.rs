@@ -33,8 +33,6 @@ use altrep_display::slices::{SlicesDisplay, SlicesDraw};
 use altrep_display::to_srgb8;
 use altrep_examples::window;
 use clap::Parser;
-use image::codecs::gif::{GifEncoder, Repeat};
-use image::{Delay, Frame};
 
 #[derive(Parser, Debug)]
 #[command(
@@ -167,25 +165,12 @@ fn run(args: &Args) -> Result<(), String> {
         );
     }
     let gif_path = args.out.join("orbit.gif");
-    let file = std::fs::File::create(&gif_path).map_err(|x| e(&x))?;
-    let mut enc = GifEncoder::new_with_speed(std::io::BufWriter::new(file), 10);
-    enc.set_repeat(Repeat::Infinite).map_err(|x| e(&x))?;
-    let frames = args.frames.max(1);
-    let (mut ms, mut worst) = (Vec::new(), f64::INFINITY);
-    for k in 0..frames {
-        let u = k as f64 / frames as f64;
-        let el = (-30.0 + 120.0 * u).min(90.0).to_radians();
-        let (img, t, _, db, _) = pair(std::f64::consts::TAU * u, el)?;
-        ms.push(t);
-        worst = worst.min(db);
-        let frame = Frame::from_parts(
-            to_srgb8(&img, bg, args.scale),
-            0,
-            0,
-            Delay::from_numer_denom_ms(80, 1),
-        );
-        enc.encode_frame(frame).map_err(|x| e(&x))?;
-    }
+    let (mut ms, worst) =
+        altrep_examples::write_turntable(&gif_path, args.frames, bg, args.scale, |u| {
+            let el = (-30.0 + 120.0 * u).min(90.0).to_radians();
+            let (img, t, _, db, _) = pair(std::f64::consts::TAU * u, el)?;
+            Ok((img, t, db))
+        })?;
     println!(
         "{} frames of {screen}²: {}, worst PSNR {worst:.2} dB",
         ms.len(),

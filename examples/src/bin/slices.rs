@@ -34,8 +34,6 @@ use altrep_display::load;
 use altrep_display::slices::{SlicesDisplay, SlicesDraw};
 use altrep_display::to_srgb8;
 use clap::Parser;
-use image::codecs::gif::{GifEncoder, Repeat};
-use image::{Delay, Frame};
 
 #[derive(Parser, Debug)]
 #[command(
@@ -213,24 +211,11 @@ fn run(args: &Args) -> Result<(), String> {
         fr.stack.1
     );
     let gif_path = args.out.join("turntable.gif");
-    let file = std::fs::File::create(&gif_path).map_err(|x| e(&x))?;
-    let mut enc = GifEncoder::new_with_speed(std::io::BufWriter::new(file), 10);
-    enc.set_repeat(Repeat::Infinite).map_err(|x| e(&x))?;
-    let frames = args.frames.max(1);
-    let (mut ms, mut worst) = (Vec::new(), f64::INFINITY);
-    for k in 0..frames {
-        let az = 360.0 * k as f64 / frames as f64;
-        let (img, t, _, db, _) = pair(&StackView::degrees(args.turntable_polar, az))?;
-        ms.push(t);
-        worst = worst.min(db);
-        let frame = Frame::from_parts(
-            to_srgb8(&img, bg, args.scale),
-            0,
-            0,
-            Delay::from_numer_denom_ms(80, 1),
-        );
-        enc.encode_frame(frame).map_err(|x| e(&x))?;
-    }
+    let (mut ms, worst) =
+        altrep_examples::write_turntable(&gif_path, args.frames, bg, args.scale, |u| {
+            let (img, t, _, db, _) = pair(&StackView::degrees(args.turntable_polar, 360.0 * u))?;
+            Ok((img, t, db))
+        })?;
     println!(
         "{} frames of {screen}²: {}, worst PSNR {worst:.2} dB",
         ms.len(),

@@ -21,6 +21,7 @@
 
 use rayon::prelude::*;
 
+use super::measure::capped;
 use super::merge::SliceData;
 use super::object::{stored_axes, stored_level};
 use super::render::{SliceRenderParams, StackView, render_slices};
@@ -28,9 +29,6 @@ use super::stack::{Axis, ViewChoice};
 use super::truth::{VolumeTruthParams, render_truth};
 use super::{SliceError, TexelVolume};
 use crate::metrics::psnr;
-
-/// Cap on a measured PSNR (identical images), as in the measurements of [`super::measure`].
-const PSNR_CAP: f64 = 99.0;
 
 /// The nodes of a [`DirectionTable`]: polar angles (degrees from `+y`, ascending, each at least
 /// 1° from the surface plane), azimuths (degrees, ascending, within one turn; periodic) and
@@ -138,19 +136,9 @@ impl DirectionTable {
     ) -> Result<Self, SliceError> {
         grid.validate()?;
         super::check_range("d (pixels)", d_pixels, 1e-3, 1e3, "in [0.001, 1000]")?;
-        if data.dims() != volume.dims() {
-            return Err(SliceError::InvalidParameter {
-                name: "slice data",
-                value: format!("{:?} vs volume {:?}", data.dims(), volume.dims()),
-                reason: "must be cut from a volume of the same size",
-            });
-        }
+        super::measure::check_cut_from(data, volume)?;
         let dims = volume.dims();
-        let levels = dims
-            .iter()
-            .map(|n| n.trailing_zeros() as usize + 1)
-            .max()
-            .unwrap_or(1);
+        let levels = level_count(dims);
         let (a_n, p_n) = (grid.azimuth_deg.len(), grid.polar_deg.len());
         let per_node: Vec<Vec<Option<f64>>> = (0..grid.nodes())
             .into_par_iter()
@@ -168,8 +156,7 @@ impl DirectionTable {
                             continue;
                         }
                         let img = render_slices(data, axis, level, &view, &rp)?;
-                        out[axis.index() * levels + level] =
-                            Some(psnr(&img, &reference)?.min(PSNR_CAP));
+                        out[axis.index() * levels + level] = Some(capped(psnr(&img, &reference)?));
                     }
                 }
                 Ok(out)
@@ -201,12 +188,7 @@ impl DirectionTable {
         self.grid.validate()?;
         super::check_range("d (pixels)", self.d_pixels, 1e-3, 1e3, "in [0.001, 1000]")?;
         super::check_range("voxel size", self.voxel, f64::MIN_POSITIVE, f64::MAX, "> 0")?;
-        let levels = self
-            .dims
-            .iter()
-            .map(|n| n.trailing_zeros() as usize + 1)
-            .max()
-            .unwrap_or(1);
+        let levels = level_count(self.dims);
         if self.dims.iter().any(|n| !n.is_power_of_two()) || self.levels != levels {
             return Err(SliceError::InvalidParameter {
                 name: "direction table dims",
@@ -327,6 +309,14 @@ impl DirectionTable {
             }
         }
     }
+}
+
+/// Merge levels of the longest axis of a volume of `dims` voxels (`log2 N + 1`).
+fn level_count(dims: [usize; 3]) -> usize {
+    dims.iter()
+        .map(|n| n.trailing_zeros() as usize + 1)
+        .max()
+        .unwrap_or(1)
 }
 
 /// The two nodes around `x` in the ascending `nodes` and their linear weights (clamped at the

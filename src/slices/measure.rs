@@ -240,13 +240,7 @@ pub fn view_errors(
     render: &SliceRenderParams,
     truth: &VolumeTruthParams,
 ) -> Result<Vec<ViewError>, SliceError> {
-    if data.dims() != volume.dims() {
-        return Err(SliceError::InvalidParameter {
-            name: "slice data",
-            value: format!("{:?} vs volume {:?}", data.dims(), volume.dims()),
-            reason: "must be cut from a volume of the same size",
-        });
-    }
+    check_cut_from(data, volume)?;
     let allowed = Axis::ALL.map(|a| data.stack(a, 0).is_ok());
     views
         .iter()
@@ -342,7 +336,20 @@ pub struct MeasureReport {
     pub seconds: f64,
 }
 
-fn capped(x: f64) -> f64 {
+/// Errors: `data` not cut from a volume of `volume`'s size.
+pub(crate) fn check_cut_from(data: &SliceData, volume: &TexelVolume) -> Result<(), SliceError> {
+    if data.dims() != volume.dims() {
+        return Err(SliceError::InvalidParameter {
+            name: "slice data",
+            value: format!("{:?} vs volume {:?}", data.dims(), volume.dims()),
+            reason: "must be cut from a volume of the same size",
+        });
+    }
+    Ok(())
+}
+
+/// A PSNR capped at [`PSNR_CAP`] (identical images).
+pub(crate) fn capped(x: f64) -> f64 {
     x.min(PSNR_CAP)
 }
 
@@ -406,7 +413,7 @@ pub fn measure(params: &SliceMeasureParams) -> Result<MeasureReport, SliceError>
         };
         let table_seconds = tables.as_ref().map(|_| t0.elapsed().as_secs_f64());
         let (rows, level_rows) =
-            sweep_tile(tile, &volume, &td, params, default_rule, tables.as_ref())?;
+            sweep_tile(tile, &volume, &td, params, default_rule, tables.as_deref())?;
         levels.extend(level_rows);
         curved.extend(curved_rows(tile, &volume, &td, params)?);
         let merge_gain = |only_merged: bool| {
@@ -523,7 +530,9 @@ fn direction_tables(
     angles.dedup();
     let mut polar = vec![0.0];
     polar.extend(angles.windows(2).map(|w| 0.5 * (w[0] + w[1])));
-    polar.push(88.0);
+    if polar.last().is_some_and(|&p| p < 88.0) {
+        polar.push(88.0);
+    }
     polar.dedup();
     let mut pixels = params.pixel_voxels.clone();
     pixels.sort_by(f64::total_cmp);
@@ -620,7 +629,7 @@ fn sweep_tile(
     td: &TileData,
     params: &SliceMeasureParams,
     default_rule: MergeRule,
-    tables: Option<&Vec<DirectionTable>>,
+    tables: Option<&[DirectionTable]>,
 ) -> Result<(Vec<SliceSweepRow>, Vec<LevelRow>), SliceError> {
     let truth = VolumeTruthParams {
         steps_per_voxel: params.truth_steps,

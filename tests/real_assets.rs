@@ -2,7 +2,7 @@
 //! `ALTREP_EVAL_ASSETS` (none are shipped: see docs/real-assets.md). Ignored by default; run
 //!
 //! ```text
-//! ALTREP_EVAL_ASSETS=/path/to/assets cargo test --release --test real_assets -- --ignored --nocapture
+//! ALTREP_EVAL_ASSETS=/path/to/assets cargo test --release --test integration real_assets:: -- --ignored --nocapture
 //! ```
 //!
 //! It prints, per asset, the capture at a view's own direction against the truth (`k × k`

@@ -30,8 +30,7 @@ use altrep_display::load;
 use altrep_display::{DisplayError, Gpu};
 use approx::assert_abs_diff_eq;
 
-mod common;
-use common::{assert_floor, failures_dir, gpu, gpu_f64};
+use crate::common::{assert_floor, failures_dir, gpu, gpu_f64};
 
 /// Shapes of the step-count and image checks (star-shaped, flat faces, thin branches).
 const SHAPES: [&str; 3] = ["pear", "truck", "tree"];
@@ -304,7 +303,7 @@ fn gpu_step_counts_match_cpu_per_fragment_in_f32_but_for_rounding() {
 }
 
 /// Measured PSNR (dB) of the GPU image (f32) against the ray-cast truth, per case
-/// ([`common::MEASURED_ON`]); the floors are these less [`common::FLOOR_MARGIN_DB`].
+/// ([`crate::common::MEASURED_ON`]); the floors are these less [`crate::common::FLOOR_MARGIN_DB`].
 const MEASURED_VS_TRUTH: [(&str, f64); 24] = [
     ("pear bounded α=0.30", 25.97),
     ("pear hybrid-m4 α=0.30", 25.97),

@@ -23,8 +23,7 @@ use altrep_display::load;
 use altrep_display::pyramid::{PyramidDisplay, Sampler, value_psnr, values_to_image};
 use approx::assert_abs_diff_eq;
 
-mod common;
-use common::{assert_floor, failures_dir, gpu};
+use crate::common::{assert_floor, failures_dir, gpu};
 
 /// Texels per side of the test texture (checkerboard, diagonal wave and noise; periodic).
 const TEX: usize = 128;
@@ -275,8 +274,8 @@ fn gpu_pyramid_lookups_match_the_cpu_samplers() {
 }
 
 /// Measured PSNR (dB) of the GPU panel against the supersampled truth of the textured plane, per
-/// sampler and view ([`common::MEASURED_ON`]); the floors are these less
-/// [`common::FLOOR_MARGIN_DB`].
+/// sampler and view ([`crate::common::MEASURED_ON`]); the floors are these less
+/// [`crate::common::FLOOR_MARGIN_DB`].
 const MEASURED_VS_TRUTH: [(&str, f64); 24] = [
     ("mip D0 1 tilt 0 az 0", 47.29),
     ("rip D0 1 tilt 0 az 0", 47.29),

@@ -26,8 +26,7 @@ use altrep_display::sphere::{SphereDisplay, SphereDraw, SphereFrame};
 use approx::assert_abs_diff_eq;
 use glam::DVec3;
 
-mod common;
-use common::{assert_floor, failures_dir, gpu, gpu_f64};
+use crate::common::{assert_floor, failures_dir, gpu, gpu_f64};
 
 /// Shapes checked (flat faces, thin branches, a seat over open space), with the view set and
 /// surface model each is stored with.
@@ -227,7 +226,7 @@ fn gpu_steps_and_flags_match_the_cpu_per_ray_in_f64_but_for_ties() {
 }
 
 /// Measured PSNR (dB) of the GPU image (f32) against the ray-cast truth, per shape and direction
-/// ([`common::MEASURED_ON`]); the floors are these less [`common::FLOOR_MARGIN_DB`].
+/// ([`crate::common::MEASURED_ON`]); the floors are these less [`crate::common::FLOOR_MARGIN_DB`].
 const MEASURED_VS_TRUTH: [(&str, f64); 21] = [
     ("truck [0.99, 0.10, 0.00]", 26.90),
     ("truck [-0.70, 0.30, 0.64]", 24.91),

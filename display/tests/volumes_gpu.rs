@@ -2,14 +2,12 @@
 //! written by the pipeline's writer and read back through the library's loader: the slices of an
 //! object (`altrep::slices::render_object`, one sample per pixel), a tile's slices over a ground
 //! patch (`altrep::slices::render_slices`) and the ellipsoid octree
-//! (`Octree::render_view_counted`). One test binary for both, so a fresh clone links it once.
+//! (`Octree::render_view_counted`).
 //!
 //! Without a GPU adapter every test prints "skipped: no GPU adapter" and passes, except with
 //! `CI=true`, where a missing adapter fails. No reference image is stored: the expected images
 //! are computed by the CPU renderers at test time. On failure the actual, expected and difference
 //! PNGs go to `target/tmp/display-failures/`.
-
-mod common;
 
 mod slices {
     use std::path::Path;

@@ -102,7 +102,7 @@
 //!
 //! Measured limit: the `−1` of silhouette cells reaches every texel within `tan β_k` of an
 //! outline, which on small grids is most of the object, so the bounds save little (chair, 4 × 4
-//! frames of 32²: 17.16 against 17.92 fetches per ray, `cargo test --test sphere --
+//! frames of 32²: 17.16 against 17.92 fetches per ray, `cargo test --test integration sphere:: --
 //! --nocapture`). Bounding slips separately from surface events is the next step; a first
 //! attempt that marched the rest of the ray only where needed changed the picture and was
 //! withdrawn.

@@ -323,7 +323,7 @@ mod adversarial {
             dx in -1.0f64..1.0, dy in -1.0f64..1.0, dz in -1.0f64..1.0, snap in 0usize..4,
             radius in 0.01f64..4.0, level in 0usize..4, axis in 0usize..3, side in 1usize..6,
         ) {
-            let vol = crate::random_volume([1 << lx, 1 << ly, 1 << lz], seed);
+            let vol = super::super::random_volume([1 << lx, 1 << ly, 1 << lz], seed);
             let (data, _) = build_slices(&vol, &SliceParams { tiled: false, ..SliceParams::default() }).unwrap();
             let mut dir = DVec3::new(dx, dy, dz);
             if snap < 3 {

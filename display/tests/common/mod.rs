@@ -59,7 +59,6 @@ pub const FLOOR_MARGIN_DB: f64 = 0.3;
 /// Asserts the absolute floor of case `name`: its PSNR `db` against the ray-cast truth is at
 /// least `measured − FLOOR_MARGIN_DB`, with `measured` looked up by name in `table` (a case
 /// missing from the table fails: every case has its floor).
-#[allow(dead_code)] // each test binary uses what it needs of this module
 pub fn assert_floor(table: &[(&str, f64)], name: &str, db: f64) {
     let measured = table
         .iter()
@@ -76,7 +75,6 @@ pub fn assert_floor(table: &[(&str, f64)], name: &str, db: f64) {
 
 /// View directions (toward the camera) of the volume twins' checks: oblique horizontal, from
 /// above at 40°, from below at 25°, straight down, and exactly along the x axis.
-#[allow(dead_code)] // each test binary uses what it needs of this module
 pub fn volume_directions() -> Vec<glam::DVec3> {
     let polar = |az: f64, el: f64| {
         let (a, e) = (az.to_radians(), el.to_radians());
@@ -93,7 +91,6 @@ pub fn volume_directions() -> Vec<glam::DVec3> {
 
 /// Writes `data` of representation `R` with the pipeline's writer into `dir/name/R::NAME` and
 /// loads it back through the display's loader, as a user's folder would be.
-#[allow(dead_code)] // each test binary uses what it needs of this module
 pub fn written_and_loaded<R: altrep::pipeline::Representation>(
     dir: &Path,
     name: &str,
@@ -117,7 +114,6 @@ pub fn written_and_loaded<R: altrep::pipeline::Representation>(
 /// at least `min_db` and that the 99th percentile of the per-pixel largest channel error is at
 /// most `max_p99`; on failure the images and their difference go to [`failures_dir`] under
 /// `name`.
-#[allow(dead_code)] // each test binary uses what it needs of this module
 pub fn check_against_cpu(
     name: &str,
     actual: &altrep_display::RgbaImage,

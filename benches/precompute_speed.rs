@@ -57,6 +57,7 @@ fn octree(c: &mut Criterion) {
             max: glam::DVec3::new(1.0, 2.0, 1.0),
             periodic: [false; 3],
             supersample: Supersample::ONE,
+            fill: altrep_data_gen::Fill::Auto,
         },
     )
     .expect("voxelises");

@@ -163,6 +163,25 @@ pub fn psnr(image: &RgbaImage, reference: &RgbaImage) -> Result<f64, MetricsErro
     compare(image, reference, &CompareOptions::default()).map(|e| e.psnr_db)
 }
 
+/// Coverage error: the mean absolute difference of alpha between `a` and `b` over the pixels
+/// that either covers (alpha > 0), so the empty background does not dilute it. In `[0, 1]`: 0
+/// when both pictures cover the same pixels equally, 1 when they cover disjoint pixels fully.
+/// Two empty pictures are [`MetricsError::NothingVisible`], not an error of 0. Cost: one pass.
+pub fn coverage_error(a: &RgbaImage, b: &RgbaImage) -> Result<f64, MetricsError> {
+    check(a, b, None)?;
+    let (mut sum, mut covered) = (0.0f64, 0usize);
+    for (p, q) in a.pixels.iter().zip(&b.pixels) {
+        if p[3] > 0.0 || q[3] > 0.0 {
+            sum += f64::from((p[3] - q[3]).abs());
+            covered += 1;
+        }
+    }
+    if covered == 0 {
+        return Err(MetricsError::NothingVisible);
+    }
+    Ok(sum / covered as f64)
+}
+
 /// Silhouette intersection over union: pixels with `alpha > alpha_threshold` form each
 /// silhouette. Two empty silhouettes are [`MetricsError::NothingVisible`], not an IoU of 1.
 pub fn silhouette_iou(

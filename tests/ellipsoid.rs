@@ -723,6 +723,7 @@ fn octree_from_data_gen_volume_and_periodic_interiors() {
         max: glam::DVec3::new(1.0, 2.0, 1.0),
         periodic: [false; 3],
         supersample: Supersample::ONE,
+        fill: altrep_data_gen::Fill::Solid,
     };
     let vol = voxelize(&shape, &vp).unwrap();
     let (tree, report) = Octree::build(&vol, &OctreeParams::default()).unwrap();

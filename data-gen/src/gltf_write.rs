@@ -479,6 +479,132 @@ impl TestGltf {
         }
     }
 
+    /// A shrub of `leaves` alpha-masked leaf cards over a trunk: each card a square of side
+    /// 0.25 (file units), centred at a random point of the crown (the ball of radius 1 about
+    /// `(0, 1.5, 0)`), turned to a random orientation, textured 16² with a leaf-shaped mask
+    /// (alpha 255 inside the ellipse `((u − ½)/0.48)² + ((v − ½)/0.3)² ≤ 1`, 0 outside; `MASK`,
+    /// cutoff ½, `LINEAR`) and two greens; the trunk an open square tube of side 0.1 from `y = 0`
+    /// to `y = 1`, brown. Nothing in it encloses a volume. Seeded ([`crate::SplitMix64`]).
+    pub fn leaf_shrub(leaves: usize, seed: u64) -> Self {
+        let mut rng = crate::SplitMix64::new(seed);
+        let n = 16u32;
+        let data = (0..n)
+            .flat_map(|j| {
+                (0..n).flat_map(move |i| {
+                    let (u, v) = ((i as f32 + 0.5) / n as f32, (j as f32 + 0.5) / n as f32);
+                    let inside = ((u - 0.5) / 0.48).powi(2) + ((v - 0.5) / 0.3).powi(2) <= 1.0;
+                    let g = if (i + j) % 5 == 0 { 150 } else { 110 };
+                    [40, g, 30, if inside { 255 } else { 0 }]
+                })
+            })
+            .collect();
+        let mut cards = TestPrimitive {
+            positions: Vec::new(),
+            uvs: Vec::new(),
+            normals: Vec::new(),
+            tangents: Vec::new(),
+            indices: Vec::new(),
+            material: 0,
+        };
+        for _ in 0..leaves {
+            // A point of the ball by rejection, and an orthonormal pair from a random normal.
+            let centre = loop {
+                let p = [0, 1, 2].map(|_| rng.range(-1.0, 1.0) as f32);
+                if p.iter().map(|c| c * c).sum::<f32>() <= 1.0 {
+                    break [p[0], p[1] + 1.5, p[2]];
+                }
+            };
+            let z = rng.range(-1.0, 1.0) as f32;
+            let phi = rng.range(0.0, std::f64::consts::TAU) as f32;
+            let r = (1.0 - z * z).max(0.0).sqrt();
+            let normal = [r * phi.cos(), r * phi.sin(), z];
+            let helper = if normal[0].abs() < 0.9 {
+                [1.0, 0.0, 0.0]
+            } else {
+                [0.0, 1.0, 0.0]
+            };
+            let cross = |a: [f32; 3], b: [f32; 3]| {
+                [
+                    a[1] * b[2] - a[2] * b[1],
+                    a[2] * b[0] - a[0] * b[2],
+                    a[0] * b[1] - a[1] * b[0],
+                ]
+            };
+            let unit = |a: [f32; 3]| {
+                let l = (a[0] * a[0] + a[1] * a[1] + a[2] * a[2]).sqrt();
+                a.map(|c| c / l)
+            };
+            let e1 = unit(cross(normal, helper));
+            let e2 = cross(normal, e1);
+            let base = cards.positions.len() as u32;
+            for (s, t) in [(-1.0f32, -1.0f32), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0)] {
+                cards
+                    .positions
+                    .push([0, 1, 2].map(|k| centre[k] + 0.125 * (s * e1[k] + t * e2[k])));
+                cards.uvs.push([0.5 * (s + 1.0), 0.5 * (1.0 - t)]);
+            }
+            cards
+                .indices
+                .extend([base, base + 1, base + 2, base, base + 2, base + 3]);
+        }
+        let mut trunk = TestPrimitive {
+            positions: Vec::new(),
+            uvs: Vec::new(),
+            normals: Vec::new(),
+            tangents: Vec::new(),
+            indices: Vec::new(),
+            material: 1,
+        };
+        let corners = [
+            [-0.05f32, -0.05f32],
+            [0.05, -0.05],
+            [0.05, 0.05],
+            [-0.05, 0.05],
+        ];
+        for side in 0..4 {
+            let (a, b) = (corners[side], corners[(side + 1) % 4]);
+            let base = trunk.positions.len() as u32;
+            for [x, z, y] in [
+                [a[0], a[1], 0.0],
+                [b[0], b[1], 0.0],
+                [b[0], b[1], 1.0],
+                [a[0], a[1], 1.0],
+            ] {
+                trunk.positions.push([x, y, z]);
+            }
+            trunk
+                .indices
+                .extend([base, base + 1, base + 2, base, base + 2, base + 3]);
+        }
+        Self {
+            meshes: vec![vec![cards, trunk]],
+            materials: vec![
+                TestMaterial {
+                    base_color: [1.0; 4],
+                    texture: Some(Rgba8 {
+                        width: n,
+                        height: n,
+                        data,
+                    }),
+                    nearest: false,
+                    alpha_mode: "MASK",
+                    alpha_cutoff: 0.5,
+                    normal_texture: None,
+                },
+                TestMaterial {
+                    base_color: [0.35, 0.22, 0.1, 1.0],
+                    texture: None,
+                    nearest: false,
+                    alpha_mode: "OPAQUE",
+                    alpha_cutoff: 0.5,
+                    normal_texture: None,
+                },
+            ],
+            nodes: vec![TestNode::mesh_at_origin("shrub")],
+            roots: vec![0],
+        }
+    }
+
     /// The hole pattern of [`TestGltf::masked_quad`]: texel `(i, j)` is a hole when `i + 2·j`
     /// is a multiple of 3.
     pub fn hole(i: u32, j: u32) -> bool {

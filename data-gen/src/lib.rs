@@ -54,6 +54,7 @@ mod rng;
 mod shape;
 mod shapes;
 mod shared;
+mod shell;
 mod supersample;
 mod surface;
 #[cfg(test)]
@@ -87,4 +88,4 @@ pub use surface::{
     Material, MaterialAlpha, SamplerFilter, TextureImage, TextureRef, UvTransform, Wrap,
 };
 pub use truth::{Light, TruthParams, render_silhouette, render_truth, render_truth_at_points};
-pub use volume::{Volume, Voxel, VoxelParams, voxelize};
+pub use volume::{Fill, Volume, Voxel, VoxelParams, voxelize};

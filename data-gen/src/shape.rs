@@ -48,6 +48,13 @@ pub trait Shape: Send + Sync {
     fn contains(&self, p: DVec3) -> bool;
     /// Axis-aligned bounds `(min, max)` of the solid.
     fn bounds(&self) -> (DVec3, DVec3);
+    /// Whether the shape encloses a volume, so that [`Shape::contains`] means something:
+    /// voxelisation then fills its inside ([`crate::Fill::Auto`] takes [`crate::Fill::Solid`]),
+    /// and otherwise covers its surface ([`crate::Fill::Shell`]). True by default (procedural
+    /// solids); a [`crate::Mesh`] answers from its edges and materials.
+    fn encloses_volume(&self) -> bool {
+        true
+    }
     /// Linear RGB albedo of the surface nearest to `p` (used by voxelisation).
     fn albedo_at(&self, p: DVec3) -> Vec3;
     /// Signed distance to the surface (negative inside), when the shape has one. Used for voxel
@@ -122,6 +129,9 @@ impl Shape for RayByRay<'_> {
     }
     fn bounds(&self) -> (DVec3, DVec3) {
         self.0.bounds()
+    }
+    fn encloses_volume(&self) -> bool {
+        self.0.encloses_volume()
     }
     fn albedo_at(&self, p: DVec3) -> Vec3 {
         self.0.albedo_at(p)

@@ -2,8 +2,10 @@
 //! (tileable) along the axes asked for.
 //!
 //! Voxel `(x, y, z)` covers `[min + (x, y, z)·voxel_size, min + (x+1, y+1, z+1)·voxel_size]`;
-//! storage index `x + nx·(y + ny·z)`. Density is the share of `s³` stratified sub-samples inside
-//! the shape. On a periodic axis the shape is tiled with the period of the box, so a shape that
+//! storage index `x + nx·(y + ny·z)`. Two fills ([`Fill`]): a solid's density is the share of
+//! `s³` stratified sub-samples inside the shape; a shell's is the share of `s²` axis-parallel
+//! rays per axis the surface stops within the voxel, averaged over the axes (the `shell`
+//! module). On a periodic axis the shape is tiled with the period of the box, so a shape that
 //! sticks out of one side comes back in on the other.
 
 use crate::Supersample;
@@ -34,6 +36,43 @@ impl Voxel {
     };
 }
 
+/// How [`voxelize`] decides what a voxel holds.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Fill {
+    /// [`Fill::Solid`] for shapes that enclose a volume ([`Shape::encloses_volume`]),
+    /// [`Fill::Shell`] for the others.
+    #[default]
+    Auto,
+    /// The share of the voxel inside the solid (parity of ray crossings for meshes): for closed
+    /// shapes. An open surface has no inside, and its voxels come out nearly empty.
+    Solid,
+    /// The share of axis-parallel rays the surface stops within the voxel, per axis
+    /// ([`Volume::axis_coverage`]): for open meshes, leaf cards cut by alpha masks, single walls.
+    /// The inside of a closed shape stays empty.
+    Shell,
+}
+
+impl Fill {
+    /// The fill used for `shape`: [`Fill::Auto`] resolved by [`Shape::encloses_volume`].
+    pub fn resolve(self, shape: &dyn Shape) -> Fill {
+        match self {
+            Fill::Auto if shape.encloses_volume() => Fill::Solid,
+            Fill::Auto => Fill::Shell,
+            other => other,
+        }
+    }
+
+    /// Lower-case name (`auto`, `solid`, `shell`), as manifests write it.
+    pub fn name(self) -> &'static str {
+        match self {
+            Fill::Auto => "auto",
+            Fill::Solid => "solid",
+            Fill::Shell => "shell",
+        }
+    }
+}
+
 /// Parameters of [`voxelize`].
 #[derive(Clone, Copy, Debug)]
 pub struct VoxelParams {
@@ -45,8 +84,11 @@ pub struct VoxelParams {
     pub max: DVec3,
     /// Periodic (tileable) axes.
     pub periodic: [bool; 3],
-    /// Inside tests per voxel edge ([`Supersample`]: `k³` per voxel).
+    /// Inside tests per voxel edge ([`Supersample`]: `k³` per voxel for a solid, `k²` rays per
+    /// axis for a shell).
     pub supersample: Supersample,
+    /// Solid, shell, or chosen by the shape ([`Fill::Auto`]).
+    pub fill: Fill,
 }
 
 /// A voxelised shape.
@@ -66,6 +108,11 @@ pub struct Volume {
     pub color: Vec<[f32; 3]>,
     /// Outward unit surface normal where `density > 0` and it is defined.
     pub normal: Vec<Option<Vec3>>,
+    /// The fill used ([`Fill::Solid`] or [`Fill::Shell`], never [`Fill::Auto`]).
+    pub fill: Fill,
+    /// A shell's coverage along `x`, `y` and `z` per voxel (the share of the voxel's rays along
+    /// that axis the surface stops inside it; `density` is their mean); `None` for a solid.
+    pub axis_coverage: Option<Vec<[f32; 3]>>,
 }
 
 impl Volume {
@@ -83,7 +130,7 @@ impl Volume {
 }
 
 /// The periodic images of `p` to test (the point itself first).
-fn images(p: DVec3, period: DVec3, periodic: [bool; 3]) -> impl Iterator<Item = DVec3> {
+pub(crate) fn images(p: DVec3, period: DVec3, periodic: [bool; 3]) -> impl Iterator<Item = DVec3> {
     let range = move |k: usize| if periodic[k] { -1..=1 } else { 0..=0 };
     range(0).flat_map(move |a| {
         range(1).flat_map(move |b| {
@@ -92,8 +139,9 @@ fn images(p: DVec3, period: DVec3, periodic: [bool; 3]) -> impl Iterator<Item = 
     })
 }
 
-/// Voxelises `shape`. Cost: `nx·ny·nz·s³` inside tests (×3^k on k periodic axes), plus SDF or
-/// density-gradient normals; z-slabs in parallel.
+/// Voxelises `shape`. Cost, solid: `nx·ny·nz·s³` inside tests (×3^k on k periodic axes), plus
+/// SDF or density-gradient normals; z-slabs in parallel. Shell: per axis `s²` rays per column of
+/// voxels, each `hits + 1` ray casts (×3^k); columns in parallel.
 ///
 /// Errors: zero dimensions or supersampling, a non-finite or empty box.
 pub fn voxelize(shape: &dyn Shape, params: &VoxelParams) -> Result<Volume, DataGenError> {
@@ -116,6 +164,25 @@ pub fn voxelize(shape: &dyn Shape, params: &VoxelParams) -> Result<Volume, DataG
     let [nx, ny, nz] = params.dims;
     let voxel = extent / DVec3::new(nx as f64, ny as f64, nz as f64);
     let periodic = params.periodic;
+    if params.fill.resolve(shape) == Fill::Shell {
+        let shell = crate::shell::shell(shape, params.dims, params.min, voxel, periodic, s);
+        let density = shell
+            .axis_coverage
+            .iter()
+            .map(|c| (c[0] + c[1] + c[2]) / 3.0)
+            .collect();
+        return Ok(Volume {
+            dims: params.dims,
+            min: params.min,
+            voxel_size: voxel,
+            periodic,
+            density,
+            color: shell.color,
+            normal: shell.normal,
+            fill: Fill::Shell,
+            axis_coverage: Some(shell.axis_coverage),
+        });
+    }
     // The periodic images to test, as offsets in periods (the point itself first).
     let offsets: Vec<DVec3> = images(DVec3::ZERO, DVec3::ONE, periodic).collect();
     let n = nx * ny * nz;
@@ -187,6 +254,8 @@ pub fn voxelize(shape: &dyn Shape, params: &VoxelParams) -> Result<Volume, DataG
         density,
         color,
         normal: vec![None; n],
+        fill: Fill::Solid,
+        axis_coverage: None,
     };
     let normals: Vec<Option<Vec3>> = (0..n)
         .into_par_iter()

@@ -622,6 +622,7 @@ fn voxels_of_a_textured_mesh_take_its_texture_colour() {
             max: hi + 0.05,
             periodic: [false; 3],
             supersample: Supersample::of(2),
+            fill: altrep_data_gen::Fill::Solid,
         },
     )
     .unwrap();

@@ -6,5 +6,6 @@ mod capture;
 mod gltf;
 mod mesh;
 mod parallel_rays;
+mod shell;
 mod stress;
 mod voxel_rows;

@@ -119,6 +119,7 @@ fn voxelisation_by_rows_gives_the_per_point_densities() {
                 max: DVec3::new(1.0, 2.0, 0.9),
                 periodic,
                 supersample: Supersample::of(supersample),
+                fill: altrep_data_gen::Fill::Solid,
             };
             let v = voxelize(mesh, &params).unwrap();
             let want = per_point_density(mesh, &params);

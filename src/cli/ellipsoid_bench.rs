@@ -292,6 +292,7 @@ pub fn demo_section(
             max: glam::DVec3::new(1.0, 2.0, 1.0),
             periodic: [false; 3],
             supersample,
+            fill: altrep_data_gen::Fill::Auto,
         },
     )?;
     let dir = ctx.dir;

@@ -10,7 +10,7 @@
 use std::num::NonZeroU32;
 use std::time::Instant;
 
-use altrep_data_gen::{Supersample, VoxelParams, voxelize};
+use altrep_data_gen::{Fill, Supersample, VoxelParams, voxelize};
 use glam::DVec3;
 use serde::{Deserialize, Serialize};
 use serde_json::json;
@@ -38,6 +38,11 @@ pub struct OctreeSpec {
     /// Inside tests per voxel edge when voxelising ([`Supersample`]: `k³` per voxel; 1–4,
     /// default 2).
     pub supersample: Supersample,
+    /// How a mesh is voxelised ([`Fill`]): `solid` (its inside, by ray parity), `shell` (the
+    /// share of rays its surface stops in each voxel: open meshes, alpha-masked leaves) or
+    /// `auto` (default: solid when the mesh is closed and no material cuts rays, shell
+    /// otherwise).
+    pub fill: Fill,
 }
 
 impl Default for OctreeSpec {
@@ -46,6 +51,7 @@ impl Default for OctreeSpec {
             resolution: 64,
             rule: "sggx".into(),
             supersample: Supersample::of(2),
+            fill: Fill::Auto,
         }
     }
 }
@@ -174,6 +180,7 @@ impl Representation for OctreeRepr {
                 max: DVec3::new(1.0, 2.0, 1.0),
                 periodic: [false; 3],
                 supersample: spec.supersample,
+                fill: spec.fill,
             },
         )?;
         voxelising.stop();
@@ -196,7 +203,7 @@ impl Representation for OctreeRepr {
         octree.stop();
         Ok((
             tree,
-            json!({ "voxelize_s": voxelize_s, "build_s": report.build_seconds,
+            json!({ "voxelize_s": voxelize_s, "fill": volume.fill.name(), "build_s": report.build_seconds,
                     "nodes": report.nodes, "leaves": report.leaves, "compression": report.compression }),
         ))
     }

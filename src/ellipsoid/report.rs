@@ -295,6 +295,7 @@ pub fn octree_row(
                 max: glam::DVec3::new(1.0, 2.0, 1.0),
                 periodic: [false; 3],
                 supersample: Supersample::ONE,
+                fill: altrep_data_gen::Fill::Auto,
             };
             let volume = altrep_data_gen::voxelize(&shape, &vp)
                 .map_err(|e| EllipsoidError::BadVolume(e.to_string()))?;

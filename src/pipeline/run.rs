@@ -214,7 +214,7 @@ impl RunSummary {
     /// The summary table (Markdown).
     pub fn table(&self) -> String {
         let mut s = String::from(
-            "| asset | representation | outcome | skipped | seconds (build) | bytes | PSNR dB (worst) | IoU | steps per pixel |\n|---|---|---|---|---|---|---|---|---|\n",
+            "| asset | representation | outcome | skipped | seconds (build) | bytes | PSNR dB (worst) | IoU | coverage error | steps per pixel |\n|---|---|---|---|---|---|---|---|---|---|\n",
         );
         for o in &self.outcomes {
             let outcome = match (&o.outcome, self.below(o)) {
@@ -237,12 +237,18 @@ impl RunSummary {
                 (Outcome::Refused(r), _) => format!("skipped: {r}"),
                 (Outcome::Failed(m), _) => format!("FAILED: {m}"),
             };
-            let (psnr, iou, steps) = o.measurement.as_ref().map_or(
-                ("–".to_string(), "–".to_string(), "–".to_string()),
+            let (psnr, iou, coverage, steps) = o.measurement.as_ref().map_or(
+                (
+                    "–".to_string(),
+                    "–".to_string(),
+                    "–".to_string(),
+                    "–".to_string(),
+                ),
                 |m| {
                     (
                         format!("{:.2} ({:.2})", m.psnr_db, m.worst_psnr_db),
                         format!("{:.3}", m.iou),
+                        m.coverage_error.map_or("–".into(), |e| format!("{e:.3}")),
                         m.mean_steps.map_or("–".into(), |s| {
                             if m.steps_split.is_empty() {
                                 format!("{s:.2}")
@@ -259,7 +265,7 @@ impl RunSummary {
                 },
             );
             s += &format!(
-                "| {} | {} | {} | {} | {:.2} ({:.2}) | {} | {psnr} | {iou} | {steps} |\n",
+                "| {} | {} | {} | {} | {:.2} ({:.2}) | {} | {psnr} | {iou} | {coverage} | {steps} |\n",
                 o.asset,
                 o.representation,
                 outcome,

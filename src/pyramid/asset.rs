@@ -568,7 +568,11 @@ impl Representation for PyramidRepr {
                 // Peak 1; an exact match is capped at 100 dB rather than infinite.
                 let psnr = (-10.0 * mse.max(1e-10).log10()).min(100.0);
                 // The plane covers every pixel in both images: the silhouette IoU is 1.
-                scores.push((psnr, 1.0));
+                scores.push(crate::representation::Score {
+                    psnr_db: psnr,
+                    iou: 1.0,
+                    coverage_error: 0.0,
+                });
                 if pictures.is_empty() && tilt == g {
                     let image = |v: &[f64]| altrep_data_gen::RgbaImage {
                         width: MEASURE_PIXELS,
@@ -605,7 +609,12 @@ impl Representation for PyramidRepr {
             sizes[0],
             sizes[1]
         );
-        Ok((fold(method, &scores, None), pictures))
+        // Coverage is the plane's, whole in both: no figure of its own.
+        let m = Measurement {
+            coverage_error: None,
+            ..fold(method, &scores, None)
+        };
+        Ok((m, pictures))
     }
 }
 

@@ -295,6 +295,10 @@ pub struct Measurement {
     pub worst_psnr_db: f64,
     /// Mean silhouette IoU.
     pub iou: f64,
+    /// Mean coverage error ([`crate::metrics::coverage_error`]: mean absolute alpha difference
+    /// over the pixels either picture covers), `None` in files written before it was measured.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub coverage_error: Option<f64>,
     /// Mean shader steps per pixel, where the representation marches: every march counted.
     pub mean_steps: Option<f64>,
     /// Where those steps go, per pixel (for example the bracketing views, the fallback views and
@@ -571,16 +575,12 @@ impl Window {
     /// summed over the whole window but divided by the pixel count of the cylinder's window
     /// (`size²`): a horizontal view, empty outside the cylinder's window, scores exactly as in
     /// [`score`], and error outside it still counts.
-    pub fn score(
-        &self,
-        image: &RgbaImage,
-        reference: &RgbaImage,
-    ) -> Result<(f64, f64), PipelineError> {
-        let (psnr, iou) = score(image, reference)?;
-        Ok((
-            psnr - 20.0 * (self.side() as f64 / self.size as f64).log10(),
-            iou,
-        ))
+    pub fn score(&self, image: &RgbaImage, reference: &RgbaImage) -> Result<Score, PipelineError> {
+        let s = score(image, reference)?;
+        Ok(Score {
+            psnr_db: s.psnr_db - 20.0 * (self.side() as f64 / self.size as f64).log10(),
+            ..s
+        })
     }
 
     /// A drawing of the cylinder's window (`size²`) placed at the centre of this window, empty
@@ -648,7 +648,7 @@ pub fn horizontal_ceiling(
             elevation: worst.to_radians(),
         };
         let tilted = window.truth(source, view, Supersample::of(2))?;
-        ceiling = ceiling.min(window.score(&tilted, &flat)?.0);
+        ceiling = ceiling.min(window.score(&tilted, &flat)?.psnr_db);
     }
     Ok(Some((ceiling, worst)))
 }
@@ -683,21 +683,39 @@ pub fn plan_elevations(
     Ok(())
 }
 
-/// PSNR and IoU of `image` against `reference`.
-pub fn score(image: &RgbaImage, reference: &RgbaImage) -> Result<(f64, f64), PipelineError> {
-    let psnr = crate::metrics::psnr(image, reference)?;
-    let iou = crate::metrics::silhouette_iou(image, reference, 0.5)?;
-    Ok((psnr, iou))
+/// One view of a representation against its truth.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Score {
+    /// PSNR (dB, peak 1) over RGBA ([`crate::metrics::psnr`]).
+    pub psnr_db: f64,
+    /// Silhouette IoU at alpha ½ ([`crate::metrics::silhouette_iou`]).
+    pub iou: f64,
+    /// Mean absolute alpha difference over the covered pixels
+    /// ([`crate::metrics::coverage_error`]).
+    pub coverage_error: f64,
 }
 
-/// Folds per-angle `(psnr, iou)` into a measurement.
-pub fn fold(method: String, scores: &[(f64, f64)], steps: Option<f64>) -> Measurement {
+/// PSNR, IoU and coverage error of `image` against `reference`.
+pub fn score(image: &RgbaImage, reference: &RgbaImage) -> Result<Score, PipelineError> {
+    Ok(Score {
+        psnr_db: crate::metrics::psnr(image, reference)?,
+        iou: crate::metrics::silhouette_iou(image, reference, 0.5)?,
+        coverage_error: crate::metrics::coverage_error(image, reference)?,
+    })
+}
+
+/// Folds per-angle scores into a measurement (means, and the worst PSNR).
+pub fn fold(method: String, scores: &[Score], steps: Option<f64>) -> Measurement {
     let n = scores.len().max(1) as f64;
     Measurement {
         method,
-        psnr_db: scores.iter().map(|s| s.0).sum::<f64>() / n,
-        worst_psnr_db: scores.iter().map(|s| s.0).fold(f64::INFINITY, f64::min),
-        iou: scores.iter().map(|s| s.1).sum::<f64>() / n,
+        psnr_db: scores.iter().map(|s| s.psnr_db).sum::<f64>() / n,
+        worst_psnr_db: scores
+            .iter()
+            .map(|s| s.psnr_db)
+            .fold(f64::INFINITY, f64::min),
+        iou: scores.iter().map(|s| s.iou).sum::<f64>() / n,
+        coverage_error: Some(scores.iter().map(|s| s.coverage_error).sum::<f64>() / n),
         mean_steps: steps,
         steps_split: Vec::new(),
         size: 0,
@@ -705,9 +723,10 @@ pub fn fold(method: String, scores: &[(f64, f64)], steps: Option<f64>) -> Measur
     }
 }
 
-/// The mean of the PSNRs in `scores` (`(psnr, iou)` pairs), for [`Measurement::exact_psnr_db`].
-pub fn mean_psnr(scores: &[(f64, f64)]) -> Option<f64> {
-    (!scores.is_empty()).then(|| scores.iter().map(|s| s.0).sum::<f64>() / scores.len() as f64)
+/// The mean of the PSNRs in `scores`, for [`Measurement::exact_psnr_db`].
+pub fn mean_psnr(scores: &[Score]) -> Option<f64> {
+    (!scores.is_empty())
+        .then(|| scores.iter().map(|s| s.psnr_db).sum::<f64>() / scores.len() as f64)
 }
 
 /// The light a baked asset was shaded with, or the scene's light for dynamic lighting.
@@ -762,8 +781,8 @@ mod tests {
                 }
             }
             let flat = truth(&source, azimuth + 0.2, 24, Supersample::of(2)).unwrap();
-            let (a, _) = score(&flat, &narrow).unwrap();
-            let (b, _) = window.score(&window.place(&flat), &placed).unwrap();
+            let a = score(&flat, &narrow).unwrap().psnr_db;
+            let b = window.score(&window.place(&flat), &placed).unwrap().psnr_db;
             assert_abs_diff_eq!(a, b, epsilon = 1e-9);
         }
         // Straight above, the frame stays a right-handed basis with a horizontal right.

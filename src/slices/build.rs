@@ -9,7 +9,9 @@
 
 use std::collections::VecDeque;
 
-use altrep_data_gen::{Light, Shape, SplitMix64, Supersample, VoxelParams, scene_shape, voxelize};
+use altrep_data_gen::{
+    Fill, Light, Shape, SplitMix64, Supersample, VoxelParams, scene_shape, voxelize,
+};
 use glam::{DVec3, Vec3};
 use rayon::prelude::*;
 
@@ -514,6 +516,8 @@ pub struct ShapeParams {
     /// The shape repeats along `x` and `z` (a tile: voxelised periodically); off for one object
     /// in its box (docs/design.md §9.4).
     pub tiled: bool,
+    /// Solid or shell voxelisation ([`Fill`]; default [`Fill::Auto`]: the shape decides).
+    pub fill: Fill,
 }
 
 impl Default for ShapeParams {
@@ -527,14 +531,17 @@ impl Default for ShapeParams {
             supersample: Supersample::of(3),
             lighting: SliceLighting::default(),
             tiled: true,
+            fill: Fill::Auto,
         }
     }
 }
 
 /// Builds a texel from a data-gen shape: [`voxelize`] (periodic in `x` and `z` when
-/// [`ShapeParams::tiled`]) gives coverage,
-/// albedo and normals; boundary voxels are shaded, the interior takes the colour of its nearest
-/// boundary voxel (Meyer & Neyret's §3.2 fill). Cost: data-gen's voxelisation plus one pass.
+/// [`ShapeParams::tiled`]) gives coverage, albedo and normals; boundary voxels are shaded, the
+/// interior takes the colour of its nearest boundary voxel (Meyer & Neyret's §3.2 fill). A shell
+/// voxelisation ([`Fill::Shell`]) also gives each voxel its opacity per crossing axis
+/// ([`TexelVolume::with_axis_alpha`]), so the stacks along an axis see a leaf face on as opaque.
+/// Cost: data-gen's voxelisation plus one pass.
 ///
 /// Errors: data-gen's (zero sizes, non-finite box), zero voxel size, bad light.
 pub fn from_shape(shape: &dyn Shape, params: &ShapeParams) -> Result<TexelVolume, SliceError> {
@@ -551,6 +558,7 @@ pub fn from_shape(shape: &dyn Shape, params: &ShapeParams) -> Result<TexelVolume
             max,
             periodic: [params.tiled, false, params.tiled],
             supersample: params.supersample,
+            fill: params.fill,
         },
     )?;
     let lit = |i: usize| -> [f32; 3] {
@@ -559,7 +567,11 @@ pub fn from_shape(shape: &dyn Shape, params: &ShapeParams) -> Result<TexelVolume
         light.shade(alb, n).min(Vec3::ONE).to_array()
     };
     let rgba = fill_interior(d, &vol.density, lit);
-    TexelVolume::new(d, params.voxel, rgba)
+    let volume = TexelVolume::new(d, params.voxel, rgba)?;
+    match vol.axis_coverage {
+        Some(axis) => volume.with_axis_alpha(axis),
+        None => Ok(volume),
+    }
 }
 
 /// The test tiles of the slice measurements (`altrep slices`).

@@ -449,6 +449,9 @@ pub fn build_slices(
         if !params.axes[axis.index()] {
             continue;
         }
+        // A shell's opacity depends on the crossing axis: each stack from its own.
+        let along = volume.along(axis);
+        let volume = along.as_ref();
         let n = dims[axis.index()];
         let all: Vec<usize> = (0..=n.trailing_zeros() as usize).collect();
         let levels = params.levels.as_ref().unwrap_or(&all);

@@ -482,6 +482,7 @@ impl Representation for SphereRepr {
                 psnr_db: m.ours.psnr_mean,
                 worst_psnr_db: m.ours.psnr_min,
                 iou: m.ours.iou_mean,
+                coverage_error: Some(m.ours.coverage_error_mean),
                 mean_steps: Some(m.ours.steps_mean),
                 steps_split: Vec::new(),
                 size,

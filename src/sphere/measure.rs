@@ -9,7 +9,7 @@ use glam::DVec3;
 use super::baseline::{EngineSteps, render_engine};
 use super::warp::{RenderOutput, SphereRenderParams, render};
 use super::{Coverage, SphereError, SphereImages, SphereParams, check};
-use crate::metrics::{ErrorSplit, error_split, psnr, silhouette_iou};
+use crate::metrics::{ErrorSplit, coverage_error, error_split, psnr, silhouette_iou};
 
 /// `n` directions spread evenly over the upper hemisphere or the sphere (Fibonacci spiral:
 /// heights uniform, azimuths stepped by the golden angle). Elevations stay strictly inside
@@ -64,6 +64,9 @@ pub struct MethodStats {
     pub psnr_min: f64,
     /// Mean silhouette IoU (alpha > ½).
     pub iou_mean: f64,
+    /// Mean coverage error ([`coverage_error`]: mean absolute alpha difference over the pixels
+    /// either picture covers).
+    pub coverage_error_mean: f64,
     /// Mean texel fetches per ray (all enclosing frames together).
     pub steps_mean: f64,
     /// Largest texel fetches of one ray.
@@ -150,6 +153,7 @@ fn stats(outs: &[(RenderOutput, f64)], truths: &[RgbaImage]) -> Result<MethodSta
         s.psnr_mean += p;
         s.psnr_min = s.psnr_min.min(p);
         s.iou_mean += silhouette_iou(&out.image, truth, 0.5)?;
+        s.coverage_error_mean += coverage_error(&out.image, truth)?;
         s.split.add(&error_split(&out.image, truth)?);
         steps += out.steps.iter().map(|&v| f64::from(v)).sum::<f64>();
         rays += out.steps.len();
@@ -161,6 +165,7 @@ fn stats(outs: &[(RenderOutput, f64)], truths: &[RgbaImage]) -> Result<MethodSta
     let n = outs.len().max(1) as f64;
     s.psnr_mean /= n;
     s.iou_mean /= n;
+    s.coverage_error_mean /= n;
     s.split.scale(1.0 / n);
     s.ms_per_image /= n;
     s.steps_mean = steps / rays.max(1) as f64;

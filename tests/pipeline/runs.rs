@@ -62,6 +62,11 @@ fn second_run_is_cached_and_one_changed_parameter_rebuilds_one_asset() {
     assert_abs_diff_eq!(stored.psnr_db, pear.psnr_db, epsilon = 1e-9);
     assert_abs_diff_eq!(stored.worst_psnr_db, pear.worst_psnr_db, epsilon = 1e-9);
     assert_abs_diff_eq!(stored.iou, pear.iou, epsilon = 1e-12);
+    assert_abs_diff_eq!(
+        stored.coverage_error.unwrap(),
+        pear.coverage_error.unwrap(),
+        epsilon = 1e-12
+    );
     let chair_shape = scene_shape("chair").unwrap();
     let chair_files = AssetReader::open(&dir.path().join("chair/octree")).unwrap();
     let chair_tree = OctreeRepr::read(&chair_files).unwrap();
@@ -120,7 +125,7 @@ fn remeasure_pear_parallax(m: &Manifest, folder: &Path) -> altrep::pipeline::Mea
     let data = Parallax::read(&AssetReader::open(folder).unwrap()).unwrap();
     let size = data.images.params.width;
     let shape = scene_shape("pear").unwrap();
-    let (mut psnr, mut worst, mut iou) = (0.0, f64::INFINITY, 0.0);
+    let (mut psnr, mut worst, mut iou, mut coverage) = (0.0, f64::INFINITY, 0.0, 0.0);
     for k in 0..4 {
         let angle = (200.0 * (k as f64 + 0.37) / 4.0f64).to_radians();
         let truth = altrep_data_gen::render_truth(
@@ -146,12 +151,14 @@ fn remeasure_pear_parallax(m: &Manifest, folder: &Path) -> altrep::pipeline::Mea
         psnr += p / 4.0;
         worst = worst.min(p);
         iou += altrep::metrics::silhouette_iou(&img, &truth, 0.5).unwrap() / 4.0;
+        coverage += altrep::metrics::coverage_error(&img, &truth).unwrap() / 4.0;
     }
     altrep::pipeline::Measurement {
         method: String::new(),
         psnr_db: psnr,
         worst_psnr_db: worst,
         iou,
+        coverage_error: Some(coverage),
         mean_steps: None,
         steps_split: Vec::new(),
         size: 0,

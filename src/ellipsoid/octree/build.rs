@@ -546,6 +546,7 @@ mod tests {
                     max: glam::DVec3::new(1.0, 2.0, 1.0),
                     periodic,
                     supersample: Supersample::ONE,
+                    fill: altrep_data_gen::Fill::Solid,
                 },
             )
             .unwrap();

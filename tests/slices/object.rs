@@ -19,8 +19,13 @@ fn chair_volume(n: usize) -> altrep::slices::TexelVolume {
 
 /// data-gen's scene shape `shape` voxelised as one object in its box, `n³` voxels.
 fn object_volume(shape: &str, n: usize) -> altrep::slices::TexelVolume {
+    shape_volume(&scene_shape(shape).unwrap(), n)
+}
+
+/// [`object_volume`] of any shape (the fill chosen by the shape: [`altrep_data_gen::Fill::Auto`]).
+fn shape_volume(shape: &dyn altrep_data_gen::Shape, n: usize) -> altrep::slices::TexelVolume {
     from_shape(
-        &scene_shape(shape).unwrap(),
+        shape,
         &ShapeParams {
             dims: [n; 3],
             voxel: 2.0 / n as f64,
@@ -250,14 +255,30 @@ lighting = "baked"
 /// the stack the rule and the criterion pick, 1 sample per pixel with trilinear 2D reads;
 /// per-side merges fitted to bilinear filtering against one layer kept per slab, both measured
 /// against the object's ray-cast truth (3 × 3 rays per pixel): mean gain ≥ 3 dB (3.90 dB
-/// measured). The solid tree loses instead (−1.30 dB; −0.88 dB unfitted): docs/design.md §9.5.
+/// measured). Data-gen's leaf shrub (300 alpha-masked cards, voxelised as a shell) gains
+/// +2.81 dB (+2.82 unfitted), short of 3 dB: 6.1–6.4 dB from 20° below, 0.9 dB from 55° above.
+/// The solid tree loses instead (−1.30 dB; −0.71 dB unfitted): docs/design.md §9.5.
 #[test]
 fn merging_beats_dropping_on_a_volume_from_a_mesh() {
     let n = 32;
     let size = 16;
-    for shape in ["chair"] {
-        let object = scene_shape(shape).unwrap();
-        let volume = object_volume(shape, n);
+    let shrub = altrep_data_gen::Mesh::from_gltf_bytes(
+        &altrep_data_gen::gltf_write::TestGltf::leaf_shrub(300, 7)
+            .to_glb()
+            .unwrap(),
+        std::path::Path::new("shrub.glb"),
+        &altrep_data_gen::MeshLoadOptions::default(),
+    )
+    .unwrap();
+    // (shape, least mean gain): the goal on the chair; on the shrub the measured gain less a
+    // margin (the goal is missed there).
+    let objects: [(&str, Box<dyn altrep_data_gen::Shape>, f64); 2] = [
+        ("chair", Box::new(scene_shape("chair").unwrap()), 3.0),
+        ("shrub", Box::new(shrub), 2.5),
+    ];
+    for (shape, object, least) in &objects {
+        let object = object.as_ref();
+        let volume = shape_volume(object, n);
         let build = |rule| {
             let params = SliceParams {
                 rule,
@@ -277,7 +298,7 @@ fn merging_beats_dropping_on_a_volume_from_a_mesh() {
             let c = choose_stored(&merged, dir, 2.0 / size as f64).unwrap();
             assert!(c.level >= 1, "{shape} {k}: {c:?}");
             let truth = altrep_data_gen::render_truth_frame(
-                &object,
+                object,
                 &frame,
                 size,
                 size,
@@ -301,7 +322,7 @@ fn merging_beats_dropping_on_a_volume_from_a_mesh() {
         }
         let mean = gains.iter().sum::<f64>() / gains.len() as f64;
         eprintln!("{shape}: merge − drop {mean:+.2} dB mean, per view {gains:.2?}");
-        assert!(mean >= 3.0, "{shape}: merge − drop {mean:.2} dB");
+        assert!(mean >= *least, "{shape}: merge − drop {mean:.2} dB");
     }
 }
 

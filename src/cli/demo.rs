@@ -69,6 +69,9 @@ pub fn sections() -> Vec<(&'static str, SectionFn)> {
 pub const DEMO_SCENE: &str = include_str!("../../scenes/demo.toml");
 /// The bundled scene's flat cut-out (`scenes/cutout.obj`).
 pub const DEMO_CUTOUT: &str = include_str!("../../scenes/cutout.obj");
+/// The bundled scene's shrub of alpha-masked leaf cards (`scenes/shrub.glb`): data-gen's
+/// `TestGltf::leaf_shrub(300, 7)`, byte for byte (a unit test checks it).
+pub const DEMO_SHRUB: &[u8] = include_bytes!("../../scenes/shrub.glb");
 
 /// Runs `altrep demo`: `precompute` of the bundled scene into `OUT/scene`, then the measured
 /// sections into `OUT/report.md`.
@@ -84,12 +87,13 @@ pub fn run(args: DemoArgs) -> CliResult {
     let mut claim = crate::asset::OutputClaim::new(&args.out, "demo", entries);
     claim.check()?;
     let staging = claim.begin()?;
-    // The scene's own mesh (a flat cut-out) is written beside a copy of the manifest, so the
-    // demo runs from any folder.
+    // The scene's own meshes (a flat cut-out, a shrub) are written beside a copy of the
+    // manifest, so the demo runs from any folder.
     let staged_inputs = staging.join("scene-inputs");
     std::fs::create_dir(&staged_inputs)
         .map_err(|e| format!("cannot create {}: {e}", staged_inputs.display()))?;
     std::fs::write(staged_inputs.join("cutout.obj"), DEMO_CUTOUT)
+        .and_then(|()| std::fs::write(staged_inputs.join("shrub.glb"), DEMO_SHRUB))
         .map_err(|e| format!("cannot write {}: {e}", staged_inputs.display()))?;
     let inputs = claim.place("scene-inputs")?;
     let manifest = crate::pipeline::Manifest::parse(DEMO_SCENE, &inputs.join("demo.toml"))?;
@@ -106,8 +110,8 @@ pub fn run(args: DemoArgs) -> CliResult {
             json: None,
             profile: false,
             no_measure: false,
-            // The bundled scene holds two stand-ins below the default 20 dB target (a flat
-            // sign, the truck's cylinder): the demo shows them flagged in its report.
+            // The bundled scene holds three stand-ins below the default 20 dB target (a flat
+            // sign, the truck's cylinder, the shrub's octree): the demo shows them flagged.
             allow_below_quality: true,
             max_memory: None,
         },
@@ -250,4 +254,22 @@ pub fn truth_image(
             cylinder,
         },
     )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The bundled shrub is what data-gen writes, so it can be rebuilt from the code (and a
+    /// change to the generator shows up here).
+    #[test]
+    fn the_bundled_shrub_is_data_gens_leaf_shrub() {
+        let written = altrep_data_gen::gltf_write::TestGltf::leaf_shrub(300, 7)
+            .to_glb()
+            .unwrap();
+        assert!(
+            written == DEMO_SHRUB,
+            "scenes/shrub.glb differs from TestGltf::leaf_shrub(300, 7): rewrite it"
+        );
+    }
 }

@@ -250,6 +250,18 @@ pub fn run(args: SphereArgs) -> CliResult {
             m.baseline_two_step.psnr_min,
             m.baseline_two_step.iou_mean
         );
+        let reads = |s: &crate::sphere::MethodStats| {
+            format!(
+                "{:.1} / {:.1} / {}",
+                s.reads_mean, s.reads_hit_mean, s.reads_max
+            )
+        };
+        println!(
+            "          texel reads per ray, mean / over hits / max: ours {}, one-step {}, two-step {}",
+            reads(&m.ours),
+            reads(&m.baseline),
+            reads(&m.baseline_two_step)
+        );
         rows.push(m);
     }
     let budgets = budget_table(&rows, &args.budgets);

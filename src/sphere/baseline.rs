@@ -173,6 +173,7 @@ pub fn render_engine(
         RaySample {
             colour: (alpha >= 0.5).then(|| col / alpha as f32),
             steps: lookups,
+            other_reads: 0,
             ..RaySample::default()
         }
     }))

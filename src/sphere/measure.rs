@@ -71,6 +71,14 @@ pub struct MethodStats {
     pub steps_mean: f64,
     /// Largest texel fetches of one ray.
     pub steps_max: u32,
+    /// Mean texel reads per ray, every read counted ([`super::RenderOutput::reads`]: the march,
+    /// the bounds, colour and normal; the baseline's bilinear reads), over the rays inside the
+    /// bounding sphere's disc.
+    pub reads_mean: f64,
+    /// The same over the rays that found a surface.
+    pub reads_hit_mean: f64,
+    /// Largest texel reads of one ray.
+    pub reads_max: u32,
     /// Mean wall time of one image (ms, CPU, all cores).
     pub ms_per_image: f64,
     /// Rays whose surface point no frame sees, per ray (exact warp only).
@@ -145,6 +153,7 @@ fn stats(outs: &[(RenderOutput, f64)], truths: &[RgbaImage]) -> Result<MethodSta
         ..Default::default()
     };
     let (mut rays, mut steps, mut holes, mut unresolved) = (0usize, 0.0f64, 0usize, 0usize);
+    let (mut reads, mut hit_reads, mut hits) = (0.0f64, 0.0f64, 0usize);
     for ((out, ms), truth) in outs.iter().zip(truths) {
         let p = psnr(&out.image, truth)?;
         s.psnr_per_direction.push(p);
@@ -158,6 +167,14 @@ fn stats(outs: &[(RenderOutput, f64)], truths: &[RgbaImage]) -> Result<MethodSta
         steps += out.steps.iter().map(|&v| f64::from(v)).sum::<f64>();
         rays += out.steps.len();
         s.steps_max = s.steps_max.max(out.max_steps());
+        reads += out.reads.iter().map(|&v| f64::from(v)).sum::<f64>();
+        for (&r, &h) in out.reads.iter().zip(&out.hit) {
+            if h {
+                hit_reads += f64::from(r);
+                hits += 1;
+            }
+        }
+        s.reads_max = s.reads_max.max(out.max_reads());
         s.ms_per_image += ms;
         holes += out.holes;
         unresolved += out.unresolved;
@@ -169,6 +186,8 @@ fn stats(outs: &[(RenderOutput, f64)], truths: &[RgbaImage]) -> Result<MethodSta
     s.split.scale(1.0 / n);
     s.ms_per_image /= n;
     s.steps_mean = steps / rays.max(1) as f64;
+    s.reads_mean = reads / rays.max(1) as f64;
+    s.reads_hit_mean = hit_reads / hits.max(1) as f64;
     s.hole_share = holes as f64 / rays.max(1) as f64;
     s.unresolved_share = unresolved as f64 / rays.max(1) as f64;
     Ok(s)

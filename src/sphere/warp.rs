@@ -148,8 +148,15 @@ pub struct RenderOutput {
     /// Premultiplied linear RGBA, alpha = coverage of the samples.
     pub image: RgbaImage,
     /// Texel fetches of every ray (fragment sample) inside the bounding sphere's disc, all
-    /// frames together.
+    /// frames together: the march's depth reads (what the GPU twin counts per fragment).
     pub steps: Vec<u32>,
+    /// Every texel read of each of those rays: the march's, plus one bounds
+    /// texel per frame where bounds are used and, per frame asked for the colour, one depth
+    /// texel and the four bilinear texels of the colour and of the normal; the engine
+    /// baseline's four texels per bilinear read.
+    pub reads: Vec<u32>,
+    /// Whether each of those rays found a surface (coloured the pixel).
+    pub hit: Vec<bool>,
     /// Rays still unresolved after [`MAX_CARVE_ROUNDS`] rounds.
     pub unresolved: usize,
     /// Rays whose surface point no frame asked sees (coloured by the nearest frame surface
@@ -170,7 +177,32 @@ impl RenderOutput {
     pub fn max_steps(&self) -> u32 {
         self.steps.iter().copied().max().unwrap_or(0)
     }
+    /// Mean texel reads per ray, all of them counted ([`RenderOutput::reads`]; 0 when no ray
+    /// was cast).
+    pub fn mean_reads(&self) -> f64 {
+        self.reads.iter().map(|&s| f64::from(s)).sum::<f64>() / self.reads.len().max(1) as f64
+    }
+    /// Mean texel reads over the rays that found a surface (0 when none did).
+    pub fn mean_reads_over_hits(&self) -> f64 {
+        let (sum, n) = self
+            .reads
+            .iter()
+            .zip(&self.hit)
+            .filter(|(_, h)| **h)
+            .fold((0.0, 0usize), |(s, n), (r, _)| (s + f64::from(*r), n + 1));
+        sum / n.max(1) as f64
+    }
+    /// Largest texel reads of one ray.
+    pub fn max_reads(&self) -> u32 {
+        self.reads.iter().copied().max().unwrap_or(0)
+    }
 }
+
+/// How [`RenderOutput::reads`] counts, in words for reports: a march fetch reads one depth
+/// texel, a bounds lookup one texel (both bounds in it), a colour lookup the depth texel of its
+/// cell and the four texels of a bilinear read of the colour and of the normal (9); the engine
+/// baseline reads four texels per bilinear read (depth per step, colour, normal, coverage).
+pub(crate) const TEXEL_READS: &str = "march fetches + 1 bounds texel per frame + 9 texels per frame asked for colour (depth, 4 colour, 4 normal); baseline 4 per bilinear read";
 
 /// The line a display ray makes in one frame (module docs): `Z_k(z) = a + c·z` and
 /// `P_k(Z) = q + Z·t`.
@@ -424,8 +456,10 @@ pub(crate) struct RaySample {
     pub colour: Option<Vec3>,
     /// Display depth of that surface, when the method finds one.
     pub depth: Option<f64>,
-    /// Texel fetches.
+    /// Texel fetches of the march.
     pub steps: u32,
+    /// Texel reads besides the march's: bounds, colour and normal ([`RenderOutput::reads`]).
+    pub other_reads: u32,
     /// No frame sees the surface point.
     pub hole: bool,
     /// Still unresolved after [`MAX_CARVE_ROUNDS`].
@@ -480,6 +514,8 @@ pub(crate) fn draw(
     let mut out = RenderOutput {
         image: RgbaImage::new(w, w),
         steps: Vec::new(),
+        reads: Vec::new(),
+        hit: Vec::new(),
         unresolved: 0,
         holes: 0,
         depth: Vec::with_capacity(w * w),
@@ -489,6 +525,8 @@ pub(crate) fn draw(
         out.depth.extend(depth);
         for r in rays {
             out.steps.push(r.steps);
+            out.reads.push(r.steps + r.other_reads);
+            out.hit.push(r.colour.is_some());
             out.unresolved += usize::from(r.unresolved);
             out.holes += usize::from(r.hole);
         }
@@ -557,7 +595,9 @@ fn trace(
         let line = map.line(x, y);
         let (mut lo, mut hi) = (line.a - line.c * zs, line.a + line.c * zs);
         if params.use_bounds {
-            match images.bounds[k].interval(&images.frames[k], line.q) {
+            let interval = images.bounds[k].interval(&images.frames[k], line.q);
+            ray.other_reads += u32::from(interval.is_some());
+            match interval {
                 Some(Some((zmin, zmax))) => {
                     lo = lo.max(zmin);
                     hi = hi.min(zmax);
@@ -633,6 +673,8 @@ fn trace(
         let (mut col, mut wsum) = (Vec3::ZERO, 0.0f64);
         let mut nearest: Option<(f64, Vec3)> = None;
         for &(frame, ref line, _, _, weight) in &lines {
+            // The cell's depth texel, and the bilinear colour and normal (4 texels each).
+            ray.other_reads += 9;
             let (p, zf) = at(line, z_c - PROBE);
             let (Some(h), Some((albedo, normal))) = (frame.height_at(p), frame.attributes_at(p))
             else {

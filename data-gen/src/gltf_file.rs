@@ -5,8 +5,9 @@
 //! What is read, and how (see `docs/real-assets.md` for the whole list):
 //! * The default scene (the first scene when none is marked default), or the subtree of the node
 //!   named by the caller, with every node transform composed (`T·R·S`, or the node's matrix) from
-//!   the root down. A mirroring transform (negative determinant) needs no care: altrep's normals
-//!   face the incoming ray, and shading normals are carried by the inverse transpose.
+//!   the root down. Under a mirroring transform (negative determinant) each triangle's second and
+//!   third corners are swapped, so its winding still faces its front out (glTF §3.7.2.1: the
+//!   determinant decides the winding); shading normals are carried by the inverse transpose.
 //! * Triangle primitives, indexed or not; strips and fans are converted to triangles. Points and
 //!   lines are refused with an error naming the primitive (`meshes[3].primitives[0]`).
 //! * `TEXCOORD_0/1`, `COLOR_0` (linear RGB or RGBA) and `NORMAL`; without `NORMAL` a triangle is
@@ -16,9 +17,12 @@
 //! * `normalTexture` with its `scale` (linear, read over the ray's footprint like the base colour)
 //!   in the frame of `TANGENT`, or of MikkTSpace tangents generated in world coordinates when the
 //!   primitive has none (the specification's rule), so a baked normal map shades as its baker meant.
+//! * `doubleSided` (default false, as the specification says): a single-sided material's back
+//!   faces let rays through in every tracer, the truth's and the captures' alike (the inside tests
+//!   of voxelisation still count them).
 //! * Everything else that changes how the asset looks is named in [`GltfScene::notes`]:
-//!   emissive and occlusion maps, `KHR_materials_unlit` (lit like any surface), single-sided
-//!   materials (drawn double-sided), skins and morph targets (the bind pose), optional extensions.
+//!   emissive and occlusion maps, `KHR_materials_unlit` (lit like any surface), skins and morph
+//!   targets (the bind pose), optional extensions.
 //!
 //! Every accessor is checked before it is read (element type, stride, count, range), so a
 //! malformed file is an error naming the accessor, never a panic.
@@ -533,9 +537,6 @@ pub(crate) fn load(
         if m.unlit() {
             notes.insert("KHR_materials_unlit: unlit materials are lit like any other".into());
         }
-        if !m.double_sided() {
-            notes.insert("single-sided materials are drawn double-sided".into());
-        }
         let [r, g, b, a] = pbr.base_color_factor();
         materials.push(Material {
             name: m.name().unwrap_or_default().to_string(),
@@ -544,12 +545,15 @@ pub(crate) fn load(
             alpha_texture: None,
             alpha_mode,
             normal_map,
+            single_sided: !m.double_sided(),
         });
     }
     let default_material = materials.len() as u32;
+    // The specification's default material: white, opaque, single-sided.
     materials.push(Material {
         name: "default".into(),
         base_color: Vec4::ONE,
+        single_sided: true,
         ..Material::default()
     });
 
@@ -744,7 +748,12 @@ pub(crate) fn load(
                     },
                 },
             };
+            // Under a mirroring transform the file's counter-clockwise triangles are clockwise
+            // in world space (glTF §3.7.2.1): their second and third corners are swapped, so
+            // every triangle's winding faces its front out (single-sided materials cull by it).
+            let flip = world.determinant() < 0.0;
             for (k, c) in corners.into_iter().enumerate() {
+                let c = if flip { [c[0], c[2], c[1]] } else { c };
                 let [a, b, d] = c.map(|i| i as usize);
                 positions.push([a, b, d].map(|i| pos[i].to_array()));
                 let uv = [0, 1].map(|s| match &uvs[s] {
@@ -761,15 +770,19 @@ pub(crate) fn load(
                     normal: match (&normals, &tangents) {
                         (Some(v), _) => Some([v[a], v[b], v[d]]),
                         // A normal-mapped flat triangle: its face normal by glTF's winding rule
-                        // (clockwise under a mirroring transform), the frame MikkTSpace used.
+                        // (the corners are already in front-facing order), the frame
+                        // MikkTSpace used.
                         (None, Some(_)) => {
                             let [p0, p1, p2] = [a, b, d].map(|i| pos[i]);
                             let f = (p1 - p0).cross(p2 - p0).normalize_or_zero().as_vec3();
-                            Some([if world.determinant() < 0.0 { -f } else { f }; 3])
+                            Some([f; 3])
                         }
                         (None, None) => None,
                     },
-                    tangent: tangents.as_ref().map(|t| Box::new(t[k])),
+                    tangent: tangents.as_ref().map(|t| {
+                        let t = t[k];
+                        Box::new(if flip { [t[0], t[2], t[1]] } else { t })
+                    }),
                 });
             }
         }

@@ -38,6 +38,8 @@ pub struct TestMaterial {
     pub alpha_cutoff: f32,
     /// `normalTexture` (bytes as stored: `(n + 1)/2` per channel, linear) and its `scale`.
     pub normal_texture: Option<(Rgba8, f32)>,
+    /// `doubleSided`.
+    pub double_sided: bool,
 }
 
 /// A triangle primitive of a [`TestGltf`] mesh.
@@ -222,7 +224,7 @@ impl TestGltf {
                 }
                 None => None,
             };
-            let mut mat = json!({"pbrMetallicRoughness": pbr, "alphaMode": m.alpha_mode, "doubleSided": true});
+            let mut mat = json!({"pbrMetallicRoughness": pbr, "alphaMode": m.alpha_mode, "doubleSided": m.double_sided});
             if let Some((t, scale)) = normal {
                 mat["normalTexture"] = json!({"index": t, "scale": scale});
             }
@@ -328,7 +330,9 @@ impl TestGltf {
             indices: Vec::new(),
             material: 0,
         };
-        // Each face: corners a (uv 0,0), b (1,0), c (1,1), d (0,1) as (origin, u edge, v edge).
+        // Each face: corners a (uv 0,0), b (1,0), c (1,1), d (0,1) as (origin, u edge, v edge);
+        // `u × v` points in, so the triangles run a, c, b and a, d, c: counter-clockwise seen
+        // from outside, glTF's front faces.
         let faces: [([f32; 3], [f32; 3], [f32; 3]); 6] = [
             ([0.0, 1.0, 1.0], [1.0, 0.0, 0.0], [0.0, -1.0, 0.0]), // +z
             ([1.0, 1.0, 0.0], [-1.0, 0.0, 0.0], [0.0, -1.0, 0.0]), // −z
@@ -345,7 +349,7 @@ impl TestGltf {
                 prim.uvs.push([s, t]);
             }
             prim.indices
-                .extend([base, base + 1, base + 2, base, base + 2, base + 3]);
+                .extend([base, base + 2, base + 1, base, base + 3, base + 2]);
         }
         Self {
             meshes: vec![vec![prim]],
@@ -360,6 +364,7 @@ impl TestGltf {
                 alpha_mode: "OPAQUE",
                 alpha_cutoff: 0.5,
                 normal_texture: None,
+                double_sided: true,
             }],
             nodes: vec![TestNode {
                 name: "box".into(),
@@ -411,6 +416,7 @@ impl TestGltf {
                     alpha_mode: "MASK",
                     alpha_cutoff: 0.5,
                     normal_texture: None,
+                    double_sided: true,
                 },
                 TestMaterial {
                     base_color: [0.2, 0.9, 0.2, 1.0],
@@ -419,6 +425,7 @@ impl TestGltf {
                     alpha_mode: "OPAQUE",
                     alpha_cutoff: 0.5,
                     normal_texture: None,
+                    double_sided: true,
                 },
             ],
             nodes: vec![TestNode::mesh_at_origin("quad")],
@@ -473,6 +480,7 @@ impl TestGltf {
                     },
                     scale,
                 )),
+                double_sided: true,
             }],
             nodes: vec![TestNode::mesh_at_origin("quad")],
             roots: vec![0],
@@ -561,6 +569,7 @@ impl TestGltf {
             [0.05, 0.05],
             [-0.05, 0.05],
         ];
+        // Corners counter-clockwise seen from above; each side's quad wound to face out.
         for side in 0..4 {
             let (a, b) = (corners[side], corners[(side + 1) % 4]);
             let base = trunk.positions.len() as u32;
@@ -574,7 +583,7 @@ impl TestGltf {
             }
             trunk
                 .indices
-                .extend([base, base + 1, base + 2, base, base + 2, base + 3]);
+                .extend([base, base + 2, base + 1, base, base + 3, base + 2]);
         }
         Self {
             meshes: vec![vec![cards, trunk]],
@@ -590,6 +599,7 @@ impl TestGltf {
                     alpha_mode: "MASK",
                     alpha_cutoff: 0.5,
                     normal_texture: None,
+                    double_sided: true,
                 },
                 TestMaterial {
                     base_color: [0.35, 0.22, 0.1, 1.0],
@@ -598,6 +608,7 @@ impl TestGltf {
                     alpha_mode: "OPAQUE",
                     alpha_cutoff: 0.5,
                     normal_texture: None,
+                    double_sided: true,
                 },
             ],
             nodes: vec![TestNode::mesh_at_origin("shrub")],

@@ -130,6 +130,9 @@ pub struct Mesh {
     materials: Arc<[Material]>,
     /// Whether some material's alpha can let a ray through (every tracer then tests it).
     cut_out: bool,
+    /// Whether some material is single-sided (every tracer but the inside tests then lets rays
+    /// through its back faces).
+    culls: bool,
     placement: Placement,
     notes: Vec<String>,
     inputs: Vec<(PathBuf, blake3::Hash)>,
@@ -464,12 +467,14 @@ impl Mesh {
             kept_colors = Vec::new();
         }
         let materials: Arc<[Material]> = extras.materials.into();
-        let cut_out = kept_colors.iter().any(|c| match c {
-            TriColor::Surface(s) => materials
-                .get(s.material as usize)
-                .is_some_and(Material::is_cut_out),
-            _ => false,
-        });
+        let uses = |f: fn(&Material) -> bool| {
+            kept_colors.iter().any(|c| match c {
+                TriColor::Surface(s) => materials.get(s.material as usize).is_some_and(f),
+                _ => false,
+            })
+        };
+        let cut_out = uses(Material::is_cut_out);
+        let culls = uses(|m| m.single_sided);
         let translation = DVec3::new(0.0, lift, 0.0) - centre * scale;
         Ok(Self {
             name,
@@ -478,6 +483,7 @@ impl Mesh {
             fallback: options.fallback_albedo.clone(),
             materials,
             cut_out,
+            culls,
             placement: Placement::new(options.up, scale, translation, extras.units),
             notes: extras.notes,
             inputs: extras.inputs,
@@ -551,10 +557,34 @@ impl Mesh {
         stops(m.alpha_mode, alpha, key)
     }
 
-    /// [`Mesh::stops_at`] for triangle `k` of the BVH's order, on `f32` ray `r`.
+    /// Whether the hit at distance `d` of `f32` ray `r` on triangle `k` of the BVH's order stops
+    /// it in a tracer: not on the back face of a single-sided material (its winding's normal
+    /// along the ray), and then as [`Mesh::stops_at`] says.
     #[inline]
     pub(crate) fn traced_stops(&self, tr: &Traced, k: usize, r: &BvhRay, d: f32) -> bool {
+        if self.culls
+            && let Some(TriColor::Surface(s)) = tr.colors.get(k)
+            && self
+                .materials
+                .get(s.material as usize)
+                .is_some_and(|m| m.single_sided)
+            && tr.normals[k].dot(r.direction.as_dvec3()) > 0.0
+        {
+            return false;
+        }
+        self.traced_alpha_stops(tr, k, r, d)
+    }
+
+    /// [`Mesh::stops_at`] for triangle `k` of the BVH's order, on `f32` ray `r`: alpha only, as
+    /// the inside tests count crossings (both faces of a surface bound its inside).
+    #[inline]
+    pub(crate) fn traced_alpha_stops(&self, tr: &Traced, k: usize, r: &BvhRay, d: f32) -> bool {
         !self.cut_out || self.stops_at(&tr.triangles[k], tr.colors.get(k), r.origin, r.direction, d)
+    }
+
+    /// Whether some material is single-sided ([`Material::single_sided`]).
+    pub fn is_single_sided(&self) -> bool {
+        self.culls
     }
 
     /// Time spent building the BVH, `None` before it is built.
@@ -777,7 +807,7 @@ impl Shape for Mesh {
         tr.bvh.ray_traverse_anyhit(ray, |r, id| {
             let k = idx[id] as usize;
             let d = tris[k].intersect(r);
-            if d.is_finite() && self.traced_stops(tr, k, r, d) {
+            if d.is_finite() && self.traced_alpha_stops(tr, k, r, d) {
                 crossings += 1;
             }
         });
@@ -858,6 +888,10 @@ impl Shape for Mesh {
     /// along texture seams; they stay closed); an edge met once is open. The 1 % lets a scanned
     /// mesh with a few holes (the Stanford bunny's base) keep its inside. Cost: one hash map
     /// over the edges, `O(triangles)`.
+    fn single_sided(&self) -> bool {
+        self.culls
+    }
+
     fn encloses_volume(&self) -> bool {
         if self.cut_out {
             return false;

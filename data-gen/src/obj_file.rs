@@ -106,6 +106,7 @@ pub(crate) fn load(
             alpha_texture,
             alpha_mode,
             normal_map: None,
+            single_sided: false,
         });
     }
     let total: usize = models.iter().map(|m| m.mesh.indices.len() / 3).sum();

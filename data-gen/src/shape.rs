@@ -55,6 +55,12 @@ pub trait Shape: Send + Sync {
     fn encloses_volume(&self) -> bool {
         true
     }
+    /// Whether some of the surface lets rays through its back faces ([`crate::Mesh`]: a
+    /// single-sided glTF material), so that what a ray meets depends on its sense: the shell
+    /// voxelisation then casts its rays both ways. False by default.
+    fn single_sided(&self) -> bool {
+        false
+    }
     /// Linear RGB albedo of the surface nearest to `p` (used by voxelisation).
     fn albedo_at(&self, p: DVec3) -> Vec3;
     /// Signed distance to the surface (negative inside), when the shape has one. Used for voxel
@@ -132,6 +138,9 @@ impl Shape for RayByRay<'_> {
     }
     fn encloses_volume(&self) -> bool {
         self.0.encloses_volume()
+    }
+    fn single_sided(&self) -> bool {
+        self.0.single_sided()
     }
     fn albedo_at(&self, p: DVec3) -> Vec3 {
         self.0.albedo_at(p)

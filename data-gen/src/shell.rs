@@ -2,9 +2,10 @@
 //! means nothing (open meshes, leaf cards cut out by an alpha mask, single walls) — docs/design.md
 //! §3.4.
 //!
-//! Conventions. Along each axis `k`, a voxel is crossed by `s²` parallel rays along `+k`
-//! (stratified over the voxel's face, the same offsets `(a + ½)/s` as the solid fill's
-//! sub-samples). The voxel's coverage along `k`, `c_k`, is the share of those rays that the
+//! Conventions. Along each axis `k`, a voxel is crossed by `s²` parallel rays along `+k`,
+//! stratified over the voxel's face (the same offsets `(a + ½)/s` as the solid fill's
+//! sub-samples), and along `−k` too where back faces let rays through ([`Shape::single_sided`]; a
+//! ray stopped either way counts once). The voxel's coverage along `k`, `c_k`, is the share of those rays that the
 //! surface stops inside the voxel, through [`Shape::intersect`] — so alpha masks and hashed
 //! blending cut the rays exactly as they cut the truth's. A voxel holding a card seen face on
 //! along `k` has `c_k = 1` and `c_j ≈ 0` along the card's own plane. The scalar density is the
@@ -69,8 +70,13 @@ pub(crate) fn shell(
         let (u, v) = ((k + 1) % 3, (k + 2) % 3);
         let (nu, nv, nk) = (dims[u], dims[v], dims[k]);
         let h = voxel[k];
-        let mut dir = DVec3::ZERO;
-        dir[k] = 1.0;
+        // Both senses where back faces let rays through (the shape's surface then differs by
+        // the side it is met from); one otherwise, which meets the same surfaces.
+        let senses: &[f64] = if shape.single_sided() {
+            &[1.0, -1.0]
+        } else {
+            &[1.0]
+        };
         let columns: Vec<Column> = (0..nu * nv)
             .into_par_iter()
             .map(|col| {
@@ -86,15 +92,26 @@ pub(crate) fn shell(
                 for a in 0..s {
                     for b in 0..s {
                         let ray_id = a * s + b;
-                        let mut origin = min;
-                        origin[u] += (iu as f64 + (a as f64 + 0.5) / s as f64) * voxel[u];
-                        origin[v] += (iv as f64 + (b as f64 + 0.5) / s as f64) * voxel[v];
-                        // One voxel before the box, so a surface lying on the box's face is
-                        // met strictly inside the ray's range.
-                        origin[k] -= h;
-                        for o in &offsets {
+                        let mut across = min;
+                        across[u] += (iu as f64 + (a as f64 + 0.5) / s as f64) * voxel[u];
+                        across[v] += (iv as f64 + (b as f64 + 0.5) / s as f64) * voxel[v];
+                        for (&sense, o) in senses
+                            .iter()
+                            .flat_map(|s| offsets.iter().map(move |o| (s, o)))
+                        {
+                            // One voxel before the box, so a surface lying on the box's face
+                            // is met strictly inside the ray's range.
+                            let mut origin = across;
+                            let mut dir = DVec3::ZERO;
+                            dir[k] = sense;
+                            origin[k] = if sense > 0.0 {
+                                min[k] - h
+                            } else {
+                                min[k] + extent[k] + h
+                            };
                             let ray = Ray::new(origin - *o, dir);
-                            walk(shape, &ray, h, nk, |j, hit_albedo, hit_normal, p| {
+                            walk(shape, &ray, h, nk, |walked, hit_albedo, hit_normal, p| {
+                                let j = if sense > 0.0 { walked } else { nk - 1 - walked };
                                 if counted[j] == ray_id {
                                     return;
                                 }

@@ -422,6 +422,10 @@ pub struct Material {
     pub alpha_mode: MaterialAlpha,
     /// Tangent-space normal map (glTF `normalTexture`), if any.
     pub normal_map: Option<NormalMap>,
+    /// Back faces let rays through (glTF `doubleSided: false`, its default): a ray meeting the
+    /// side its winding turns away (geometric normal · direction > 0) passes, in every tracer
+    /// but the inside tests. False for OBJ materials, which have no such notion.
+    pub single_sided: bool,
 }
 
 impl Material {

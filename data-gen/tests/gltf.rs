@@ -695,3 +695,76 @@ fn a_normal_map_turns_the_normal_in_the_tangent_frame() {
         }
     }
 }
+
+/// `doubleSided: false` (the glTF default): a ray meeting a back face passes through it, in the
+/// BVH walk, the occlusion walk and the grid tracers alike; the inside test still counts both
+/// faces. A closed box, single-sided, is seen from outside and invisible from inside; mirrored by
+/// its node (negative determinant), its front faces still face out; double-sided, it stops rays
+/// both ways.
+#[test]
+fn single_sided_materials_let_rays_through_their_back_faces() {
+    let mut mirror = IDENTITY;
+    mirror[0] = -1.0;
+    for (double_sided, matrix) in [(false, IDENTITY), (false, mirror), (true, IDENTITY)] {
+        let mut doc = TestGltf::textured_box(2);
+        doc.materials[0].double_sided = double_sided;
+        doc.nodes[0].matrix = matrix;
+        let mesh = load_glb(&doc, &MeshLoadOptions::default()).unwrap();
+        assert_eq!(mesh.is_single_sided(), !double_sided);
+        let (lo, hi) = mesh.bounds();
+        let centre = 0.5 * (lo + hi);
+        let reach = 4.0 * (hi - lo).length();
+        for axis in [
+            DVec3::X,
+            DVec3::Y,
+            DVec3::Z,
+            -DVec3::X,
+            -DVec3::Y,
+            -DVec3::Z,
+        ] {
+            let inward = Ray::new(centre + axis * reach, -axis);
+            let hit = mesh.intersect(&inward, 0.0, f64::INFINITY);
+            assert!(hit.is_some(), "from outside along {axis}");
+            assert!(mesh.occluded(&inward, 0.0, f64::INFINITY));
+            let outward = Ray::new(centre, axis);
+            let out_hit = mesh.intersect(&outward, 0.0, f64::INFINITY);
+            assert_eq!(
+                out_hit.is_some(),
+                double_sided,
+                "from inside along {axis}, double {double_sided}, mirrored {}",
+                matrix[0] < 0.0
+            );
+            assert_eq!(mesh.occluded(&outward, 0.0, f64::INFINITY), double_sided);
+        }
+        assert!(mesh.contains(centre), "the inside test counts both faces");
+    }
+    // A lone quad facing +z, captured through the grid tracer from both sides (views about y a
+    // half turn apart): single-sided, one side sees it and the other sees nothing.
+    for double_sided in [false, true] {
+        let mut doc = TestGltf::masked_quad(2);
+        doc.meshes[0].truncate(1);
+        doc.materials[0].alpha_mode = "OPAQUE";
+        doc.materials[0].double_sided = double_sided;
+        let mesh = load_glb(&doc, &MeshLoadOptions::default()).unwrap();
+        let covered = |angle: f64| {
+            let grid = capture_view(
+                &mesh,
+                &ViewParams {
+                    angle,
+                    width: 16,
+                    height: 16,
+                    cylinder: Default::default(),
+                },
+            )
+            .unwrap();
+            grid.samples.iter().filter(|s| s.is_some()).count()
+        };
+        let half_pi = std::f64::consts::FRAC_PI_2;
+        let (a, b) = (covered(half_pi), covered(3.0 * half_pi));
+        if double_sided {
+            assert!(a > 16 && a == b, "{a} and {b}");
+        } else {
+            assert!(a.max(b) > 16 && a.min(b) == 0, "{a} and {b}");
+        }
+    }
+}

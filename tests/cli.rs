@@ -255,6 +255,7 @@ fn slice_images_replace_only_a_folder_they_wrote() {
                 "--distances",
                 "1",
                 "--one-side",
+                "--no-direction-table",
                 "--truth-steps",
                 "2",
                 "--images",

@@ -129,7 +129,8 @@ fn captures_of_real_assets_against_the_truth() {
 }
 
 /// Load and BVH time of a generated textured glTF of about 10⁶ triangles (a UV sphere of
-/// 500 × 1000 quads with a 2048² texture, one `.glb`), and of 8 views of 512² captured from it.
+/// 500 × 1000 quads with a 2048² texture, one `.glb`), and of 8 views of 512² captured from it;
+/// the same single-sided (back faces culled in the tracers), and without its texture.
 #[test]
 #[ignore = "timing: run in release with --nocapture"]
 fn a_million_textured_triangles_load_and_capture() {
@@ -154,11 +155,13 @@ fn a_million_textured_triangles_load_and_capture() {
             prim.uvs.push([b as f32 / m as f32, a as f32 / n as f32]);
         }
     }
+    // Counter-clockwise seen from outside (glTF's front faces): the single-sided case culls the
+    // inside.
     for a in 0..n {
         for b in 0..m {
             let k = a * (m + 1) + b;
             prim.indices
-                .extend([k, k + m + 1, k + m + 2, k, k + m + 2, k + 1]);
+                .extend([k, k + m + 2, k + m + 1, k, k + 1, k + m + 2]);
         }
     }
     let mut doc = TestGltf::textured_box(2);
@@ -177,7 +180,16 @@ fn a_million_textured_triangles_load_and_capture() {
         d.materials[0].texture = None;
         d
     };
-    for (what, doc) in [("textured", doc), ("untextured", plain)] {
+    let single = {
+        let mut d = doc.clone();
+        d.materials[0].double_sided = false;
+        d
+    };
+    for (what, doc) in [
+        ("textured", doc),
+        ("textured, single-sided", single),
+        ("untextured", plain),
+    ] {
         let glb = doc.to_glb().unwrap();
         let t = std::time::Instant::now();
         let mesh =

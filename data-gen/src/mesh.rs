@@ -151,6 +151,10 @@ pub(crate) struct Traced {
     /// Each triangle's colour; empty when every triangle takes the fallback (a mesh without
     /// colours then reads no colour record per hit).
     colors: Vec<TriColor>,
+    /// Whether each triangle's material is single-sided (its back face lets rays through);
+    /// empty when none is. One byte per triangle, so the tracers' test of every candidate hit
+    /// reads no colour record.
+    single_sided: Vec<bool>,
     bvh: CwBvh,
     /// Time spent building the BVH (the leaf reordering and normals excluded).
     build_time: Duration,
@@ -203,7 +207,7 @@ impl Traced {
     /// directly and each ray still tests the same triangles in the same order). The reordering
     /// is skipped if the leaves are not a permutation of the triangles. Serial (`obvhs`
     /// without its `parallel` feature): it never waits on the thread pool.
-    fn build(triangles: &[Triangle], colors: &[TriColor]) -> Self {
+    fn build(triangles: &[Triangle], colors: &[TriColor], single_sided: &[bool]) -> Self {
         let start = Instant::now();
         let mut bvh = build_padded_cwbvh(triangles);
         let build_time = start.elapsed();
@@ -213,17 +217,22 @@ impl Traced {
             && order.iter().all(|&i| {
                 (i as usize) < seen.len() && !std::mem::replace(&mut seen[i as usize], true)
             });
-        let (triangles, colors) = if permutation {
+        let (triangles, colors, single_sided) = if permutation {
             let t: Vec<Triangle> = order.iter().map(|&i| triangles[i as usize]).collect();
             let c = if colors.is_empty() {
                 Vec::new()
             } else {
                 order.iter().map(|&i| colors[i as usize].clone()).collect()
             };
+            let s = if single_sided.is_empty() {
+                Vec::new()
+            } else {
+                order.iter().map(|&i| single_sided[i as usize]).collect()
+            };
             bvh.primitive_indices = (0..order.len() as u32).collect();
-            (t, c)
+            (t, c, s)
         } else {
-            (triangles.to_vec(), colors.to_vec())
+            (triangles.to_vec(), colors.to_vec(), single_sided.to_vec())
         };
         let normals = triangles
             .iter()
@@ -236,6 +245,7 @@ impl Traced {
             triangles,
             normals,
             colors,
+            single_sided,
             bvh,
             build_time,
         }
@@ -562,15 +572,12 @@ impl Mesh {
     /// along the ray), and then as [`Mesh::stops_at`] says.
     #[inline]
     pub(crate) fn traced_stops(&self, tr: &Traced, k: usize, r: &BvhRay, d: f32) -> bool {
-        if self.culls
-            && let Some(TriColor::Surface(s)) = tr.colors.get(k)
-            && self
-                .materials
-                .get(s.material as usize)
-                .is_some_and(|m| m.single_sided)
-            && tr.normals[k].dot(r.direction.as_dvec3()) > 0.0
-        {
-            return false;
+        if tr.single_sided.get(k).is_some_and(|s| *s) {
+            // The winding's normal from the triangle just tested (in cache), in `f32`.
+            let t = &tr.triangles[k];
+            if (t.v1 - t.v0).cross(t.v2 - t.v0).dot(r.direction) > 0.0 {
+                return false;
+            }
         }
         self.traced_alpha_stops(tr, k, r, d)
     }
@@ -594,8 +601,23 @@ impl Mesh {
 
     /// The BVH and the triangles in its leaf order, built on first use.
     pub(crate) fn traced(&self) -> &Traced {
-        self.traced
-            .get_or_init(|| Traced::build(&self.input, &self.input_colors))
+        self.traced.get_or_init(|| {
+            let single_sided: Vec<bool> = if self.culls {
+                self.input_colors
+                    .iter()
+                    .map(|c| match c {
+                        TriColor::Surface(s) => self
+                            .materials
+                            .get(s.material as usize)
+                            .is_some_and(|m| m.single_sided),
+                        _ => false,
+                    })
+                    .collect()
+            } else {
+                Vec::new()
+            };
+            Traced::build(&self.input, &self.input_colors, &single_sided)
+        })
     }
 
     pub(crate) fn to_bvh_ray(ray: &Ray, t_min: f64, t_max: f64) -> BvhRay {

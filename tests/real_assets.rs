@@ -136,14 +136,7 @@ fn captures_of_real_assets_against_the_truth() {
 fn a_million_textured_triangles_load_and_capture() {
     use altrep_data_gen::gltf_write::{Rgba8, TestGltf, TestPrimitive};
     let (n, m) = (500u32, 1000u32);
-    let mut prim = TestPrimitive {
-        positions: Vec::new(),
-        uvs: Vec::new(),
-        normals: Vec::new(),
-        tangents: Vec::new(),
-        indices: Vec::new(),
-        material: 0,
-    };
+    let mut prim = TestPrimitive::empty(0);
     for a in 0..=n {
         for b in 0..=m {
             let (th, ph) = (

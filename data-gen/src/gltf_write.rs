@@ -42,6 +42,21 @@ pub struct TestMaterial {
     pub double_sided: bool,
 }
 
+impl TestMaterial {
+    /// An opaque, untextured, double-sided material of linear base colour `base_color`.
+    pub fn plain(base_color: [f32; 4]) -> Self {
+        Self {
+            base_color,
+            texture: None,
+            nearest: false,
+            alpha_mode: "OPAQUE",
+            alpha_cutoff: 0.5,
+            normal_texture: None,
+            double_sided: true,
+        }
+    }
+}
+
 /// A triangle primitive of a [`TestGltf`] mesh.
 #[derive(Clone, Debug, PartialEq)]
 pub struct TestPrimitive {
@@ -57,6 +72,20 @@ pub struct TestPrimitive {
     pub indices: Vec<u32>,
     /// Index into [`TestGltf::materials`].
     pub material: usize,
+}
+
+impl TestPrimitive {
+    /// A primitive without vertices or attributes, of material `material`.
+    pub fn empty(material: usize) -> Self {
+        Self {
+            positions: Vec::new(),
+            uvs: Vec::new(),
+            normals: Vec::new(),
+            tangents: Vec::new(),
+            indices: Vec::new(),
+            material,
+        }
+    }
 }
 
 /// A node: an optional mesh, a column-major 4 × 4 matrix, children.
@@ -322,14 +351,7 @@ impl TestGltf {
         let data = (0..n)
             .flat_map(|j| (0..n).flat_map(move |i| Self::textured_box_texel(i, j)))
             .collect();
-        let mut prim = TestPrimitive {
-            positions: Vec::new(),
-            uvs: Vec::new(),
-            normals: Vec::new(),
-            tangents: Vec::new(),
-            indices: Vec::new(),
-            material: 0,
-        };
+        let mut prim = TestPrimitive::empty(0);
         // Each face: corners a (uv 0,0), b (1,0), c (1,1), d (0,1) as (origin, u edge, v edge);
         // `u × v` points in, so the triangles run a, c, b and a, d, c: counter-clockwise seen
         // from outside, glTF's front faces.
@@ -418,15 +440,7 @@ impl TestGltf {
                     normal_texture: None,
                     double_sided: true,
                 },
-                TestMaterial {
-                    base_color: [0.2, 0.9, 0.2, 1.0],
-                    texture: None,
-                    nearest: false,
-                    alpha_mode: "OPAQUE",
-                    alpha_cutoff: 0.5,
-                    normal_texture: None,
-                    double_sided: true,
-                },
+                TestMaterial::plain([0.2, 0.9, 0.2, 1.0]),
             ],
             nodes: vec![TestNode::mesh_at_origin("quad")],
             roots: vec![0],
@@ -506,14 +520,7 @@ impl TestGltf {
                 })
             })
             .collect();
-        let mut cards = TestPrimitive {
-            positions: Vec::new(),
-            uvs: Vec::new(),
-            normals: Vec::new(),
-            tangents: Vec::new(),
-            indices: Vec::new(),
-            material: 0,
-        };
+        let mut cards = TestPrimitive::empty(0);
         for _ in 0..leaves {
             // A point of the ball by rejection, and an orthonormal pair from a random normal.
             let centre = loop {
@@ -555,14 +562,7 @@ impl TestGltf {
                 .indices
                 .extend([base, base + 1, base + 2, base, base + 2, base + 3]);
         }
-        let mut trunk = TestPrimitive {
-            positions: Vec::new(),
-            uvs: Vec::new(),
-            normals: Vec::new(),
-            tangents: Vec::new(),
-            indices: Vec::new(),
-            material: 1,
-        };
+        let mut trunk = TestPrimitive::empty(1);
         let corners = [
             [-0.05f32, -0.05f32],
             [0.05, -0.05],
@@ -601,15 +601,7 @@ impl TestGltf {
                     normal_texture: None,
                     double_sided: true,
                 },
-                TestMaterial {
-                    base_color: [0.35, 0.22, 0.1, 1.0],
-                    texture: None,
-                    nearest: false,
-                    alpha_mode: "OPAQUE",
-                    alpha_cutoff: 0.5,
-                    normal_texture: None,
-                    double_sided: true,
-                },
+                TestMaterial::plain([0.35, 0.22, 0.1, 1.0]),
             ],
             nodes: vec![TestNode::mesh_at_origin("shrub")],
             roots: vec![0],

@@ -5,9 +5,9 @@
 //! Conventions. Along each axis `k`, a voxel is crossed by `s²` parallel rays along `+k`,
 //! stratified over the voxel's face (the same offsets `(a + ½)/s` as the solid fill's
 //! sub-samples), and along `−k` too where back faces let rays through ([`Shape::single_sided`]; a
-//! ray stopped either way counts once). The voxel's coverage along `k`, `c_k`, is the share of those rays that the
-//! surface stops inside the voxel, through [`Shape::intersect`] — so alpha masks and hashed
-//! blending cut the rays exactly as they cut the truth's. A voxel holding a card seen face on
+//! ray stopped either way counts once). The voxel's coverage along `k`, `c_k`, is the share of
+//! those rays that the surface stops inside the voxel, through [`Shape::intersect`] — so alpha
+//! masks and hashed blending cut the rays exactly as they cut the truth's. A voxel holding a card seen face on
 //! along `k` has `c_k = 1` and `c_j ≈ 0` along the card's own plane. The scalar density is the
 //! mean `(c_x + c_y + c_z)/3`: for surface pieces of random orientation it is the mean over
 //! directions of the share of rays stopped (both average `|n·d|` to ½).
@@ -36,7 +36,6 @@ pub(crate) struct Shell {
 
 /// One column's sums along its axis: per voxel, the rays stopped and the sums of their hits'
 /// albedo and turned normal.
-#[derive(Clone, Default)]
 struct Column {
     count: Vec<u32>,
     albedo: Vec<DVec3>,

@@ -360,4 +360,33 @@ mod tests {
             }
         }
     }
+
+    /// An opacity per axis: checked (count, range, zero exactly where the voxel is empty), and
+    /// each axis's volume keeps the voxel's colour at that axis's opacity.
+    #[test]
+    fn axis_alpha_is_checked_and_recolours_per_axis() {
+        let rgba = vec![[0.25, 0.125, 0.0, 0.5], [0.0; 4]];
+        let vol = || TexelVolume::new([2, 1, 1], 0.5, rgba.clone()).unwrap();
+        for bad in [
+            vec![[0.5; 3]],
+            vec![[0.5, 1.5, 0.5], [0.0; 3]],
+            vec![[0.5, f32::NAN, 0.5], [0.0; 3]],
+            vec![[0.0; 3], [0.0; 3]],
+            vec![[0.5; 3], [0.0, 0.1, 0.0]],
+        ] {
+            assert!(vol().with_axis_alpha(bad).is_err());
+        }
+        assert!(!vol().has_axis_alpha());
+        let v = vol()
+            .with_axis_alpha(vec![[1.0, 0.0, 0.25], [0.0; 3]])
+            .unwrap();
+        assert!(v.has_axis_alpha());
+        // Unpremultiplied colour (0.5, 0.25, 0) at alpha 1, 0 and 0.25.
+        assert_eq!(v.along(Axis::X).get(0, 0, 0), [0.5, 0.25, 0.0, 1.0]);
+        assert_eq!(v.along(Axis::Y).get(0, 0, 0), [0.0; 4]);
+        assert_eq!(v.along(Axis::Z).get(0, 0, 0), [0.125, 0.0625, 0.0, 0.25]);
+        assert_eq!(v.along(Axis::Z).get(1, 0, 0), [0.0; 4]);
+        // Without one, every axis is the volume itself.
+        assert_eq!(*vol().along(Axis::Y), vol());
+    }
 }

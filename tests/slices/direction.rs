@@ -71,15 +71,17 @@ fn at_its_nodes_the_table_is_the_measured_error() {
     assert!(e.to_string().contains("slice data"), "{e}");
 }
 
-/// Between the nodes (views at the centres of 10° × 30° cells), on the 16³ fur and grass tiles
-/// at 2 voxels per pixel, from above: the table's choice falls 1.28 and 1.61 dB below the best
-/// direction at worst, 0.14 and 0.31 dB on mean, where the direction rule falls 9.35 and 6.84 dB,
-/// 2.30 and 1.70 dB (mean below 0.5 dB and worst below half the rule's asserted).
+/// Between the nodes (views at the centres of 10° × 30° cells), on the 16³ fur tile at 2 voxels
+/// per pixel, from above: the table's choice falls 1.28 dB below the best direction at worst and
+/// 0.14 dB on mean, where the direction rule falls 9.35 and 2.30 dB (mean below 0.5 dB and worst
+/// below half the rule's asserted). The grass tile, measured the same way (`tiles: [Fur, Grass]`,
+/// 2026-12-07): table 1.61 / 0.31 dB against the rule's 6.84 / 1.70 dB; left out of the test
+/// command, where it took 9 of the test's 17.5 s.
 #[test]
 fn between_its_nodes_the_table_chooses_closer_to_the_best_than_the_rule() {
     let params = SliceMeasureParams {
         size: 16,
-        tiles: vec![TestTile::Fur, TestTile::Grass],
+        tiles: vec![TestTile::Fur],
         angles_deg: vec![0.0, 10.0, 20.0, 30.0, 40.0, 50.0, 60.0, 70.0, 80.0],
         pixel_voxels: vec![2.0],
         both_sides: false,

@@ -43,6 +43,20 @@ pub struct TestMaterial {
 }
 
 impl TestMaterial {
+    /// A white, double-sided material cut out by the alpha of `texture` (`MASK`, cutoff ½),
+    /// sampled `NEAREST` when `nearest`, else `LINEAR`.
+    pub fn masked(texture: Rgba8, nearest: bool) -> Self {
+        Self {
+            base_color: [1.0; 4],
+            texture: Some(texture),
+            nearest,
+            alpha_mode: "MASK",
+            alpha_cutoff: 0.5,
+            normal_texture: None,
+            double_sided: true,
+        }
+    }
+
     /// An opaque, untextured, double-sided material of linear base colour `base_color`.
     pub fn plain(base_color: [f32; 4]) -> Self {
         Self {
@@ -427,19 +441,14 @@ impl TestGltf {
         Self {
             meshes: vec![vec![square(0.0, 0), square(-0.5, 1)]],
             materials: vec![
-                TestMaterial {
-                    base_color: [1.0; 4],
-                    texture: Some(Rgba8 {
+                TestMaterial::masked(
+                    Rgba8 {
                         width: n,
                         height: n,
                         data,
-                    }),
-                    nearest: true,
-                    alpha_mode: "MASK",
-                    alpha_cutoff: 0.5,
-                    normal_texture: None,
-                    double_sided: true,
-                },
+                    },
+                    true,
+                ),
                 TestMaterial::plain([0.2, 0.9, 0.2, 1.0]),
             ],
             nodes: vec![TestNode::mesh_at_origin("quad")],
@@ -588,19 +597,14 @@ impl TestGltf {
         Self {
             meshes: vec![vec![cards, trunk]],
             materials: vec![
-                TestMaterial {
-                    base_color: [1.0; 4],
-                    texture: Some(Rgba8 {
+                TestMaterial::masked(
+                    Rgba8 {
                         width: n,
                         height: n,
                         data,
-                    }),
-                    nearest: false,
-                    alpha_mode: "MASK",
-                    alpha_cutoff: 0.5,
-                    normal_texture: None,
-                    double_sided: true,
-                },
+                    },
+                    false,
+                ),
                 TestMaterial::plain([0.35, 0.22, 0.1, 1.0]),
             ],
             nodes: vec![TestNode::mesh_at_origin("shrub")],

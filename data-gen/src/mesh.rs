@@ -589,11 +589,6 @@ impl Mesh {
         !self.cut_out || self.stops_at(&tr.triangles[k], tr.colors.get(k), r.origin, r.direction, d)
     }
 
-    /// Whether some material is single-sided ([`Material::single_sided`]).
-    pub fn is_single_sided(&self) -> bool {
-        self.culls
-    }
-
     /// Time spent building the BVH, `None` before it is built.
     pub fn bvh_build_time(&self) -> Option<Duration> {
         self.traced.get().map(|t| t.build_time)

@@ -710,7 +710,7 @@ fn single_sided_materials_let_rays_through_their_back_faces() {
         doc.materials[0].double_sided = double_sided;
         doc.nodes[0].matrix = matrix;
         let mesh = load_glb(&doc, &MeshLoadOptions::default()).unwrap();
-        assert_eq!(mesh.is_single_sided(), !double_sided);
+        assert_eq!(mesh.single_sided(), !double_sided);
         let (lo, hi) = mesh.bounds();
         let centre = 0.5 * (lo + hi);
         let reach = 4.0 * (hi - lo).length();

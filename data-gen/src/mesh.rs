@@ -143,6 +143,14 @@ pub struct Mesh {
     yz_grid: OnceLock<YzGrid>,
 }
 
+/// The material of a triangle coloured by one (`None` for vertex, flat or procedural colours).
+fn surface_material<'a>(materials: &'a [Material], color: &TriColor) -> Option<&'a Material> {
+    match color {
+        TriColor::Surface(s) => materials.get(s.material as usize),
+        _ => None,
+    }
+}
+
 /// What ray queries read: the BVH and the triangles, normals and colours in its leaf order.
 pub(crate) struct Traced {
     pub(crate) triangles: Vec<Triangle>,
@@ -478,10 +486,9 @@ impl Mesh {
         }
         let materials: Arc<[Material]> = extras.materials.into();
         let uses = |f: fn(&Material) -> bool| {
-            kept_colors.iter().any(|c| match c {
-                TriColor::Surface(s) => materials.get(s.material as usize).is_some_and(f),
-                _ => false,
-            })
+            kept_colors
+                .iter()
+                .any(|c| surface_material(&materials, c).is_some_and(f))
         };
         let cut_out = uses(Material::is_cut_out);
         let culls = uses(|m| m.single_sided);
@@ -600,13 +607,7 @@ impl Mesh {
             let single_sided: Vec<bool> = if self.culls {
                 self.input_colors
                     .iter()
-                    .map(|c| match c {
-                        TriColor::Surface(s) => self
-                            .materials
-                            .get(s.material as usize)
-                            .is_some_and(|m| m.single_sided),
-                        _ => false,
-                    })
+                    .map(|c| surface_material(&self.materials, c).is_some_and(|m| m.single_sided))
                     .collect()
             } else {
                 Vec::new()

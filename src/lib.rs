@@ -17,6 +17,7 @@ pub mod cli;
 pub mod cylinder;
 pub mod ellipsoid;
 pub mod fit;
+pub mod mesh_lod;
 pub mod metrics;
 pub mod parallax;
 pub mod pipeline;

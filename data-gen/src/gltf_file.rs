@@ -53,6 +53,9 @@ pub(crate) struct GltfScene {
     pub(crate) surfaces: Vec<SurfaceTri>,
     /// Materials, indexed by [`SurfaceTri::material`]; the last is glTF's default material.
     pub(crate) materials: Vec<Material>,
+    /// For each material, whether altrep wrote it for triangles coloured by the fallback albedo
+    /// (`extras.altrep_fallback_albedo`, see the `gltf_export` module).
+    pub(crate) fallback: Vec<bool>,
     /// What the file holds and altrep does not read (sorted, without repeats).
     pub(crate) notes: Vec<String>,
     /// Files read besides the glTF file itself (external buffers and images), with their hash.
@@ -385,6 +388,7 @@ pub(crate) fn load(
 
     // Materials: glTF's, then the default material (index `materials.len()`).
     let mut materials = Vec::new();
+    let mut fallback = Vec::new();
     // Decode the base-colour images (sRGB) and the normal maps (linear) in parallel, each once
     // per way it is read.
     let mut wanted: BTreeSet<(usize, bool)> = BTreeSet::new();
@@ -538,6 +542,10 @@ pub(crate) fn load(
             notes.insert("KHR_materials_unlit: unlit materials are lit like any other".into());
         }
         let [r, g, b, a] = pbr.base_color_factor();
+        fallback.push(m.extras().as_ref().is_some_and(|e| {
+            serde_json::from_str::<serde_json::Value>(e.get())
+                .is_ok_and(|v| v[crate::gltf_export::FALLBACK_MARK] == serde_json::Value::Bool(true))
+        }));
         materials.push(Material {
             name: m.name().unwrap_or_default().to_string(),
             base_color: Vec4::new(r, g, b, a),
@@ -556,6 +564,7 @@ pub(crate) fn load(
         single_sided: true,
         ..Material::default()
     });
+    fallback.push(false);
 
     // Triangles.
     let mut positions = Vec::new();
@@ -791,6 +800,7 @@ pub(crate) fn load(
         positions,
         surfaces,
         materials,
+        fallback,
         notes: notes.into_iter().collect(),
         inputs,
     })

@@ -145,15 +145,26 @@ pub const IDENTITY: [f32; 16] = [
     1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0,
 ];
 
+/// PNG bytes of an 8-bit RGBA image.
 fn png(img: &Rgba8) -> Result<Vec<u8>, DataGenError> {
+    png_bytes(
+        &img.data,
+        img.width,
+        img.height,
+        image::ExtendedColorType::Rgba8,
+    )
+}
+
+/// PNG bytes of `data` (`width × height` pixels of `color`, big-endian samples for 16 bits).
+pub(crate) fn png_bytes(
+    data: &[u8],
+    width: u32,
+    height: u32,
+    color: image::ExtendedColorType,
+) -> Result<Vec<u8>, DataGenError> {
     let mut out = Vec::new();
     image::codecs::png::PngEncoder::new(&mut out)
-        .write_image(
-            &img.data,
-            img.width,
-            img.height,
-            image::ExtendedColorType::Rgba8,
-        )
+        .write_image(data, width, height, color)
         .map_err(|e| DataGenError::ImageWrite {
             path: "<memory>".into(),
             message: e.to_string(),
@@ -163,9 +174,99 @@ fn png(img: &Rgba8) -> Result<Vec<u8>, DataGenError> {
 
 use image::ImageEncoder as _;
 
-/// The little-endian bytes of `values` (glTF's byte order).
-fn le_bytes<'a>(values: impl Iterator<Item = &'a f32>) -> Vec<u8> {
-    values.flat_map(|v| v.to_le_bytes()).collect()
+/// A glTF binary buffer being filled, with its buffer views and accessors (buffer 0).
+#[derive(Default)]
+pub(crate) struct BinBuilder {
+    /// The buffer's bytes.
+    pub(crate) bin: Vec<u8>,
+    /// `bufferViews`.
+    pub(crate) views: Vec<Value>,
+    /// `accessors`.
+    pub(crate) accessors: Vec<Value>,
+}
+
+impl BinBuilder {
+    /// Appends `bytes` at a 4-byte boundary as a new buffer view; its index.
+    pub(crate) fn view(&mut self, bytes: &[u8]) -> usize {
+        while !self.bin.len().is_multiple_of(4) {
+            self.bin.push(0);
+        }
+        let offset = self.bin.len();
+        self.bin.extend_from_slice(bytes);
+        self.views
+            .push(json!({"buffer": 0, "byteOffset": offset, "byteLength": bytes.len()}));
+        self.views.len() - 1
+    }
+
+    /// An accessor of `f32` elements of type `ty` (`"VEC2"`, `"VEC3"`, `"VEC4"`), `N` floats
+    /// each, with `min` and `max` when `bounds` (required for positions); its index.
+    pub(crate) fn floats<const N: usize>(
+        &mut self,
+        values: &[[f32; N]],
+        ty: &str,
+        bounds: bool,
+    ) -> usize {
+        let bytes: Vec<u8> = values
+            .iter()
+            .flatten()
+            .flat_map(|v| v.to_le_bytes())
+            .collect();
+        let v = self.view(&bytes);
+        let mut a = json!({"bufferView": v, "componentType": 5126, "count": values.len(), "type": ty});
+        if bounds {
+            let (lo, hi) = values.iter().fold(
+                ([f32::INFINITY; N], [f32::NEG_INFINITY; N]),
+                |(lo, hi), q| {
+                    (
+                        std::array::from_fn(|k| lo[k].min(q[k])),
+                        std::array::from_fn(|k| hi[k].max(q[k])),
+                    )
+                },
+            );
+            a["min"] = json!(lo.to_vec());
+            a["max"] = json!(hi.to_vec());
+        }
+        self.accessors.push(a);
+        self.accessors.len() - 1
+    }
+
+    /// An accessor of `u32` triangle indices; its index.
+    pub(crate) fn indices(&mut self, indices: &[u32]) -> usize {
+        let bytes: Vec<u8> = indices.iter().flat_map(|v| v.to_le_bytes()).collect();
+        let v = self.view(&bytes);
+        self.accessors.push(
+            json!({"bufferView": v, "componentType": 5125, "count": indices.len(), "type": "SCALAR"}),
+        );
+        self.accessors.len() - 1
+    }
+
+    /// The buffer padded to 4 bytes.
+    pub(crate) fn padded(mut self) -> (Vec<u8>, Vec<Value>, Vec<Value>) {
+        while !self.bin.len().is_multiple_of(4) {
+            self.bin.push(0);
+        }
+        (self.bin, self.views, self.accessors)
+    }
+}
+
+/// A `.glb` file of the JSON document `doc` and the binary chunk `bin` (padded to 4 bytes).
+pub(crate) fn glb(doc: &Value, bin: &[u8]) -> Vec<u8> {
+    let mut json = serde_json::to_vec(doc).expect("a JSON value serialises");
+    while !json.len().is_multiple_of(4) {
+        json.push(b' ');
+    }
+    let total = 12 + 8 + json.len() + 8 + bin.len();
+    let mut out = Vec::with_capacity(total);
+    out.extend_from_slice(b"glTF");
+    out.extend_from_slice(&2u32.to_le_bytes());
+    out.extend_from_slice(&(total as u32).to_le_bytes());
+    out.extend_from_slice(&(json.len() as u32).to_le_bytes());
+    out.extend_from_slice(b"JSON");
+    out.extend_from_slice(&json);
+    out.extend_from_slice(&(bin.len() as u32).to_le_bytes());
+    out.extend_from_slice(b"BIN\0");
+    out.extend_from_slice(bin);
+    out
 }
 
 impl TestGltf {
@@ -176,58 +277,23 @@ impl TestGltf {
         &self,
         external: Option<&str>,
     ) -> Result<(Value, Vec<u8>, Vec<(String, Vec<u8>)>), DataGenError> {
-        let mut bin: Vec<u8> = Vec::new();
-        let mut views = Vec::new();
-        let mut accessors = Vec::new();
-        let mut push_view = |bin: &mut Vec<u8>, bytes: &[u8]| {
-            while !bin.len().is_multiple_of(4) {
-                bin.push(0);
-            }
-            let offset = bin.len();
-            bin.extend_from_slice(bytes);
-            views.push(json!({"buffer": 0, "byteOffset": offset, "byteLength": bytes.len()}));
-            views.len() - 1
-        };
+        let mut b = BinBuilder::default();
         let mut meshes = Vec::new();
         for mesh in &self.meshes {
             let mut prims = Vec::new();
             for p in mesh {
-                let v = push_view(&mut bin, &le_bytes(p.positions.iter().flatten()));
-                let (lo, hi) = p.positions.iter().fold(
-                    ([f32::INFINITY; 3], [f32::NEG_INFINITY; 3]),
-                    |(lo, hi), q| {
-                        (
-                            [0, 1, 2].map(|k| lo[k].min(q[k])),
-                            [0, 1, 2].map(|k| hi[k].max(q[k])),
-                        )
-                    },
-                );
-                accessors.push(json!({"bufferView": v, "componentType": 5126, "count": p.positions.len(), "type": "VEC3", "min": lo, "max": hi}));
-                let mut attributes = json!({"POSITION": accessors.len() - 1});
+                let mut attributes = json!({"POSITION": b.floats(&p.positions, "VEC3", true)});
                 if !p.uvs.is_empty() {
-                    let v = push_view(&mut bin, &le_bytes(p.uvs.iter().flatten()));
-                    accessors.push(json!({"bufferView": v, "componentType": 5126, "count": p.uvs.len(), "type": "VEC2"}));
-                    attributes["TEXCOORD_0"] = json!(accessors.len() - 1);
+                    attributes["TEXCOORD_0"] = json!(b.floats(&p.uvs, "VEC2", false));
                 }
                 if !p.normals.is_empty() {
-                    let v = push_view(&mut bin, &le_bytes(p.normals.iter().flatten()));
-                    accessors.push(json!({"bufferView": v, "componentType": 5126, "count": p.normals.len(), "type": "VEC3"}));
-                    attributes["NORMAL"] = json!(accessors.len() - 1);
+                    attributes["NORMAL"] = json!(b.floats(&p.normals, "VEC3", false));
                 }
                 if !p.tangents.is_empty() {
-                    let v = push_view(&mut bin, &le_bytes(p.tangents.iter().flatten()));
-                    accessors.push(json!({"bufferView": v, "componentType": 5126, "count": p.tangents.len(), "type": "VEC4"}));
-                    attributes["TANGENT"] = json!(accessors.len() - 1);
+                    attributes["TANGENT"] = json!(b.floats(&p.tangents, "VEC4", false));
                 }
-                let v = push_view(
-                    &mut bin,
-                    &p.indices
-                        .iter()
-                        .flat_map(|v| v.to_le_bytes())
-                        .collect::<Vec<u8>>(),
-                );
-                accessors.push(json!({"bufferView": v, "componentType": 5125, "count": p.indices.len(), "type": "SCALAR"}));
-                prims.push(json!({"attributes": attributes, "indices": accessors.len() - 1, "material": p.material}));
+                let indices = b.indices(&p.indices);
+                prims.push(json!({"attributes": attributes, "indices": indices, "material": p.material}));
             }
             meshes.push(json!({"primitives": prims}));
         }
@@ -247,7 +313,7 @@ impl TestGltf {
                         files.push((name, bytes));
                     }
                     None => {
-                        let v = push_view(&mut bin, &bytes);
+                        let v = b.view(&bytes);
                         images.push(json!({"bufferView": v, "mimeType": "image/png"}));
                     }
                 }
@@ -290,9 +356,7 @@ impl TestGltf {
                 v
             })
             .collect();
-        while !bin.len().is_multiple_of(4) {
-            bin.push(0);
-        }
+        let (bin, views, accessors) = b.padded();
         let mut buffer = json!({"byteLength": bin.len()});
         if let Some(stem) = external {
             buffer["uri"] = json!(format!("{stem}.bin"));
@@ -319,22 +383,7 @@ impl TestGltf {
     /// The document as one `.glb` file's bytes.
     pub fn to_glb(&self) -> Result<Vec<u8>, DataGenError> {
         let (doc, bin, _) = self.build(None)?;
-        let mut json = serde_json::to_vec(&doc).expect("a JSON value serialises");
-        while !json.len().is_multiple_of(4) {
-            json.push(b' ');
-        }
-        let total = 12 + 8 + json.len() + 8 + bin.len();
-        let mut out = Vec::with_capacity(total);
-        out.extend_from_slice(b"glTF");
-        out.extend_from_slice(&2u32.to_le_bytes());
-        out.extend_from_slice(&(total as u32).to_le_bytes());
-        out.extend_from_slice(&(json.len() as u32).to_le_bytes());
-        out.extend_from_slice(b"JSON");
-        out.extend_from_slice(&json);
-        out.extend_from_slice(&(bin.len() as u32).to_le_bytes());
-        out.extend_from_slice(b"BIN\0");
-        out.extend_from_slice(&bin);
-        Ok(out)
+        Ok(glb(&doc, &bin))
     }
 
     /// Writes `<dir>/<stem>.gltf` with `<stem>.bin` and `<stem>_<k>.png` beside it; returns the

@@ -43,6 +43,7 @@ mod capture;
 mod error;
 mod frame;
 mod geometry;
+mod gltf_export;
 mod gltf_file;
 pub mod gltf_write;
 mod image_io;
@@ -55,6 +56,7 @@ mod shape;
 mod shapes;
 mod shared;
 mod shell;
+mod simplify;
 mod supersample;
 mod surface;
 #[cfg(test)]
@@ -76,12 +78,14 @@ pub use geometry::{
     screen_right,
 };
 pub use image_io::{RgbaImage, linear_to_srgb, srgb_to_linear};
+pub use gltf_export::GlbFile;
 pub use mesh::{Mesh, MeshLoadOptions};
 pub use placement::{Placement, UpAxis};
 pub use rng::SplitMix64;
 pub use shape::{Csg, ParallelTracer, Part, Primitive, RayByRay, Shape, intersect_parallel};
 pub use shapes::{SCENE_SHAPES, scene_shape};
 #[doc(hidden)]
+pub use simplify::{Simplified, SimplifyParams};
 pub use shared::{shared_mesh, shared_mesh_paths, shared_meshes, skip, under_ci};
 pub use supersample::Supersample;
 pub use surface::{

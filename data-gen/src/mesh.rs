@@ -65,6 +65,11 @@ pub struct MeshLoadOptions {
     /// glTF only: the name of the node whose subtree is loaded, in the scene's world
     /// coordinates (default: the whole default scene).
     pub node: Option<String>,
+    /// The placement to take instead of normalising (default: none, normalise): the source's
+    /// coordinates go to the object frame through its `to_normalised`, and `up` and `cylinder`
+    /// are not used. For reading back a mesh altrep wrote ([`Mesh::to_glb`], with
+    /// [`Placement::of_written`]), which must come back exactly where it was.
+    pub frame: Option<Placement>,
 }
 
 impl Default for MeshLoadOptions {
@@ -78,6 +83,7 @@ impl Default for MeshLoadOptions {
             },
             up: UpAxis::PosY,
             node: None,
+            frame: None,
         }
     }
 }
@@ -141,6 +147,20 @@ pub struct Mesh {
     traced: OnceLock<Traced>,
     /// Triangles binned across the parity ray, built on the first [`Shape::contains_row`].
     yz_grid: OnceLock<YzGrid>,
+}
+
+/// The axis-aligned bounds of `triangles`, in `f64`.
+fn triangle_bounds(triangles: &[Triangle]) -> (DVec3, DVec3) {
+    triangles.iter().fold(
+        (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)),
+        |(lo, hi), t| {
+            let (a, b) = (t.aabb().min, t.aabb().max);
+            (
+                lo.min(DVec3::new(a.x.into(), a.y.into(), a.z.into())),
+                hi.max(DVec3::new(b.x.into(), b.y.into(), b.z.into())),
+            )
+        },
+    )
 }
 
 /// The material of a triangle coloured by one (`None` for vertex, flat or procedural colours).
@@ -356,7 +376,18 @@ impl Mesh {
         let name = path
             .file_stem()
             .map_or_else(|| "mesh".into(), |s| s.to_string_lossy().into_owned());
-        let colors = scene.surfaces.into_iter().map(TriColor::Surface).collect();
+        let fallback = scene.fallback;
+        let colors = scene
+            .surfaces
+            .into_iter()
+            .map(|s| {
+                if fallback.get(s.material as usize).is_some_and(|f| *f) {
+                    TriColor::Procedural
+                } else {
+                    TriColor::Surface(s)
+                }
+            })
+            .collect();
         let extras = Extras {
             materials: scene.materials,
             notes: scene.notes,
@@ -397,6 +428,9 @@ impl Mesh {
                 what: format!("vertex of triangle {t} in {name}"),
                 index: t,
             });
+        }
+        if let Some(placement) = options.frame {
+            return Self::placed(name, positions, colors, extras, options, placement);
         }
         // The source's up axis to `+y` (entries 0 and ±1: exact).
         if options.up != UpAxis::PosY {
@@ -468,16 +502,7 @@ impl Mesh {
         if triangles.is_empty() {
             return Err(DataGenError::EmptyMesh { name });
         }
-        let bounds = triangles.iter().fold(
-            (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)),
-            |(lo, hi), t| {
-                let (a, b) = (t.aabb().min, t.aabb().max);
-                (
-                    lo.min(DVec3::new(a.x.into(), a.y.into(), a.z.into())),
-                    hi.max(DVec3::new(b.x.into(), b.y.into(), b.z.into())),
-                )
-            },
-        );
+        let bounds = triangle_bounds(&triangles);
         if kept_colors
             .iter()
             .all(|c| matches!(c, TriColor::Procedural))
@@ -508,6 +533,134 @@ impl Mesh {
             traced: OnceLock::new(),
             yz_grid: OnceLock::new(),
         })
+    }
+
+    /// [`Mesh::from_triangles`] with a given placement instead of the normalisation.
+    fn placed(
+        name: String,
+        positions: Vec<[[f64; 3]; 3]>,
+        colors: Vec<TriColor>,
+        extras: Extras,
+        options: &MeshLoadOptions,
+        placement: Placement,
+    ) -> Result<Self, DataGenError> {
+        let m = placement.to_normalised;
+        let linear = m.matrix3.as_mat3();
+        let to_f32 = |v: &[f64; 3]| {
+            let p = m.transform_point3(DVec3::from(*v));
+            Vec3A::new(p.x as f32, p.y as f32, p.z as f32)
+        };
+        let triangles: Vec<Triangle> = positions
+            .par_iter()
+            .map(|t| Triangle {
+                v0: to_f32(&t[0]),
+                v1: to_f32(&t[1]),
+                v2: to_f32(&t[2]),
+            })
+            .collect();
+        let colors = colors
+            .into_par_iter()
+            .map(|mut c| {
+                if let TriColor::Surface(s) = &mut c {
+                    if let Some(n) = &mut s.normal {
+                        *n = n.map(|v| (linear * v).normalize_or_zero());
+                    }
+                    if let Some(t) = &mut s.tangent {
+                        **t = t.map(|v| (linear * v.truncate()).normalize_or_zero().extend(v.w));
+                    }
+                }
+                c
+            })
+            .collect();
+        let template = Self {
+            name,
+            input: Vec::new(),
+            input_colors: Vec::new(),
+            fallback: options.fallback_albedo.clone(),
+            materials: extras.materials.into(),
+            cut_out: false,
+            culls: false,
+            placement,
+            notes: extras.notes,
+            inputs: extras.inputs,
+            bounds: (DVec3::ZERO, DVec3::ZERO),
+            traced: OnceLock::new(),
+            yz_grid: OnceLock::new(),
+        };
+        template.with_parts(triangles, colors)
+    }
+
+    /// The kept triangles (normalised frame, input order) and their colours (empty when every
+    /// triangle takes the fallback).
+    pub(crate) fn input_parts(&self) -> (&[Triangle], &[TriColor]) {
+        (&self.input, &self.input_colors)
+    }
+
+    /// A mesh of other triangles, already in this mesh's normalised frame, with this mesh's
+    /// materials, fallback colour, placement, notes and inputs: what a simplification of it
+    /// returns. `colors` is empty (every triangle takes the fallback) or one per triangle;
+    /// degenerate triangles are dropped. Errors: [`DataGenError::EmptyMesh`] when none is left.
+    pub(crate) fn with_parts(
+        &self,
+        triangles: Vec<Triangle>,
+        colors: Vec<TriColor>,
+    ) -> Result<Self, DataGenError> {
+        let keep = |t: &Triangle| (t.v1 - t.v0).cross(t.v2 - t.v0).length_squared() > 0.0;
+        let (input, mut input_colors): (Vec<Triangle>, Vec<TriColor>) = if colors.is_empty() {
+            (triangles.into_iter().filter(keep).collect(), Vec::new())
+        } else {
+            triangles
+                .into_iter()
+                .zip(colors)
+                .filter(|(t, _)| keep(t))
+                .unzip()
+        };
+        if input.is_empty() {
+            return Err(DataGenError::EmptyMesh {
+                name: self.name.clone(),
+            });
+        }
+        if input_colors
+            .iter()
+            .all(|c| matches!(c, TriColor::Procedural))
+        {
+            input_colors = Vec::new();
+        }
+        let bounds = triangle_bounds(&input);
+        let uses = |f: fn(&Material) -> bool| {
+            input_colors
+                .iter()
+                .any(|c| surface_material(&self.materials, c).is_some_and(f))
+        };
+        Ok(Self {
+            name: self.name.clone(),
+            cut_out: uses(Material::is_cut_out),
+            culls: uses(|m| m.single_sided),
+            input,
+            input_colors,
+            fallback: self.fallback.clone(),
+            materials: self.materials.clone(),
+            placement: self.placement,
+            notes: self.notes.clone(),
+            inputs: self.inputs.clone(),
+            bounds,
+            traced: OnceLock::new(),
+            yz_grid: OnceLock::new(),
+        })
+    }
+
+    /// The kept triangles' corners in the normalised frame (`f32`, as ray casting reads them),
+    /// in input order. Cost: one copy.
+    pub fn triangles_f32(&self) -> Vec<[[f32; 3]; 3]> {
+        self.input
+            .iter()
+            .map(|t| [t.v0.to_array(), t.v1.to_array(), t.v2.to_array()])
+            .collect()
+    }
+
+    /// The colour fallback of triangles without one (procedural albedo).
+    pub fn fallback_albedo(&self) -> &Albedo {
+        &self.fallback
     }
 
     /// Number of triangles kept (degenerate ones are dropped).
@@ -740,6 +893,10 @@ impl Mesh {
 impl Shape for Mesh {
     fn name(&self) -> &str {
         &self.name
+    }
+
+    fn as_mesh(&self) -> Option<&Mesh> {
+        Some(self)
     }
 
     /// Builds the BVH now if no ray query has built it yet (about 0.8 µs per triangle on one

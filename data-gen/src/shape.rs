@@ -99,6 +99,11 @@ pub trait Shape: Send + Sync {
     fn radial_tracer<'a>(&'a self, rays: &'a RadialRays<'a>) -> Box<dyn ParallelTracer + 'a> {
         Box::new(RadialOneByOne { shape: self, rays })
     }
+    /// The shape as a triangle mesh, where it is one ([`crate::Mesh`]; `None` by default):
+    /// for what only meshes have (simplification, export).
+    fn as_mesh(&self) -> Option<&crate::Mesh> {
+        None
+    }
     /// Builds now what ray queries need and a shape builds on first use ([`crate::Mesh`]: its
     /// BVH), so that a caller can choose the thread and the moment; queries give the same
     /// answers either way. The default does nothing.

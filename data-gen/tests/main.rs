@@ -7,5 +7,6 @@ mod gltf;
 mod mesh;
 mod parallel_rays;
 mod shell;
+mod simplify;
 mod stress;
 mod voxel_rows;

@@ -174,6 +174,9 @@ pub enum FileFormat {
     Exr32,
     /// Little-endian records of `record_bytes` bytes; layout in `docs/asset-format.md`.
     Bin,
+    /// A glTF 2.0 binary file (`.glb`): a mesh with its materials and textures (width: its
+    /// triangles, height 1).
+    Glb,
 }
 
 /// The description of one file of an asset.

@@ -272,6 +272,12 @@ impl AssetReader {
         Ok((bytes, e.record_bytes))
     }
 
+    /// The bytes of the `.glb` file with `role` and the triangle count `asset.json` gives it.
+    pub fn glb(&self, role: &str) -> Result<(&[u8], usize), AssetError> {
+        let (e, bytes) = self.entry(role, FileFormat::Glb)?;
+        Ok((bytes, e.width))
+    }
+
     /// The channels listed for `role`.
     pub fn channels(&self, role: &str) -> Result<&[super::Channel], AssetError> {
         self.description

@@ -347,6 +347,33 @@ impl AssetWriter {
         )
     }
 
+    /// Adds a glTF 2.0 binary file (`.glb`) holding a mesh of `triangles` triangles; its
+    /// channels name what the file holds (for the description).
+    pub fn glb(
+        &mut self,
+        role: &str,
+        file: &str,
+        triangles: usize,
+        bytes: Vec<u8>,
+        channels: Vec<Channel>,
+    ) -> Result<(), AssetError> {
+        if !bytes.starts_with(b"glTF") {
+            return Err(AssetError::BadData {
+                role: role.into(),
+                reason: "not a glTF binary file (no 'glTF' magic)".into(),
+            });
+        }
+        self.add(
+            role,
+            file,
+            FileFormat::Glb,
+            (triangles, 1),
+            channels,
+            0,
+            bytes,
+        )
+    }
+
     /// Writes `asset.json` and renames the folder into place (an earlier folder of the same
     /// name is moved aside first and removed after). Returns the description written.
     pub fn commit(

@@ -191,7 +191,13 @@ fn source_size(spec: &AssetSpec) -> Result<(InputSize, u64), PipelineError> {
                 }
                 _ => 20 * len(path),
             };
-            (InputSize::default(), bytes)
+            (
+                InputSize {
+                    mesh: Some(bytes),
+                    ..InputSize::default()
+                },
+                bytes,
+            )
         }
         SourceSpec::Texture(path) => {
             let texture_error = |e: &dyn std::fmt::Display| PipelineError::TextureFile {

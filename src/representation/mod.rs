@@ -189,6 +189,8 @@ pub struct InputSize {
     pub texture: Option<(usize, usize, usize)>,
     /// A volume tile's voxels per side.
     pub tile: Option<usize>,
+    /// A mesh's memory once loaded (bytes; the plan's coarse rule on its file sizes).
+    pub mesh: Option<u64>,
 }
 
 /// `bytes_per · count` plus a fixed `base`, saturating, as an [`Estimate`] field.

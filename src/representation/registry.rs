@@ -27,6 +27,8 @@ macro_rules! for_each_representation {
                 "Images with parallax from any direction ([`crate::sphere`]), if wanted."),
             (slices, Slices, $crate::slices::asset::SlicesRepr,
                 "Stacks of alpha slices of the object ([`crate::slices`]), if wanted (baked lighting)."),
+            (mesh_lod, MeshLod, $crate::mesh_lod::asset::MeshLodRepr,
+                "Simplified meshes with their switch sizes ([`crate::mesh_lod`]), if wanted (mesh assets only)."),
         }
     };
 }

@@ -1,0 +1,207 @@
+//! Meshes written to `.glb` ([`Mesh::to_glb`]) and read back where they were, and meshes
+//! simplified by meshoptimizer ([`Mesh::simplified`]) keeping their materials and placement:
+//! checked against the source mesh's own ray-cast pictures.
+
+use std::path::Path;
+
+use altrep_data_gen::gltf_write::TestGltf;
+use altrep_data_gen::{
+    Light, Mesh, MeshLoadOptions, RgbaImage, Shape, SimplifyParams, Supersample, TruthParams,
+    render_truth,
+};
+use approx::assert_abs_diff_eq;
+
+fn load_glb(bytes: &[u8], options: &MeshLoadOptions) -> Mesh {
+    Mesh::from_gltf_bytes(bytes, Path::new("test.glb"), options).unwrap()
+}
+
+/// The truth of `shape` at `angle`, `size²` pixels, 2 × 2 rays per pixel.
+fn picture(shape: &dyn Shape, angle: f64, size: usize) -> RgbaImage {
+    render_truth(
+        shape,
+        &TruthParams {
+            angle,
+            width: size,
+            height: size,
+            supersample: Supersample::of(2),
+            light: Light::default(),
+            cylinder: Default::default(),
+        },
+    )
+    .unwrap()
+}
+
+/// Mean squared difference over every channel of two pictures of the same size.
+fn mse(a: &RgbaImage, b: &RgbaImage) -> f64 {
+    let n = a.pixels.len() as f64 * 4.0;
+    a.pixels
+        .iter()
+        .zip(&b.pixels)
+        .flat_map(|(p, q)| (0..4).map(move |c| f64::from(p[c] - q[c]).powi(2)))
+        .sum::<f64>()
+        / n
+}
+
+/// The sorted bit patterns of a mesh's triangle corners (the file groups triangles by material,
+/// so the order changes; the set must not).
+fn corner_bits(mesh: &Mesh) -> Vec<[u32; 3]> {
+    let mut v: Vec<[u32; 3]> = mesh
+        .triangles_f32()
+        .iter()
+        .flatten()
+        .map(|p| p.map(f32::to_bits))
+        .collect();
+    v.sort_unstable();
+    v
+}
+
+/// The written file, read with the placement it was written with, gives back every vertex bit
+/// for bit and the same pictures (to float rounding of the shading normals): for textured,
+/// alpha-masked, normal-mapped, z-up and procedurally coloured meshes. The root node holds the
+/// placement's inverse, so a plain read (normalising anew) puts the file's source-frame
+/// vertices where the source's were.
+#[test]
+fn a_mesh_written_to_glb_reads_back_where_it_was() {
+    let z_up = MeshLoadOptions {
+        up: altrep_data_gen::UpAxis::PosZ,
+        ..MeshLoadOptions::default()
+    };
+    let cases: Vec<(&str, Mesh)> = vec![
+        (
+            "textured box",
+            load_glb(&TestGltf::textured_box(8).to_glb().unwrap(), &z_up),
+        ),
+        (
+            "leaf shrub",
+            load_glb(
+                &TestGltf::leaf_shrub(40, 3).to_glb().unwrap(),
+                &MeshLoadOptions::default(),
+            ),
+        ),
+        (
+            "normal-mapped quad",
+            load_glb(
+                &TestGltf::normal_mapped_quad(&[[200, 128, 230, 255], [60, 128, 230, 255]], 1.0, true, false)
+                    .to_glb()
+                    .unwrap(),
+                &MeshLoadOptions::default(),
+            ),
+        ),
+        (
+            "procedural",
+            Mesh::from_raw_triangles(
+                "tetra",
+                vec![
+                    [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]],
+                    [[0.0, 0.0, 0.0], [0.0, 0.0, 1.0], [1.0, 0.0, 0.0]],
+                    [[0.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]],
+                    [[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, 1.0, 0.0]],
+                ],
+                &MeshLoadOptions::default(),
+            )
+            .unwrap(),
+        ),
+    ];
+    for (what, mesh) in cases {
+        let bytes = mesh.to_glb().unwrap();
+        let back = load_glb(
+            &bytes,
+            &MeshLoadOptions {
+                frame: Some(mesh.placement().of_written()),
+                ..MeshLoadOptions::default()
+            },
+        );
+        assert_eq!(corner_bits(&back), corner_bits(&mesh), "{what}: vertices");
+        assert_eq!(back.is_cut_out(), mesh.is_cut_out(), "{what}");
+        assert_eq!(back.single_sided(), mesh.single_sided(), "{what}");
+        for angle in [0.4, 2.1, 4.0] {
+            let (a, b) = (picture(&mesh, angle, 48), picture(&back, angle, 48));
+            assert!(a.pixels.iter().any(|p| p[3] > 0.0), "{what}: empty picture");
+            for (p, q) in a.pixels.iter().zip(&b.pixels) {
+                for c in 0..4 {
+                    assert_abs_diff_eq!(p[c], q[c], epsilon = 1e-4);
+                }
+            }
+        }
+        // Read as any file (normalised anew), it lands where the source was: the same
+        // normalised frame, to float rounding.
+        let plain = load_glb(&bytes, &MeshLoadOptions::default());
+        let (lo, hi) = (plain.bounds(), mesh.bounds());
+        assert_abs_diff_eq!(lo.0.distance(hi.0), 0.0, epsilon = 1e-5);
+        assert_abs_diff_eq!(lo.1.distance(hi.1), 0.0, epsilon = 1e-5);
+    }
+}
+
+/// Simplification keeps the placement and the materials, meets its triangle target, keeps
+/// its vertices a subset of the input's, and its pictures approach the source's as the target
+/// rises (the error is measured, not assumed).
+#[test]
+fn simplified_meshes_keep_their_materials_and_approach_the_source() {
+    let mesh = load_glb(
+        &TestGltf::leaf_shrub(300, 7).to_glb().unwrap(),
+        &MeshLoadOptions::default(),
+    );
+    let n = mesh.triangle_count();
+    let source: std::collections::HashSet<[u32; 3]> = corner_bits(&mesh).into_iter().collect();
+    let truth: Vec<RgbaImage> = [0.3, 1.9, 3.6]
+        .iter()
+        .map(|a| picture(&mesh, *a, 64))
+        .collect();
+    let mut last = f64::INFINITY;
+    for ratio in [0.1, 0.3, 0.6] {
+        let target = (n as f64 * ratio) as usize;
+        let s = mesh
+            .simplified(&SimplifyParams {
+                target_triangles: target,
+                ..SimplifyParams::default()
+            })
+            .unwrap();
+        assert!(s.mesh.triangle_count() <= target, "{ratio}");
+        assert_eq!(s.mesh.placement(), mesh.placement());
+        assert_eq!(s.mesh.materials(), mesh.materials());
+        assert!(s.mesh.is_cut_out());
+        assert!(corner_bits(&s.mesh).iter().all(|c| source.contains(c)));
+        let err: f64 = [0.3, 1.9, 3.6]
+            .iter()
+            .zip(&truth)
+            .map(|(a, t)| mse(&picture(&s.mesh, *a, 64), t))
+            .sum();
+        println!(
+            "ratio {ratio}: {} triangles, error {:.4}, picture MSE {err:.5}",
+            s.mesh.triangle_count(),
+            s.error
+        );
+        assert!(err < last, "ratio {ratio}: {err} after {last}");
+        last = err;
+    }
+}
+
+#[test]
+fn simplification_refuses_impossible_parameters() {
+    let mesh = load_glb(
+        &TestGltf::textured_box(4).to_glb().unwrap(),
+        &MeshLoadOptions::default(),
+    );
+    for p in [
+        SimplifyParams {
+            target_triangles: 0,
+            ..SimplifyParams::default()
+        },
+        SimplifyParams {
+            target_triangles: 4,
+            max_error: f64::NAN,
+            ..SimplifyParams::default()
+        },
+        SimplifyParams {
+            target_triangles: 4,
+            attribute_weight: -1.0,
+            ..SimplifyParams::default()
+        },
+    ] {
+        let e = mesh.simplified(&p).err().expect("refused");
+        assert!(matches!(
+            e,
+            altrep_data_gen::DataGenError::InvalidParameter { .. }
+        ));
+    }
+}

@@ -1,0 +1,294 @@
+//! # Simplified meshes as a representation (docs/design.md §13)
+//!
+//! A level-of-detail chain of a mesh: levels simplified by meshoptimizer's attribute-aware edge
+//! collapse ([`altrep_data_gen::Mesh::simplified`]) at decreasing triangle ratios, each written as
+//! a `.glb` with the source's materials, and the **switch sizes** that say which level to draw at
+//! which on-screen size. The switch sizes are chosen by measurement, not predicted from the
+//! simplifier's error: a level is previewed against the ray-cast truth at the needed screen
+//! sizes (powers of two across the needs' range) and kept up to the largest size at which every
+//! preview view meets the quality target. The chain draws, at each size, the coarsest level that
+//! met the target there; above the finest level's reach it names the source mesh.
+//!
+//! ## Conventions
+//!
+//! * Levels are numbered from the finest (0). Each is stored in the object frame under a root
+//!   node holding the placement's inverse (see `altrep_data_gen`'s `gltf_export`), so an engine
+//!   loading a level finds it where the source asset was.
+//! * A **band** `[from_px, to_px]` of the chain is the range of on-screen sizes (pixels across
+//!   the bounding cylinder's window, `2R`, as every representation's `size`) over which its level
+//!   is drawn; consecutive bands meet at the switch sizes. The first band starts at the needs'
+//!   smallest size, the last ends at their largest.
+//! * A level is drawn by ray casting it exactly as the truth is cast (same supersampling, same
+//!   texture filtering over each pixel's footprint): the measured error is the simplification's
+//!   alone, as a rasteriser with the same materials would show it.
+
+pub mod asset;
+
+use altrep_data_gen::{Mesh, RgbaImage, Supersample};
+use serde::{Deserialize, Serialize};
+
+use crate::representation::{
+    Needs, PipelineError, Score, Source, ViewDir, Window, measure_views,
+};
+
+/// One simplified level.
+pub struct Level {
+    /// The mesh (object frame, the source's materials).
+    pub mesh: Mesh,
+    /// What it was built from and what it measured.
+    pub info: LevelInfo,
+}
+
+/// What is known of a level besides its mesh (stored in `asset.json`).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct LevelInfo {
+    /// The triangle ratio asked for (of the source's triangles).
+    pub ratio: f64,
+    /// Triangles kept.
+    pub triangles: usize,
+    /// The simplifier's error estimate (object-frame units, the bounding cylinder's radius 1).
+    pub error: f64,
+    /// The largest previewed screen size (pixels) up to which every preview view met the
+    /// quality target; `None` when it failed at the smallest.
+    pub max_px: Option<f64>,
+}
+
+/// A band of the chain: the level drawn for on-screen sizes from `from_px` to `to_px`.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Band {
+    /// Smallest size (pixels) of the band.
+    pub from_px: f64,
+    /// Largest size (pixels): the switch to the next finer level (or the source) above it.
+    pub to_px: f64,
+    /// The level drawn (index from the finest), or `None` for the source mesh itself.
+    pub level: Option<usize>,
+}
+
+/// A level-of-detail chain: levels (finest first) and bands (smallest sizes first).
+pub struct MeshLod {
+    /// The levels, finest first.
+    pub levels: Vec<Level>,
+    /// The bands, from the smallest sizes up.
+    pub chain: Vec<Band>,
+}
+
+/// Smallest screen size (pixels) at which a level is previewed or verified: below it a picture
+/// holds too few pixels for a PSNR to mean anything (every representation is measured there or
+/// above).
+pub const MIN_MEASURED_PX: f64 = 8.0;
+
+/// The screen sizes (pixels) at which levels are previewed for `needs`: the powers of two
+/// strictly inside the needs' range, with its two ends, the smallest raised to
+/// [`MIN_MEASURED_PX`]; ascending, whole pixels.
+pub fn preview_sizes(needs: &Needs) -> Vec<usize> {
+    let [s0, s1] = needs.screen_px;
+    let lo = s0.max(MIN_MEASURED_PX).min(s1.max(MIN_MEASURED_PX));
+    let hi = s1.max(lo);
+    let mut sizes = vec![lo.round() as usize];
+    let mut p = (lo.round() as usize).next_power_of_two();
+    while (p as f64) < hi {
+        if p as f64 > lo {
+            sizes.push(p);
+        }
+        p *= 2;
+    }
+    sizes.push(hi.round() as usize);
+    sizes.dedup();
+    sizes
+}
+
+/// A picture of `shape` along `view` in `window`, `k × k` rays per pixel: the truth's renderer
+/// (an empty picture where nothing is visible, which a level may be).
+pub fn draw(
+    source: &Source,
+    shape: &Mesh,
+    window: Window,
+    view: ViewDir,
+    k: Supersample,
+) -> Result<RgbaImage, PipelineError> {
+    let level = Source {
+        name: source.name,
+        geometry: Some(shape),
+        texture: None,
+        tile: None,
+        light: source.light,
+        placement: source.placement,
+    };
+    match window.truth(&level, view, k) {
+        Err(PipelineError::Invisible { .. }) => Ok(RgbaImage::new(window.side(), window.side())),
+        other => other,
+    }
+}
+
+/// Scores of `levels` against the truth at `size` pixels along `views`, with `k × k` rays per
+/// pixel for both: `scores[l][v]`. Cost: `(1 + levels) · views` ray-cast pictures of
+/// `size²` (more off the horizontal).
+pub fn score_levels(
+    source: &Source,
+    levels: &[&Mesh],
+    needs: &Needs,
+    size: usize,
+    views: &[ViewDir],
+    k: Supersample,
+) -> Result<Vec<Vec<Score>>, PipelineError> {
+    let window = Window::for_needs(needs, size);
+    let mut scores = vec![Vec::with_capacity(views.len()); levels.len()];
+    for &view in views {
+        let truth = window.truth(source, view, k)?;
+        for (l, mesh) in levels.iter().enumerate() {
+            let img = draw(source, mesh, window, view, k)?;
+            scores[l].push(window.score(&img, &truth)?);
+        }
+    }
+    Ok(scores)
+}
+
+/// Views at which levels are previewed while the chain is chosen (3 of the needed directions,
+/// 2 × 2 rays per pixel), and verified after (4, 3 × 3): the verification's are the ones every
+/// representation is measured at.
+pub fn preview_views(needs: &Needs) -> Vec<ViewDir> {
+    measure_views(needs, 3)
+}
+
+/// For each level (finest first), the largest size of `sizes` (ascending) up to which every
+/// preview view meets `needs.quality_db`, searching upward from the smallest and stopping at
+/// the first failure (errors grow with the size: a level that fails at one size is not tried
+/// larger). Cost: at most `levels · sizes · 3` pictures of the levels and `sizes · 3` of the
+/// truth, each `size²` at 2 × 2 rays per pixel; coarse levels stop early.
+pub fn reach(
+    source: &Source,
+    levels: &[&Mesh],
+    needs: &Needs,
+    sizes: &[usize],
+) -> Result<Vec<Option<f64>>, PipelineError> {
+    let views = preview_views(needs);
+    let mut reach: Vec<Option<f64>> = vec![None; levels.len()];
+    let mut alive: Vec<usize> = (0..levels.len()).collect();
+    for &size in sizes {
+        if alive.is_empty() {
+            break;
+        }
+        let meshes: Vec<&Mesh> = alive.iter().map(|&l| levels[l]).collect();
+        let scores = score_levels(source, &meshes, needs, size, &views, Supersample::of(2))?;
+        let mut still = Vec::new();
+        for (i, &l) in alive.iter().enumerate() {
+            let worst = scores[i]
+                .iter()
+                .map(|s| s.psnr_db)
+                .fold(f64::INFINITY, f64::min);
+            if worst >= needs.quality_db {
+                reach[l] = Some(size as f64);
+                still.push(l);
+            }
+        }
+        alive = still;
+    }
+    Ok(reach)
+}
+
+/// The chain for levels of `reach` (finest first): at each size the coarsest level that
+/// reached it, the source mesh above every level's reach; bands from the needs' smallest size
+/// to their largest, meeting at the switch sizes.
+pub fn choose_chain(reach: &[Option<f64>], needs: &Needs) -> Vec<Band> {
+    let [s0, s1] = needs.screen_px;
+    let mut bands: Vec<Band> = Vec::new();
+    let mut from = s0;
+    // Coarsest first: each level that reaches beyond the bands so far takes the sizes from
+    // there to its reach.
+    for l in (0..reach.len()).rev() {
+        let Some(r) = reach[l] else { continue };
+        let to = r.min(s1);
+        if to > from || (bands.is_empty() && to >= from) {
+            bands.push(Band {
+                from_px: from,
+                to_px: to,
+                level: Some(l),
+            });
+            from = to;
+        }
+        if from >= s1 {
+            break;
+        }
+    }
+    if from < s1 || bands.is_empty() {
+        bands.push(Band {
+            from_px: from,
+            to_px: s1,
+            level: None,
+        });
+    }
+    bands
+}
+
+/// Scores of the chain's bands at both edges of each (sizes raised to [`MIN_MEASURED_PX`]),
+/// at the 4 needed directions every representation is measured at, 3 × 3 rays per pixel: the
+/// verification of the switch sizes. Bands that draw the source are not measured (the source
+/// is the truth). Returns `(band, size, scores)` per measured edge.
+pub fn verify(
+    lod: &MeshLod,
+    needs: &Needs,
+    source: &Source,
+) -> Result<Vec<(usize, usize, Vec<Score>)>, PipelineError> {
+    let views = measure_views(needs, 4);
+    let mut out = Vec::new();
+    for (b, band) in lod.chain.iter().enumerate() {
+        let Some(l) = band.level else { continue };
+        let mesh = &lod.levels[l].mesh;
+        let mut sizes = vec![
+            band.from_px.max(MIN_MEASURED_PX).round() as usize,
+            band.to_px.max(MIN_MEASURED_PX).round() as usize,
+        ];
+        sizes.dedup();
+        for size in sizes {
+            let scores = score_levels(source, &[mesh], needs, size, &views, Supersample::of(3))?;
+            out.push((b, size, scores.into_iter().next().unwrap_or_default()));
+        }
+    }
+    Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn needs(s0: f64, s1: f64) -> Needs {
+        Needs {
+            screen_px: [s0, s1],
+            ..Needs::default()
+        }
+    }
+
+    #[test]
+    fn preview_sizes_span_the_needed_range_in_powers_of_two() {
+        assert_eq!(preview_sizes(&needs(1.0, 256.0)), vec![8, 16, 32, 64, 128, 256]);
+        assert_eq!(preview_sizes(&needs(20.0, 100.0)), vec![20, 32, 64, 100]);
+        assert_eq!(preview_sizes(&needs(1.0, 4.0)), vec![8]);
+        assert_eq!(preview_sizes(&needs(64.0, 64.0)), vec![64]);
+    }
+
+    #[test]
+    fn the_chain_draws_the_coarsest_level_that_reaches_each_size() {
+        let n = needs(1.0, 256.0);
+        // Finest first: level 0 reaches 128, level 1 reaches 32, level 2 nothing, level 3 16.
+        let chain = choose_chain(&[Some(128.0), Some(32.0), None, Some(16.0)], &n);
+        let got: Vec<(f64, f64, Option<usize>)> =
+            chain.iter().map(|b| (b.from_px, b.to_px, b.level)).collect();
+        assert_eq!(
+            got,
+            vec![
+                (1.0, 16.0, Some(3)),
+                (16.0, 32.0, Some(1)),
+                (32.0, 128.0, Some(0)),
+                (128.0, 256.0, None)
+            ]
+        );
+        // Every level reaching every size: the coarsest alone.
+        let all = choose_chain(&[Some(256.0), Some(256.0)], &n);
+        assert_eq!(all.len(), 1);
+        assert_eq!(all[0].level, Some(1));
+        // No level reaching anything: the source everywhere.
+        let none = choose_chain(&[None, None], &n);
+        assert_eq!(none.len(), 1);
+        assert_eq!(none[0].level, None);
+    }
+}

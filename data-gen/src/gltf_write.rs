@@ -661,9 +661,188 @@ impl TestGltf {
         }
     }
 
+    /// A rock: an icosphere subdivided `subdivisions` times (`20·4^s` triangles), its radius
+    /// displaced by ±25 % of seeded smooth noise (eight random plane waves) and its height
+    /// scaled by 0.7, about `(0, 0.7, 0)` (file units). Texture coordinates are longitude and
+    /// colatitude (`u = atan2(z, x)/2π + ½`, `v = colatitude/π`), the vertices split along the
+    /// seam at `u = 0`; shading normals are the area-weighted means of the faces'. The base
+    /// colour is a 64² texture of grey-brown strata with seeded speckle (`LINEAR`, repeated),
+    /// the material single-sided and opaque; triangles are wound counter-clockwise from outside.
+    /// A textured, closed, smooth asset for simplification and stand-ins. Seeded
+    /// ([`crate::SplitMix64`]).
+    pub fn textured_rock(subdivisions: u32, seed: u64) -> Self {
+        let mut rng = crate::SplitMix64::new(seed);
+        let (mut verts, mut faces) = icosahedron();
+        for _ in 0..subdivisions {
+            let mut mid: std::collections::HashMap<(usize, usize), usize> = Default::default();
+            let mut next = Vec::with_capacity(faces.len() * 4);
+            for f in &faces {
+                let m = [0, 1, 2].map(|k| {
+                    let (a, b) = (f[k], f[(k + 1) % 3]);
+                    *mid.entry((a.min(b), a.max(b))).or_insert_with(|| {
+                        let p: [f64; 3] = std::array::from_fn(|c| 0.5 * (verts[a][c] + verts[b][c]));
+                        let l = p.iter().map(|c| c * c).sum::<f64>().sqrt();
+                        verts.push(p.map(|c| c / l));
+                        verts.len() - 1
+                    })
+                });
+                next.extend([
+                    [f[0], m[0], m[2]],
+                    [m[0], f[1], m[1]],
+                    [m[2], m[1], f[2]],
+                    [m[0], m[1], m[2]],
+                ]);
+            }
+            faces = next;
+        }
+        // Smooth noise: plane waves of random direction, frequency and phase.
+        let waves: Vec<([f64; 3], f64, f64)> = (0..8)
+            .map(|_| {
+                let z = rng.range(-1.0, 1.0);
+                let phi = rng.range(0.0, std::f64::consts::TAU);
+                let r = (1.0 - z * z).sqrt();
+                let f = rng.range(1.0, 4.0);
+                ([r * phi.cos(), r * phi.sin(), z], f, rng.range(0.0, std::f64::consts::TAU))
+            })
+            .collect();
+        let displaced: Vec<[f64; 3]> = verts
+            .iter()
+            .map(|p| {
+                let n: f64 = waves
+                    .iter()
+                    .map(|(d, f, ph)| (f * (d[0] * p[0] + d[1] * p[1] + d[2] * p[2]) + ph).sin())
+                    .sum::<f64>()
+                    / 8f64.sqrt();
+                let r = 1.0 + 0.25 * n.clamp(-1.0, 1.0);
+                [p[0] * r, 0.7 + 0.7 * p[1] * r, p[2] * r]
+            })
+            .collect();
+        // Area-weighted vertex normals.
+        let sub = |a: [f64; 3], b: [f64; 3]| [a[0] - b[0], a[1] - b[1], a[2] - b[2]];
+        let cross = |a: [f64; 3], b: [f64; 3]| {
+            [
+                a[1] * b[2] - a[2] * b[1],
+                a[2] * b[0] - a[0] * b[2],
+                a[0] * b[1] - a[1] * b[0],
+            ]
+        };
+        let mut normals = vec![[0.0f64; 3]; verts.len()];
+        for f in &faces {
+            let n = cross(
+                sub(displaced[f[1]], displaced[f[0]]),
+                sub(displaced[f[2]], displaced[f[0]]),
+            );
+            for &v in f {
+                for c in 0..3 {
+                    normals[v][c] += n[c];
+                }
+            }
+        }
+        let mut prim = TestPrimitive::empty(0);
+        let mut index: std::collections::HashMap<(usize, bool), u32> = Default::default();
+        for f in &faces {
+            let u = f.map(|v| {
+                let p = verts[v];
+                p[2].atan2(p[0]) / std::f64::consts::TAU + 0.5
+            });
+            let wrap = u.iter().cloned().fold(f64::MIN, f64::max)
+                - u.iter().cloned().fold(f64::MAX, f64::min)
+                > 0.5;
+            for (k, &v) in f.iter().enumerate() {
+                let shifted = wrap && u[k] < 0.5;
+                let i = *index.entry((v, shifted)).or_insert_with(|| {
+                    let p = displaced[v];
+                    let n = normals[v];
+                    let l = n.iter().map(|c| c * c).sum::<f64>().sqrt().max(1e-30);
+                    prim.positions.push(p.map(|c| c as f32));
+                    prim.normals.push(n.map(|c| (c / l) as f32));
+                    let colat = verts[v][1].clamp(-1.0, 1.0).acos() / std::f64::consts::PI;
+                    prim.uvs.push([(u[k] + f64::from(u8::from(shifted))) as f32, colat as f32]);
+                    (prim.positions.len() - 1) as u32
+                });
+                prim.indices.push(i);
+            }
+        }
+        let n = 64u32;
+        let data = (0..n)
+            .flat_map(|j| (0..n).map(move |i| (i, j)))
+            .flat_map(|(i, j)| {
+                let strata = (f64::from(j) * 0.45 + (f64::from(i) * 0.2).sin() * 2.0).sin();
+                let speckle = (i.wrapping_mul(73_856_093) ^ j.wrapping_mul(19_349_663)) % 23;
+                let g = (120.0 + 40.0 * strata) as i32 + speckle as i32 - 11;
+                let g = g.clamp(0, 255) as u8;
+                [g, (f64::from(g) * 0.9) as u8, (f64::from(g) * 0.75) as u8, 255]
+            })
+            .collect();
+        Self {
+            meshes: vec![vec![prim]],
+            materials: vec![TestMaterial {
+                texture: Some(Rgba8 {
+                    width: n,
+                    height: n,
+                    data,
+                }),
+                double_sided: false,
+                ..TestMaterial::plain([1.0; 4])
+            }],
+            nodes: vec![TestNode::mesh_at_origin("rock")],
+            roots: vec![0],
+        }
+    }
+
     /// The hole pattern of [`TestGltf::masked_quad`]: texel `(i, j)` is a hole when `i + 2·j`
     /// is a multiple of 3.
     pub fn hole(i: u32, j: u32) -> bool {
         (i + 2 * j).is_multiple_of(3)
     }
+}
+
+/// The regular icosahedron on the unit sphere: 12 vertices, 20 faces wound counter-clockwise
+/// from outside.
+fn icosahedron() -> (Vec<[f64; 3]>, Vec<[usize; 3]>) {
+    let t = (1.0 + 5f64.sqrt()) / 2.0;
+    let raw = [
+        [-1.0, t, 0.0],
+        [1.0, t, 0.0],
+        [-1.0, -t, 0.0],
+        [1.0, -t, 0.0],
+        [0.0, -1.0, t],
+        [0.0, 1.0, t],
+        [0.0, -1.0, -t],
+        [0.0, 1.0, -t],
+        [t, 0.0, -1.0],
+        [t, 0.0, 1.0],
+        [-t, 0.0, -1.0],
+        [-t, 0.0, 1.0],
+    ];
+    let verts = raw
+        .iter()
+        .map(|p: &[f64; 3]| {
+            let l = p.iter().map(|c| c * c).sum::<f64>().sqrt();
+            p.map(|c| c / l)
+        })
+        .collect();
+    let faces = vec![
+        [0, 11, 5],
+        [0, 5, 1],
+        [0, 1, 7],
+        [0, 7, 10],
+        [0, 10, 11],
+        [1, 5, 9],
+        [5, 11, 4],
+        [11, 10, 2],
+        [10, 7, 6],
+        [7, 1, 8],
+        [3, 9, 4],
+        [3, 4, 2],
+        [3, 2, 6],
+        [3, 6, 8],
+        [3, 8, 9],
+        [4, 9, 5],
+        [2, 4, 11],
+        [6, 2, 10],
+        [8, 6, 7],
+        [9, 8, 1],
+    ];
+    (verts, faces)
 }

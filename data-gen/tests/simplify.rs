@@ -88,6 +88,13 @@ fn a_mesh_written_to_glb_reads_back_where_it_was() {
             ),
         ),
         (
+            "rock (normals, single-sided)",
+            load_glb(
+                &TestGltf::textured_rock(2, 5).to_glb().unwrap(),
+                &MeshLoadOptions::default(),
+            ),
+        ),
+        (
             "procedural",
             Mesh::from_raw_triangles(
                 "tetra",
@@ -204,4 +211,26 @@ fn simplification_refuses_impossible_parameters() {
             altrep_data_gen::DataGenError::InvalidParameter { .. }
         ));
     }
+}
+
+/// The rock of the bundled scene is closed, wound counter-clockwise from outside (every face's
+/// winding normal points away from the axis through its centre) and textured.
+#[test]
+fn the_textured_rock_is_closed_and_wound_outward() {
+    let doc = TestGltf::textured_rock(3, 11);
+    let mesh = load_glb(&doc.to_glb().unwrap(), &MeshLoadOptions::default());
+    assert_eq!(mesh.triangle_count(), 20 * 4usize.pow(3));
+    assert!(mesh.encloses_volume());
+    assert!(mesh.single_sided());
+    let (lo, hi) = mesh.bounds();
+    let centre = 0.5 * (lo + hi);
+    for t in mesh.triangles_f32() {
+        let p = t.map(|v| glam::DVec3::from(v.map(f64::from)));
+        let n = (p[1] - p[0]).cross(p[2] - p[0]);
+        let c = (p[0] + p[1] + p[2]) / 3.0 - centre;
+        assert!(n.dot(c) > 0.0, "a face wound inward at {c}");
+    }
+    // Seen from outside, the single-sided surface shows: a picture is not empty.
+    let img = picture(&mesh, 0.7, 32);
+    assert!(img.pixels.iter().filter(|p| p[3] > 0.5).count() > 200);
 }

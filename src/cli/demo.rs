@@ -72,6 +72,9 @@ pub const DEMO_CUTOUT: &str = include_str!("../../scenes/cutout.obj");
 /// The bundled scene's shrub of alpha-masked leaf cards (`scenes/shrub.glb`): data-gen's
 /// `TestGltf::leaf_shrub(300, 7)`, byte for byte (a unit test checks it).
 pub const DEMO_SHRUB: &[u8] = include_bytes!("../../scenes/shrub.glb");
+/// The bundled scene's textured rock (`scenes/rock.glb`): data-gen's
+/// `TestGltf::textured_rock(4, 11)`, byte for byte (a unit test checks it).
+pub const DEMO_ROCK: &[u8] = include_bytes!("../../scenes/rock.glb");
 
 /// Runs `altrep demo`: `precompute` of the bundled scene into `OUT/scene`, then the measured
 /// sections into `OUT/report.md`.
@@ -87,13 +90,14 @@ pub fn run(args: DemoArgs) -> CliResult {
     let mut claim = crate::asset::OutputClaim::new(&args.out, "demo", entries);
     claim.check()?;
     let staging = claim.begin()?;
-    // The scene's own meshes (a flat cut-out, a shrub) are written beside a copy of the
+    // The scene's own meshes (a flat cut-out, a shrub, a rock) are written beside a copy of the
     // manifest, so the demo runs from any folder.
     let staged_inputs = staging.join("scene-inputs");
     std::fs::create_dir(&staged_inputs)
         .map_err(|e| format!("cannot create {}: {e}", staged_inputs.display()))?;
     std::fs::write(staged_inputs.join("cutout.obj"), DEMO_CUTOUT)
         .and_then(|()| std::fs::write(staged_inputs.join("shrub.glb"), DEMO_SHRUB))
+        .and_then(|()| std::fs::write(staged_inputs.join("rock.glb"), DEMO_ROCK))
         .map_err(|e| format!("cannot write {}: {e}", staged_inputs.display()))?;
     let inputs = claim.place("scene-inputs")?;
     let manifest = crate::pipeline::Manifest::parse(DEMO_SCENE, &inputs.join("demo.toml"))?;
@@ -270,6 +274,18 @@ mod tests {
         assert!(
             written == DEMO_SHRUB,
             "scenes/shrub.glb differs from TestGltf::leaf_shrub(300, 7): rewrite it"
+        );
+    }
+
+    /// The bundled rock is what data-gen writes.
+    #[test]
+    fn the_bundled_rock_is_data_gens_textured_rock() {
+        let written = altrep_data_gen::gltf_write::TestGltf::textured_rock(4, 11)
+            .to_glb()
+            .unwrap();
+        assert!(
+            written == DEMO_ROCK,
+            "scenes/rock.glb differs from TestGltf::textured_rock(4, 11): rewrite it"
         );
     }
 }

@@ -1,6 +1,7 @@
 //! Simplified meshes (docs/design.md §13) in the pipeline: `[asset.mesh_lod]`.
 //!
-//! Files: `level{k}.glb` for each level `k` (finest first), a glTF 2.0 binary file of the level
+//! Files: `level{k}.glb` for each level `k` the chain draws (finest first; the finest level
+//! alone, undrawn, when no level meets the target anywhere), a glTF 2.0 binary file of the level
 //! with the source's materials and textures, in the object frame under a root node whose matrix
 //! is the placement's inverse. `metadata.levels` lists each level's ratio, triangles, the
 //! simplifier's error and the largest previewed size it met the target at; `metadata.chain`
@@ -249,11 +250,33 @@ impl Representation for MeshLodRepr {
                 mesh: s.mesh,
             })
             .collect();
-        let chain = super::choose_chain(&reached, needs);
-        let infos: Vec<&LevelInfo> = levels.iter().map(|l| &l.info).collect();
+        let mut chain = super::choose_chain(&reached, needs);
+        let infos: Vec<LevelInfo> = levels.iter().map(|l| l.info.clone()).collect();
+        // Only the levels the chain draws are kept (and renumbered, finest first): the others
+        // are measured in the report and skipped.
+        let mut used: Vec<usize> = (0..levels.len())
+            .filter(|l| chain.iter().any(|b| b.level == Some(*l)))
+            .collect();
+        // A chain that draws no level keeps the finest, undrawn, so that the report measures
+        // by how much the simplification misses the target (and a user can look at it).
+        if used.is_empty() && !levels.is_empty() {
+            used.push(0);
+        }
+        for band in &mut chain {
+            band.level = band
+                .level
+                .and_then(|l| used.iter().position(|u| *u == l));
+        }
+        let levels: Vec<Level> = levels
+            .into_iter()
+            .enumerate()
+            .filter(|(l, _)| used.contains(l))
+            .map(|(_, level)| level)
+            .collect();
         let report = json!({
             "source_triangles": mesh.triangle_count(),
             "levels": infos,
+            "kept": used,
             "dropped": dropped,
             "chain": chain,
             "simplify_s": simplify_s,
@@ -409,7 +432,7 @@ impl Representation for MeshLodRepr {
             (
                 scores,
                 format!(
-                    "no level met the target at any previewed size: the finest level ({} triangles) at {sizes:?} px",
+                    "the finest level ({} triangles; no level met the target at any previewed size) at {sizes:?} px",
                     finest.info.triangles
                 ),
             )

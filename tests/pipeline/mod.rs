@@ -681,6 +681,7 @@ fn the_library_the_manifest_and_the_command_accept_the_same_view_counts() {
 #[cfg(unix)]
 mod faults;
 mod judged;
+mod mesh_lod;
 mod needs;
 mod real_assets;
 mod runs;

@@ -159,9 +159,10 @@ fn encode(img: &TextureImage, srgb: bool) -> Result<Vec<u8>, DataGenError> {
         .iter()
         .flat_map(|t| (0..4).map(move |k| (curve(t[k], k) * 255.0).round() as u8))
         .collect();
-    let exact = texels.iter().enumerate().all(|(n, t)| {
-        (0..4).all(|k| back(f32::from(bytes8[4 * n + k]) / 255.0, k) == t[k])
-    });
+    let exact = texels
+        .iter()
+        .enumerate()
+        .all(|(n, t)| (0..4).all(|k| back(f32::from(bytes8[4 * n + k]) / 255.0, k) == t[k]));
     if exact {
         return png_bytes(&bytes8, w as u32, h as u32, image::ExtendedColorType::Rgba8);
     }
@@ -209,7 +210,8 @@ impl Images {
             SamplerFilter::Nearest => 9728,
             SamplerFilter::Linear => 9729,
         };
-        self.samplers.push(json!({"magFilter": filter, "wrapS": wrap(t.wrap[0]), "wrapT": wrap(t.wrap[1])}));
+        self.samplers
+            .push(json!({"magFilter": filter, "wrapS": wrap(t.wrap[0]), "wrapT": wrap(t.wrap[1])}));
         self.textures
             .push(json!({"source": image, "sampler": self.samplers.len() - 1}));
         Ok(self.textures.len() - 1)
@@ -226,7 +228,11 @@ fn transform_extension(t: &TextureRef) -> Option<Value> {
     let sx = a[0].hypot(b[0]);
     let rotation = (-b[0]).atan2(a[0]);
     let (s, c) = rotation.sin_cos();
-    let sy = if c.abs() > s.abs() { b[1] / c } else { a[1] / s };
+    let sy = if c.abs() > s.abs() {
+        b[1] / c
+    } else {
+        a[1] / s
+    };
     Some(json!({"offset": [a[2], b[2]], "rotation": rotation, "scale": [sx, sy]}))
 }
 

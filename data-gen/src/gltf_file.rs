@@ -543,8 +543,9 @@ pub(crate) fn load(
         }
         let [r, g, b, a] = pbr.base_color_factor();
         fallback.push(m.extras().as_ref().is_some_and(|e| {
-            serde_json::from_str::<serde_json::Value>(e.get())
-                .is_ok_and(|v| v[crate::gltf_export::FALLBACK_MARK] == serde_json::Value::Bool(true))
+            serde_json::from_str::<serde_json::Value>(e.get()).is_ok_and(|v| {
+                v[crate::gltf_export::FALLBACK_MARK] == serde_json::Value::Bool(true)
+            })
         }));
         materials.push(Material {
             name: m.name().unwrap_or_default().to_string(),

@@ -212,7 +212,8 @@ impl BinBuilder {
             .flat_map(|v| v.to_le_bytes())
             .collect();
         let v = self.view(&bytes);
-        let mut a = json!({"bufferView": v, "componentType": 5126, "count": values.len(), "type": ty});
+        let mut a =
+            json!({"bufferView": v, "componentType": 5126, "count": values.len(), "type": ty});
         if bounds {
             let (lo, hi) = values.iter().fold(
                 ([f32::INFINITY; N], [f32::NEG_INFINITY; N]),
@@ -293,7 +294,9 @@ impl TestGltf {
                     attributes["TANGENT"] = json!(b.floats(&p.tangents, "VEC4", false));
                 }
                 let indices = b.indices(&p.indices);
-                prims.push(json!({"attributes": attributes, "indices": indices, "material": p.material}));
+                prims.push(
+                    json!({"attributes": attributes, "indices": indices, "material": p.material}),
+                );
             }
             meshes.push(json!({"primitives": prims}));
         }
@@ -680,7 +683,8 @@ impl TestGltf {
                 let m = [0, 1, 2].map(|k| {
                     let (a, b) = (f[k], f[(k + 1) % 3]);
                     *mid.entry((a.min(b), a.max(b))).or_insert_with(|| {
-                        let p: [f64; 3] = std::array::from_fn(|c| 0.5 * (verts[a][c] + verts[b][c]));
+                        let p: [f64; 3] =
+                            std::array::from_fn(|c| 0.5 * (verts[a][c] + verts[b][c]));
                         let l = p.iter().map(|c| c * c).sum::<f64>().sqrt();
                         verts.push(p.map(|c| c / l));
                         verts.len() - 1
@@ -702,7 +706,11 @@ impl TestGltf {
                 let phi = rng.range(0.0, std::f64::consts::TAU);
                 let r = (1.0 - z * z).sqrt();
                 let f = rng.range(1.0, 4.0);
-                ([r * phi.cos(), r * phi.sin(), z], f, rng.range(0.0, std::f64::consts::TAU))
+                (
+                    [r * phi.cos(), r * phi.sin(), z],
+                    f,
+                    rng.range(0.0, std::f64::consts::TAU),
+                )
             })
             .collect();
         let displaced: Vec<[f64; 3]> = verts
@@ -757,7 +765,8 @@ impl TestGltf {
                     prim.positions.push(p.map(|c| c as f32));
                     prim.normals.push(n.map(|c| (c / l) as f32));
                     let colat = verts[v][1].clamp(-1.0, 1.0).acos() / std::f64::consts::PI;
-                    prim.uvs.push([(u[k] + f64::from(u8::from(shifted))) as f32, colat as f32]);
+                    prim.uvs
+                        .push([(u[k] + f64::from(u8::from(shifted))) as f32, colat as f32]);
                     (prim.positions.len() - 1) as u32
                 });
                 prim.indices.push(i);
@@ -771,7 +780,12 @@ impl TestGltf {
                 let speckle = (i.wrapping_mul(73_856_093) ^ j.wrapping_mul(19_349_663)) % 23;
                 let g = (120.0 + 40.0 * strata) as i32 + speckle as i32 - 11;
                 let g = g.clamp(0, 255) as u8;
-                [g, (f64::from(g) * 0.9) as u8, (f64::from(g) * 0.75) as u8, 255]
+                [
+                    g,
+                    (f64::from(g) * 0.9) as u8,
+                    (f64::from(g) * 0.75) as u8,
+                    255,
+                ]
             })
             .collect();
         Self {

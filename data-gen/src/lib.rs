@@ -77,16 +77,16 @@ pub use geometry::{
     BoundingCylinder, Footprint, Hit, ParallelRays, PixelGrid, RadialRays, Ray, direction,
     screen_right,
 };
-pub use image_io::{RgbaImage, linear_to_srgb, srgb_to_linear};
 pub use gltf_export::GlbFile;
+pub use image_io::{RgbaImage, linear_to_srgb, srgb_to_linear};
 pub use mesh::{Mesh, MeshLoadOptions};
 pub use placement::{Placement, UpAxis};
 pub use rng::SplitMix64;
 pub use shape::{Csg, ParallelTracer, Part, Primitive, RayByRay, Shape, intersect_parallel};
 pub use shapes::{SCENE_SHAPES, scene_shape};
+pub use shared::{shared_mesh, shared_mesh_paths, shared_meshes, skip, under_ci};
 #[doc(hidden)]
 pub use simplify::{Simplified, SimplifyParams};
-pub use shared::{shared_mesh, shared_mesh_paths, shared_meshes, skip, under_ci};
 pub use supersample::Supersample;
 pub use surface::{
     Material, MaterialAlpha, SamplerFilter, TextureImage, TextureRef, UvTransform, Wrap,

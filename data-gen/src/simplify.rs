@@ -296,11 +296,7 @@ impl Mesh {
             Some(&mut error),
         );
         let mut out_tris = Vec::with_capacity(kept.len() / 3);
-        let mut out_colors = Vec::with_capacity(if colors.is_empty() {
-            0
-        } else {
-            kept.len() / 3
-        });
+        let mut out_colors = Vec::with_capacity(if colors.is_empty() { 0 } else { kept.len() / 3 });
         for c in kept.chunks_exact(3) {
             let v = [0, 1, 2].map(|i| &vertices[c[i] as usize]);
             out_tris.push(Triangle {

@@ -81,9 +81,14 @@ fn a_mesh_written_to_glb_reads_back_where_it_was() {
         (
             "normal-mapped quad",
             load_glb(
-                &TestGltf::normal_mapped_quad(&[[200, 128, 230, 255], [60, 128, 230, 255]], 1.0, true, false)
-                    .to_glb()
-                    .unwrap(),
+                &TestGltf::normal_mapped_quad(
+                    &[[200, 128, 230, 255], [60, 128, 230, 255]],
+                    1.0,
+                    true,
+                    false,
+                )
+                .to_glb()
+                .unwrap(),
                 &MeshLoadOptions::default(),
             ),
         ),

@@ -1,4 +1,4 @@
-//! Simplified meshes (docs/design.md §13) in the pipeline: `[asset.mesh_lod]`.
+//! Simplified meshes (docs/design.md §10b) in the pipeline: `[asset.mesh_lod]`.
 //!
 //! Files: `level{k}.glb` for each level `k` the chain draws (finest first; the finest level
 //! alone, undrawn, when no level meets the target anywhere), a glTF 2.0 binary file of the level
@@ -263,9 +263,7 @@ impl Representation for MeshLodRepr {
             used.push(0);
         }
         for band in &mut chain {
-            band.level = band
-                .level
-                .and_then(|l| used.iter().position(|u| *u == l));
+            band.level = band.level.and_then(|l| used.iter().position(|u| *u == l));
         }
         let levels: Vec<Level> = levels
             .into_iter()
@@ -301,10 +299,7 @@ impl Representation for MeshLodRepr {
                 }],
             )?;
         }
-        let placement = lod
-            .levels
-            .first()
-            .map(|l| l.mesh.placement().of_written());
+        let placement = lod.levels.first().map(|l| l.mesh.placement().of_written());
         let infos: Vec<&LevelInfo> = lod.levels.iter().map(|l| &l.info).collect();
         Ok(json!({
             "levels": infos,
@@ -323,7 +318,10 @@ impl Representation for MeshLodRepr {
             .map_err(|e| r.content(format!("metadata.levels: {e}")))?;
         let chain: Vec<Band> = serde_json::from_value(m["chain"].clone())
             .map_err(|e| r.content(format!("metadata.chain: {e}")))?;
-        if let Some(b) = chain.iter().find(|b| b.level.is_some_and(|l| l >= infos.len())) {
+        if let Some(b) = chain
+            .iter()
+            .find(|b| b.level.is_some_and(|l| l >= infos.len()))
+        {
             return Err(r
                 .content(format!(
                     "metadata.chain names level {:?} of {}",
@@ -443,7 +441,10 @@ impl Representation for MeshLodRepr {
                 .collect();
             (
                 measured.iter().flat_map(|(_, _, s)| s.clone()).collect(),
-                format!("the chain's levels at both edges of each band ({})", edges.join(", ")),
+                format!(
+                    "the chain's levels at both edges of each band ({})",
+                    edges.join(", ")
+                ),
             )
         };
         let biggest = measured

@@ -1,4 +1,4 @@
-//! # Simplified meshes as a representation (docs/design.md §13)
+//! # Simplified meshes as a representation (docs/design.md §10b)
 //!
 //! A level-of-detail chain of a mesh: levels simplified by meshoptimizer's attribute-aware edge
 //! collapse ([`altrep_data_gen::Mesh::simplified`]) at decreasing triangle ratios, each written as
@@ -27,9 +27,7 @@ pub mod asset;
 use altrep_data_gen::{Mesh, RgbaImage, Supersample};
 use serde::{Deserialize, Serialize};
 
-use crate::representation::{
-    Needs, PipelineError, Score, Source, ViewDir, Window, measure_views,
-};
+use crate::representation::{Needs, PipelineError, Score, Source, ViewDir, Window, measure_views};
 
 /// One simplified level.
 pub struct Level {
@@ -260,7 +258,10 @@ mod tests {
 
     #[test]
     fn preview_sizes_span_the_needed_range_in_powers_of_two() {
-        assert_eq!(preview_sizes(&needs(1.0, 256.0)), vec![8, 16, 32, 64, 128, 256]);
+        assert_eq!(
+            preview_sizes(&needs(1.0, 256.0)),
+            vec![8, 16, 32, 64, 128, 256]
+        );
         assert_eq!(preview_sizes(&needs(20.0, 100.0)), vec![20, 32, 64, 100]);
         assert_eq!(preview_sizes(&needs(1.0, 4.0)), vec![8]);
         assert_eq!(preview_sizes(&needs(64.0, 64.0)), vec![64]);
@@ -271,8 +272,10 @@ mod tests {
         let n = needs(1.0, 256.0);
         // Finest first: level 0 reaches 128, level 1 reaches 32, level 2 nothing, level 3 16.
         let chain = choose_chain(&[Some(128.0), Some(32.0), None, Some(16.0)], &n);
-        let got: Vec<(f64, f64, Option<usize>)> =
-            chain.iter().map(|b| (b.from_px, b.to_px, b.level)).collect();
+        let got: Vec<(f64, f64, Option<usize>)> = chain
+            .iter()
+            .map(|b| (b.from_px, b.to_px, b.level))
+            .collect();
         assert_eq!(
             got,
             vec![

@@ -87,7 +87,11 @@ fn the_chain_meets_the_target_at_both_edges_of_every_band_from_unseen_directions
         assert_abs_diff_eq!(w[0].to_px, w[1].from_px);
     }
     let drawn = back.chain.iter().filter(|b| b.level.is_some()).count();
-    assert!(drawn >= 1, "no simplified level in the chain: {:?}", back.chain);
+    assert!(
+        drawn >= 1,
+        "no simplified level in the chain: {:?}",
+        back.chain
+    );
     for band in &back.chain {
         let Some(l) = band.level else { continue };
         let level = &back.levels[l];
@@ -110,13 +114,8 @@ fn the_chain_meets_the_target_at_both_edges_of_every_band_from_unseen_directions
         }
     }
     // The measurement is the verification at the band edges: it meets the target there.
-    let (m, pictures) = MeshLodRepr::measure(
-        &back,
-        &needs,
-        MeshLodRepr::measure_size(&decisions),
-        &src,
-    )
-    .unwrap();
+    let (m, pictures) =
+        MeshLodRepr::measure(&back, &needs, MeshLodRepr::measure_size(&decisions), &src).unwrap();
     println!("{m:?}");
     assert!(m.worst_psnr_db >= needs.quality_db, "{m:?}");
     assert_eq!(m.size, 128);
@@ -128,9 +127,12 @@ fn the_chain_meets_the_target_at_both_edges_of_every_band_from_unseen_directions
 #[test]
 fn simplified_meshes_refuse_procedural_shapes_and_bad_parameters() {
     let chair = scene_shape("chair").unwrap();
-    let (plan, _) =
-        MeshLodRepr::plan(&MeshLodSpec::default(), &Needs::default(), &source("chair", &chair))
-            .unwrap();
+    let (plan, _) = MeshLodRepr::plan(
+        &MeshLodSpec::default(),
+        &Needs::default(),
+        &source("chair", &chair),
+    )
+    .unwrap();
     let why = plan.refused.expect("refused");
     assert!(why.contains("mesh"), "{why}");
     for (spec, key) in [

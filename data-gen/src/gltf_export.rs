@@ -137,12 +137,11 @@ struct Images {
 fn encode(img: &TextureImage, srgb: bool) -> Result<Vec<u8>, DataGenError> {
     let (w, h) = (img.width(), img.height());
     let curve = |c: f32, k: usize| {
-        let c = if srgb && k < 3 {
+        if srgb && k < 3 {
             crate::image_io::linear_to_srgb(c.clamp(0.0, 1.0))
         } else {
             c.clamp(0.0, 1.0)
-        };
-        c
+        }
     };
     let back = |code: f32, k: usize| {
         if srgb && k < 3 {

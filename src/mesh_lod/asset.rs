@@ -38,6 +38,10 @@ pub struct MeshLodSpec {
     /// Weight of texture coordinates, vertex colours and normals against the surface's movement
     /// in the simplifier's collapse cost (default 1; 0 simplifies by geometry alone).
     pub attribute_weight: f32,
+    /// Largest screen size (pixels, 8–2048; default 512) at which levels are previewed and
+    /// verified: above it the chain draws the source mesh (a preview costs rays in proportion
+    /// to its pixels).
+    pub max_px: f64,
 }
 
 impl Default for MeshLodSpec {
@@ -47,6 +51,7 @@ impl Default for MeshLodSpec {
             min_triangles: 12,
             lock_border: false,
             attribute_weight: 1.0,
+            max_px: 512.0,
         }
     }
 }
@@ -111,6 +116,12 @@ impl Representation for MeshLodRepr {
             return Err(format!(
                 "mesh_lod.attribute_weight = {} must be finite and ≥ 0",
                 spec.attribute_weight
+            ));
+        }
+        if !(8.0..=2048.0).contains(&spec.max_px) {
+            return Err(format!(
+                "mesh_lod.max_px = {} must lie in 8..=2048",
+                spec.max_px
             ));
         }
         Ok(())
@@ -183,7 +194,7 @@ impl Representation for MeshLodRepr {
                 spec.min_triangles
             ));
         }
-        let sizes = preview_sizes(needs);
+        let sizes = preview_sizes(needs, spec.max_px);
         plan.build(format!(
             "switch sizes chosen by previewing every level against the truth at {sizes:?} px (3 directions, 2×2 rays per pixel) for {} dB",
             needs.quality_db

@@ -77,11 +77,15 @@ pub const MIN_MEASURED_PX: f64 = 8.0;
 
 /// The screen sizes (pixels) at which levels are previewed for `needs`: the powers of two
 /// strictly inside the needs' range, with its two ends, the smallest raised to
-/// [`MIN_MEASURED_PX`]; ascending, whole pixels.
-pub fn preview_sizes(needs: &Needs) -> Vec<usize> {
+/// [`MIN_MEASURED_PX`] and the largest lowered to `max_px` (the chain draws the source mesh
+/// above it); ascending, whole pixels.
+pub fn preview_sizes(needs: &Needs, max_px: f64) -> Vec<usize> {
     let [s0, s1] = needs.screen_px;
-    let lo = s0.max(MIN_MEASURED_PX).min(s1.max(MIN_MEASURED_PX));
-    let hi = s1.max(lo);
+    let lo = s0
+        .max(MIN_MEASURED_PX)
+        .min(s1.max(MIN_MEASURED_PX))
+        .min(max_px);
+    let hi = s1.min(max_px).max(lo);
     let mut sizes = vec![lo.round() as usize];
     let mut p = (lo.round() as usize).next_power_of_two();
     while (p as f64) < hi {
@@ -218,7 +222,8 @@ pub fn choose_chain(reach: &[Option<f64>], needs: &Needs) -> Vec<Band> {
     bands
 }
 
-/// Scores of the chain's bands at both edges of each (sizes raised to [`MIN_MEASURED_PX`]),
+/// Scores of the chain's bands at both edges of each, within the needs' sizes (raised to
+/// [`MIN_MEASURED_PX`]),
 /// at the 4 needed directions every representation is measured at, 3 × 3 rays per pixel: the
 /// verification of the switch sizes. Bands that draw the source are not measured (the source
 /// is the truth). Returns `(band, size, scores)` per measured edge.
@@ -229,12 +234,19 @@ pub fn verify(
 ) -> Result<Vec<(usize, usize, Vec<Score>)>, PipelineError> {
     let views = measure_views(needs, 4);
     let mut out = Vec::new();
+    let [s0, s1] = needs.screen_px;
     for (b, band) in lod.chain.iter().enumerate() {
         let Some(l) = band.level else { continue };
+        // The band within the needed sizes (a chain built for wider needs is measured where
+        // these needs look).
+        let (from, to) = (band.from_px.max(s0), band.to_px.min(s1));
+        if from > to {
+            continue;
+        }
         let mesh = &lod.levels[l].mesh;
         let mut sizes = vec![
-            band.from_px.max(MIN_MEASURED_PX).round() as usize,
-            band.to_px.max(MIN_MEASURED_PX).round() as usize,
+            from.max(MIN_MEASURED_PX).round() as usize,
+            to.max(MIN_MEASURED_PX).round() as usize,
         ];
         sizes.dedup();
         for size in sizes {

@@ -270,13 +270,15 @@ mod tests {
 
     #[test]
     fn preview_sizes_span_the_needed_range_in_powers_of_two() {
-        assert_eq!(
-            preview_sizes(&needs(1.0, 256.0)),
-            vec![8, 16, 32, 64, 128, 256]
-        );
-        assert_eq!(preview_sizes(&needs(20.0, 100.0)), vec![20, 32, 64, 100]);
-        assert_eq!(preview_sizes(&needs(1.0, 4.0)), vec![8]);
-        assert_eq!(preview_sizes(&needs(64.0, 64.0)), vec![64]);
+        let big = 512.0;
+        let sizes = |s0, s1, cap| preview_sizes(&needs(s0, s1), cap);
+        assert_eq!(sizes(1.0, 256.0, big), vec![8, 16, 32, 64, 128, 256]);
+        assert_eq!(sizes(20.0, 100.0, big), vec![20, 32, 64, 100]);
+        assert_eq!(sizes(1.0, 4.0, big), vec![8]);
+        assert_eq!(sizes(64.0, 64.0, big), vec![64]);
+        // Needs beyond the cap are previewed up to it (the source is drawn above).
+        assert_eq!(sizes(1.0, 16384.0, 64.0), vec![8, 16, 32, 64]);
+        assert_eq!(sizes(100.0, 200.0, 64.0), vec![64]);
     }
 
     #[test]

@@ -248,9 +248,15 @@ impl Representation for MeshLodRepr {
         let reached = reach(source, &meshes, needs, &decisions.sizes)?;
         previewing.stop();
         let preview_s = secs(t1);
+        let t2 = Instant::now();
+        let verifying = crate::profile::timer("verify chain");
+        let (mut chain, verified, repairs) =
+            super::verified_chain(&meshes, &reached, &decisions.sizes, needs, source)?;
+        verifying.stop();
+        let verify_s = secs(t2);
         let levels: Vec<Level> = simplified
             .into_iter()
-            .zip(&reached)
+            .zip(&verified)
             .map(|((ratio, s), max_px)| Level {
                 info: LevelInfo {
                     ratio,
@@ -261,7 +267,6 @@ impl Representation for MeshLodRepr {
                 mesh: s.mesh,
             })
             .collect();
-        let mut chain = super::choose_chain(&reached, needs);
         let infos: Vec<LevelInfo> = levels.iter().map(|l| l.info.clone()).collect();
         // Only the levels the chain draws are kept (and renumbered, finest first): the others
         // are measured in the report and skipped.
@@ -288,8 +293,11 @@ impl Representation for MeshLodRepr {
             "kept": used,
             "dropped": dropped,
             "chain": chain,
+            "previewed_px": reached,
+            "repairs": repairs,
             "simplify_s": simplify_s,
             "preview_s": preview_s,
+            "verify_s": verify_s,
         });
         Ok((MeshLod { levels, chain }, report))
     }
@@ -410,7 +418,8 @@ impl Representation for MeshLodRepr {
         size: usize,
         source: &Source,
     ) -> Result<(Measurement, Vec<Picture>), PipelineError> {
-        let measured = super::verify(lod, needs, source)?;
+        let meshes: Vec<&Mesh> = lod.levels.iter().map(|l| &l.mesh).collect();
+        let measured = super::verify(&meshes, &lod.chain, needs, source)?;
         let (scores, what): (Vec<_>, String) = if measured.is_empty() {
             // No level reached the target anywhere: the finest, at the needs' two ends, so the
             // report shows by how much.

@@ -47,7 +47,8 @@ pub struct LevelInfo {
     /// The simplifier's error estimate (object-frame units, the bounding cylinder's radius 1).
     pub error: f64,
     /// The largest previewed screen size (pixels) up to which every preview view met the
-    /// quality target; `None` when it failed at the smallest.
+    /// quality target, lowered where the verification of the chain found the level missing it
+    /// at a band edge; `None` when it failed at the smallest.
     pub max_px: Option<f64>,
 }
 
@@ -222,20 +223,21 @@ pub fn choose_chain(reach: &[Option<f64>], needs: &Needs) -> Vec<Band> {
     bands
 }
 
-/// Scores of the chain's bands at both edges of each, within the needs' sizes (raised to
-/// [`MIN_MEASURED_PX`]),
-/// at the 4 needed directions every representation is measured at, 3 × 3 rays per pixel: the
-/// verification of the switch sizes. Bands that draw the source are not measured (the source
-/// is the truth). Returns `(band, size, scores)` per measured edge.
+/// Scores of the bands of `chain` at both edges of each, within the needs' sizes (raised to
+/// [`MIN_MEASURED_PX`]), at the 4 needed directions every representation is measured at,
+/// 3 × 3 rays per pixel: the verification of the switch sizes. Bands that draw the source are
+/// not measured (the source is the truth). `levels[l]` draws level `l`. Returns
+/// `(band, size, scores)` per measured edge.
 pub fn verify(
-    lod: &MeshLod,
+    levels: &[&Mesh],
+    chain: &[Band],
     needs: &Needs,
     source: &Source,
 ) -> Result<Vec<(usize, usize, Vec<Score>)>, PipelineError> {
     let views = measure_views(needs, 4);
     let mut out = Vec::new();
     let [s0, s1] = needs.screen_px;
-    for (b, band) in lod.chain.iter().enumerate() {
+    for (b, band) in chain.iter().enumerate() {
         let Some(l) = band.level else { continue };
         // The band within the needed sizes (a chain built for wider needs is measured where
         // these needs look).
@@ -243,18 +245,72 @@ pub fn verify(
         if from > to {
             continue;
         }
-        let mesh = &lod.levels[l].mesh;
         let mut sizes = vec![
             from.max(MIN_MEASURED_PX).round() as usize,
             to.max(MIN_MEASURED_PX).round() as usize,
         ];
         sizes.dedup();
         for size in sizes {
-            let scores = score_levels(source, &[mesh], needs, size, &views, Supersample::of(3))?;
+            let scores = score_levels(
+                source,
+                &[levels[l]],
+                needs,
+                size,
+                &views,
+                Supersample::of(3),
+            )?;
             out.push((b, size, scores.into_iter().next().unwrap_or_default()));
         }
     }
     Ok(out)
+}
+
+/// The chain for the previewed `reach` of `levels`, verified ([`verify`]) and repaired until
+/// every band meets the target at both edges: a level that misses it at a size has its reach
+/// lowered to the previewed size below (of `sizes`, ascending), and the chain is chosen again,
+/// so a finer level (or the source) takes that size. Ends: each repair lowers a reach. Returns
+/// the chain, the final reach and the number of repairs. Cost: one verification per round.
+pub fn verified_chain(
+    levels: &[&Mesh],
+    reach: &[Option<f64>],
+    sizes: &[usize],
+    needs: &Needs,
+    source: &Source,
+) -> Result<(Vec<Band>, Vec<Option<f64>>, usize), PipelineError> {
+    let mut reach = reach.to_vec();
+    let mut repairs = 0;
+    loop {
+        let chain = choose_chain(&reach, needs);
+        let mut changed = false;
+        for (b, size, scores) in verify(levels, &chain, needs, source)? {
+            let worst = scores
+                .iter()
+                .map(|s| s.psnr_db)
+                .fold(f64::INFINITY, f64::min);
+            let Some(l) = chain[b].level else { continue };
+            if worst >= needs.quality_db {
+                continue;
+            }
+            let below = sizes
+                .iter()
+                .rev()
+                .map(|&s| s as f64)
+                .find(|&s| s < size as f64);
+            let lowered = match (reach[l], below) {
+                (Some(r), Some(b)) if b < r => Some(b),
+                (Some(_), Some(_)) => None,
+                _ => None,
+            };
+            if lowered != reach[l] {
+                reach[l] = lowered;
+                changed = true;
+            }
+        }
+        if !changed {
+            return Ok((chain, reach, repairs));
+        }
+        repairs += 1;
+    }
 }
 
 #[cfg(test)]

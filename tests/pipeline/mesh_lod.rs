@@ -205,3 +205,42 @@ fn foliage_that_does_not_simplify_keeps_the_source_in_its_chain() {
     assert!(m.psnr_db.is_finite() && m.psnr_db > 5.0 && m.worst_psnr_db < needs.quality_db);
     assert!(m.iou > 0.3 && m.iou < 1.0, "{m:?}");
 }
+
+/// A chain chosen on a wrong preview (a 40-triangle level said to reach every size) is
+/// repaired by its verification: the level's reach is lowered until every band meets the
+/// target at both edges at the measured directions, and the sizes it gave up go to the finer
+/// level or to the source.
+#[test]
+fn a_chain_chosen_on_a_wrong_preview_is_repaired_by_its_verification() {
+    let mesh = load(&TestGltf::textured_rock(3, 11), "rock.glb");
+    let src = Source {
+        placement: Some(*mesh.placement()),
+        ..source("rock", &mesh)
+    };
+    let needs = Needs {
+        screen_px: [4.0, 64.0],
+        quality_db: 26.0,
+        ..Needs::default()
+    };
+    let level = |n| {
+        mesh.simplified(&altrep_data_gen::SimplifyParams {
+            target_triangles: n,
+            ..Default::default()
+        })
+        .unwrap()
+        .mesh
+    };
+    let (fine, coarse) = (level(640), level(40));
+    let levels = [&fine, &coarse];
+    let sizes = altrep::mesh_lod::preview_sizes(&needs, 512.0);
+    let claimed = [Some(64.0), Some(64.0)];
+    let (chain, reach, repairs) =
+        altrep::mesh_lod::verified_chain(&levels, &claimed, &sizes, &needs, &src).unwrap();
+    println!("{chain:?} {reach:?} {repairs}");
+    assert!(repairs >= 1);
+    assert!(reach[1].is_none_or(|r| r < 64.0), "{reach:?}");
+    for (b, size, scores) in altrep::mesh_lod::verify(&levels, &chain, &needs, &src).unwrap() {
+        let worst = scores.iter().map(|s| s.psnr_db).fold(f64::INFINITY, f64::min);
+        assert!(worst >= needs.quality_db, "band {b} at {size} px: {worst:.2} dB");
+    }
+}

@@ -55,6 +55,21 @@ pub struct TruthParams {
     pub cylinder: BoundingCylinder,
 }
 
+impl TruthParams {
+    /// A square picture, `size × size` pixels at azimuth `angle`, `supersample` rays per pixel
+    /// edge, with the default light and bounding cylinder.
+    pub fn square(angle: f64, size: usize, supersample: Supersample) -> Self {
+        Self {
+            angle,
+            width: size,
+            height: size,
+            supersample,
+            light: Light::default(),
+            cylinder: BoundingCylinder::default(),
+        }
+    }
+}
+
 /// Renders the ground truth: premultiplied linear RGBA, alpha = coverage of the `k × k`
 /// sub-samples. Cost: `width × height × k²` rays, rows in parallel.
 pub fn render_truth(shape: &dyn Shape, params: &TruthParams) -> Result<RgbaImage, DataGenError> {

@@ -6,8 +6,7 @@ use std::path::Path;
 
 use altrep_data_gen::gltf_write::TestGltf;
 use altrep_data_gen::{
-    Light, Mesh, MeshLoadOptions, RgbaImage, Shape, SimplifyParams, Supersample, TruthParams,
-    render_truth,
+    Mesh, MeshLoadOptions, RgbaImage, Shape, SimplifyParams, Supersample, TruthParams, render_truth,
 };
 use approx::assert_abs_diff_eq;
 
@@ -17,18 +16,7 @@ fn load_glb(bytes: &[u8], options: &MeshLoadOptions) -> Mesh {
 
 /// The truth of `shape` at `angle`, `size²` pixels, 2 × 2 rays per pixel.
 fn picture(shape: &dyn Shape, angle: f64, size: usize) -> RgbaImage {
-    render_truth(
-        shape,
-        &TruthParams {
-            angle,
-            width: size,
-            height: size,
-            supersample: Supersample::of(2),
-            light: Light::default(),
-            cylinder: Default::default(),
-        },
-    )
-    .unwrap()
+    render_truth(shape, &TruthParams::square(angle, size, Supersample::of(2))).unwrap()
 }
 
 /// Mean squared difference over every channel of two pictures of the same size.

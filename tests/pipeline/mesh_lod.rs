@@ -28,18 +28,15 @@ fn corners(mesh: &Mesh) -> Vec<[[u32; 3]; 3]> {
 }
 
 fn picture(shape: &dyn Shape, angle: f64, size: usize) -> RgbaImage {
-    render_truth(
-        shape,
-        &TruthParams {
-            angle,
-            width: size,
-            height: size,
-            supersample: Supersample::of(3),
-            light: Light::default(),
-            cylinder: Default::default(),
-        },
-    )
-    .unwrap()
+    render_truth(shape, &TruthParams::square(angle, size, Supersample::of(3))).unwrap()
+}
+
+/// The mesh as a source, with its placement.
+fn placed<'a>(name: &'a str, mesh: &'a Mesh) -> Source<'a> {
+    Source {
+        placement: Some(*mesh.placement()),
+        ..source(name, mesh)
+    }
 }
 
 /// The rock of the bundled scene (coarser: 1,280 triangles, one texture) at a 24 dB target
@@ -51,10 +48,7 @@ fn picture(shape: &dyn Shape, angle: f64, size: usize) -> RgbaImage {
 #[test]
 fn the_chain_meets_the_target_at_both_edges_of_every_band_from_unseen_directions() {
     let mesh = load(&TestGltf::textured_rock(3, 11), "rock.glb");
-    let src = Source {
-        placement: Some(*mesh.placement()),
-        ..source("rock", &mesh)
-    };
+    let src = placed("rock", &mesh);
     let needs = Needs {
         screen_px: [4.0, 128.0],
         quality_db: 24.0,
@@ -184,10 +178,7 @@ fn simplified_meshes_refuse_procedural_shapes_and_bad_parameters() {
 #[test]
 fn foliage_that_does_not_simplify_keeps_the_source_in_its_chain() {
     let mesh = load(&TestGltf::leaf_shrub(300, 7), "shrub.glb");
-    let src = Source {
-        placement: Some(*mesh.placement()),
-        ..source("shrub", &mesh)
-    };
+    let src = placed("shrub", &mesh);
     let needs = Needs {
         screen_px: [4.0, 32.0],
         ..Needs::default()
@@ -213,10 +204,7 @@ fn foliage_that_does_not_simplify_keeps_the_source_in_its_chain() {
 #[test]
 fn a_chain_chosen_on_a_wrong_preview_is_repaired_by_its_verification() {
     let mesh = load(&TestGltf::textured_rock(3, 11), "rock.glb");
-    let src = Source {
-        placement: Some(*mesh.placement()),
-        ..source("rock", &mesh)
-    };
+    let src = placed("rock", &mesh);
     let needs = Needs {
         screen_px: [4.0, 64.0],
         quality_db: 26.0,
@@ -240,7 +228,13 @@ fn a_chain_chosen_on_a_wrong_preview_is_repaired_by_its_verification() {
     assert!(repairs >= 1);
     assert!(reach[1].is_none_or(|r| r < 64.0), "{reach:?}");
     for (b, size, scores) in altrep::mesh_lod::verify(&levels, &chain, &needs, &src).unwrap() {
-        let worst = scores.iter().map(|s| s.psnr_db).fold(f64::INFINITY, f64::min);
-        assert!(worst >= needs.quality_db, "band {b} at {size} px: {worst:.2} dB");
+        let worst = scores
+            .iter()
+            .map(|s| s.psnr_db)
+            .fold(f64::INFINITY, f64::min);
+        assert!(
+            worst >= needs.quality_db,
+            "band {b} at {size} px: {worst:.2} dB"
+        );
     }
 }

@@ -20,7 +20,9 @@
 //! the base colour texture's alpha (the same product at texel centres; bilinear filtering
 //! between texels may differ slightly). Metallic and roughness are written as 0 and 1: altrep
 //! does not read them. Images are PNG, 8 bits per channel where every texel survives the round
-//! trip through 8 bits exactly, else 16.
+//! trip through 8 bits exactly, else 16, inside the file ([`Mesh::to_glb`]) or beside it, shared
+//! by every file written through one [`ExternalImages`] store ([`Mesh::to_glb_beside`]: the levels
+//! of a simplified mesh share the source's textures).
 
 use std::collections::HashMap;
 use std::sync::Arc;
@@ -120,9 +122,63 @@ impl Primitive {
     }
 }
 
+/// PNG images written beside `.glb` files instead of inside them ([`Mesh::to_glb_beside`]),
+/// each once for every file written through the same store: the levels of one mesh share their
+/// textures. The caller writes [`ExternalImages::files`] into the folder of the `.glb` files.
+#[derive(Default)]
+pub struct ExternalImages {
+    /// `(image pointer, sRGB)` → index into `files`.
+    seen: HashMap<(usize, bool), usize>,
+    /// BLAKE3 of the PNG bytes → index into `files` (images equal by content, built apart).
+    by_content: HashMap<[u8; 32], usize>,
+    /// The images to write, in the order first referenced.
+    pub files: Vec<ImageFile>,
+}
+
+/// One PNG of an [`ExternalImages`] store.
+pub struct ImageFile {
+    /// File name, relative to the `.glb` files that reference it.
+    pub name: String,
+    /// The PNG bytes.
+    pub png: Vec<u8>,
+    /// Width and height in texels.
+    pub size: (usize, usize),
+    /// 16 bits per channel (else 8); always RGBA.
+    pub sixteen_bit: bool,
+}
+
+impl ExternalImages {
+    /// The file name of `img` read as sRGB (`srgb`) or linear, encoding it on first use.
+    fn name_of(&mut self, img: &Arc<TextureImage>, srgb: bool) -> Result<String, DataGenError> {
+        let key = (Arc::as_ptr(img) as usize, srgb);
+        if let Some(&i) = self.seen.get(&key) {
+            return Ok(self.files[i].name.clone());
+        }
+        let (png, sixteen_bit) = encode(img, srgb)?;
+        let hash = *blake3::hash(&png).as_bytes();
+        let i = match self.by_content.get(&hash) {
+            Some(&i) => i,
+            None => {
+                self.files.push(ImageFile {
+                    name: format!("texture{}.png", self.files.len()),
+                    png,
+                    size: (img.width(), img.height()),
+                    sixteen_bit,
+                });
+                self.by_content.insert(hash, self.files.len() - 1);
+                self.files.len() - 1
+            }
+        };
+        self.seen.insert(key, i);
+        Ok(self.files[i].name.clone())
+    }
+}
+
 /// The images of a document, each written once per way it is read.
 #[derive(Default)]
-struct Images {
+struct Images<'s> {
+    /// Where images go when they are written beside the file.
+    external: Option<&'s mut ExternalImages>,
     /// `(image pointer, sRGB)` → image index.
     seen: HashMap<(usize, bool), usize>,
     images: Vec<Value>,
@@ -133,8 +189,8 @@ struct Images {
 }
 
 /// PNG bytes of `img`, RGB through the sRGB curve when `srgb`: 8 bits per channel when every
-/// texel comes back exactly through 8 bits (as the loader decodes them), else 16.
-fn encode(img: &TextureImage, srgb: bool) -> Result<Vec<u8>, DataGenError> {
+/// texel comes back exactly through 8 bits (as the loader decodes them), else 16 (`true`).
+fn encode(img: &TextureImage, srgb: bool) -> Result<(Vec<u8>, bool), DataGenError> {
     let (w, h) = (img.width(), img.height());
     let curve = |c: f32, k: usize| {
         if srgb && k < 3 {
@@ -163,7 +219,10 @@ fn encode(img: &TextureImage, srgb: bool) -> Result<Vec<u8>, DataGenError> {
         .enumerate()
         .all(|(n, t)| (0..4).all(|k| back(f32::from(bytes8[4 * n + k]) / 255.0, k) == t[k]));
     if exact {
-        return png_bytes(&bytes8, w as u32, h as u32, image::ExtendedColorType::Rgba8);
+        return Ok((
+            png_bytes(&bytes8, w as u32, h as u32, image::ExtendedColorType::Rgba8)?,
+            false,
+        ));
     }
     let bytes16: Vec<u8> = texels
         .iter()
@@ -171,15 +230,18 @@ fn encode(img: &TextureImage, srgb: bool) -> Result<Vec<u8>, DataGenError> {
             (0..4).flat_map(move |k| (((curve(t[k], k) * 65535.0).round()) as u16).to_be_bytes())
         })
         .collect();
-    png_bytes(
-        &bytes16,
-        w as u32,
-        h as u32,
-        image::ExtendedColorType::Rgba16,
-    )
+    Ok((
+        png_bytes(
+            &bytes16,
+            w as u32,
+            h as u32,
+            image::ExtendedColorType::Rgba16,
+        )?,
+        true,
+    ))
 }
 
-impl Images {
+impl Images<'_> {
     /// The texture index of `t` read as sRGB colour (`srgb`) or as linear data.
     fn texture(
         &mut self,
@@ -191,11 +253,16 @@ impl Images {
         let image = match self.seen.get(&key) {
             Some(i) => *i,
             None => {
-                let png = encode(&t.image, srgb)?;
-                self.bytes += png.len();
-                let v = b.view(&png);
-                self.images
-                    .push(json!({"bufferView": v, "mimeType": "image/png"}));
+                let entry = match &mut self.external {
+                    Some(store) => json!({"uri": store.name_of(&t.image, srgb)?}),
+                    None => {
+                        let (png, _) = encode(&t.image, srgb)?;
+                        self.bytes += png.len();
+                        let v = b.view(&png);
+                        json!({"bufferView": v, "mimeType": "image/png"})
+                    }
+                };
+                self.images.push(entry);
                 self.seen.insert(key, self.images.len() - 1);
                 self.images.len() - 1
             }
@@ -307,6 +374,18 @@ impl Mesh {
     /// ([`DataGenError::InvalidParameter`]), an image the PNG encoder refuses
     /// ([`DataGenError::ImageWrite`]).
     pub fn to_glb_file(&self) -> Result<GlbFile, DataGenError> {
+        self.glb_with(None)
+    }
+
+    /// The mesh as a `.glb` file whose images are PNG files beside it, named and encoded once
+    /// by `images` for every file written through it ([`ExternalImages`]); the file's
+    /// `image_bytes` is 0. Errors and cost as [`Mesh::to_glb_file`], each image encoded once
+    /// per store.
+    pub fn to_glb_beside(&self, images: &mut ExternalImages) -> Result<GlbFile, DataGenError> {
+        self.glb_with(Some(images))
+    }
+
+    fn glb_with(&self, external: Option<&mut ExternalImages>) -> Result<GlbFile, DataGenError> {
         let (triangles, colors) = self.input_parts();
         let materials = self.materials();
         let mut prims: std::collections::BTreeMap<PrimKey, Primitive> = Default::default();
@@ -371,7 +450,10 @@ impl Mesh {
         }
 
         let mut b = BinBuilder::default();
-        let mut images = Images::default();
+        let mut images = Images {
+            external,
+            ..Images::default()
+        };
         let mut out_materials: Vec<Value> = Vec::new();
         let mut material_index: HashMap<PrimKey, usize> = HashMap::new();
         let mut uses_transform = false;

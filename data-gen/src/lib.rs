@@ -77,7 +77,7 @@ pub use geometry::{
     BoundingCylinder, Footprint, Hit, ParallelRays, PixelGrid, RadialRays, Ray, direction,
     screen_right,
 };
-pub use gltf_export::GlbFile;
+pub use gltf_export::{ExternalImages, GlbFile, ImageFile};
 pub use image_io::{RgbaImage, linear_to_srgb, srgb_to_linear};
 pub use mesh::{Mesh, MeshLoadOptions};
 pub use placement::{Placement, UpAxis};

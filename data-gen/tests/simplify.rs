@@ -301,3 +301,57 @@ proptest! {
         }
     }
 }
+
+/// Two simplified levels written with their images beside them share one PNG per texture, and
+/// read back from that folder bit for bit with the same pictures as the levels in memory.
+#[test]
+fn levels_written_beside_their_shared_textures_read_back_from_the_folder() {
+    let mesh = load_glb(
+        &TestGltf::textured_rock(3, 2).to_glb().unwrap(),
+        &MeshLoadOptions::default(),
+    );
+    let dir = tempfile::tempdir().unwrap();
+    let mut images = altrep_data_gen::ExternalImages::default();
+    let levels: Vec<Mesh> = [400, 100]
+        .iter()
+        .map(|&n| {
+            mesh.simplified(&SimplifyParams {
+                target_triangles: n,
+                ..SimplifyParams::default()
+            })
+            .unwrap()
+            .mesh
+        })
+        .collect();
+    for (k, level) in levels.iter().enumerate() {
+        let file = level.to_glb_beside(&mut images).unwrap();
+        assert_eq!(file.image_bytes, 0);
+        std::fs::write(dir.path().join(format!("level{k}.glb")), file.bytes).unwrap();
+    }
+    assert_eq!(images.files.len(), 1, "one texture, shared");
+    for f in &images.files {
+        std::fs::write(dir.path().join(&f.name), &f.png).unwrap();
+    }
+    for (k, level) in levels.iter().enumerate() {
+        let back = Mesh::load(
+            dir.path().join(format!("level{k}.glb")),
+            &MeshLoadOptions {
+                frame: Some(level.placement().of_written()),
+                ..MeshLoadOptions::default()
+            },
+        )
+        .unwrap();
+        assert_eq!(corner_bits(&back), corner_bits(level));
+        assert_eq!(
+            back.inputs().len(),
+            1,
+            "the texture read from beside the file"
+        );
+        let (a, b) = (picture(level, 1.3, 40), picture(&back, 1.3, 40));
+        for (p, q) in a.pixels.iter().zip(&b.pixels) {
+            for c in 0..4 {
+                assert_abs_diff_eq!(p[c], q[c], epsilon = 1e-4);
+            }
+        }
+    }
+}

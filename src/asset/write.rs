@@ -347,6 +347,32 @@ impl AssetWriter {
         )
     }
 
+    /// Adds a PNG already encoded (`bytes`, RGBA, 8 or 16 bits per channel as `sixteen_bit`
+    /// says, `size` texels), for files another encoder made (the textures of `.glb` files).
+    /// Errors: bytes that do not start as a PNG.
+    pub fn encoded_png(
+        &mut self,
+        role: &str,
+        file: &str,
+        sixteen_bit: bool,
+        size: (usize, usize),
+        bytes: Vec<u8>,
+        channels: Vec<Channel>,
+    ) -> Result<(), AssetError> {
+        if !bytes.starts_with(b"\x89PNG") {
+            return Err(AssetError::BadData {
+                role: role.into(),
+                reason: "not a PNG file (no PNG signature)".into(),
+            });
+        }
+        let format = if sixteen_bit {
+            FileFormat::Png16
+        } else {
+            FileFormat::Png8
+        };
+        self.add(role, file, format, size, channels, 0, bytes)
+    }
+
     /// Adds a glTF 2.0 binary file (`.glb`) holding a mesh of `triangles` triangles; its
     /// channels name what the file holds (for the description).
     pub fn glb(

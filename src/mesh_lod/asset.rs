@@ -2,8 +2,9 @@
 //!
 //! Files: `level{k}.glb` for each level `k` the chain draws (finest first; the finest level
 //! alone, undrawn, when no level meets the target anywhere), a glTF 2.0 binary file of the level
-//! with the source's materials and textures, in the object frame under a root node whose matrix
-//! is the placement's inverse. `metadata.levels` lists each level's ratio, triangles, the
+//! with the source's materials, in the object frame under a root node whose matrix is the
+//! placement's inverse; and `texture{i}.png`, the source's textures, written once beside the
+//! levels, which reference them by file name. `metadata.levels` lists each level's ratio, triangles, the
 //! simplifier's error and the largest previewed size it met the target at; `metadata.chain`
 //! the bands (`from_px`, `to_px`, `level`; `null` draws the source mesh); `metadata.to_object`
 //! the row-major 3 × 4 map from the files' world coordinates back to the object frame (the exact
@@ -11,7 +12,7 @@
 
 use std::time::Instant;
 
-use altrep_data_gen::{Mesh, MeshLoadOptions, Placement, SimplifyParams, UpAxis};
+use altrep_data_gen::{ExternalImages, Mesh, MeshLoadOptions, Placement, SimplifyParams, UpAxis};
 use glam::{DAffine3, DMat4};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
@@ -196,7 +197,7 @@ impl Representation for MeshLodRepr {
         }
         let sizes = preview_sizes(needs, spec.max_px);
         plan.build(format!(
-            "switch sizes chosen by previewing every level against the truth at {sizes:?} px (3 directions, 2×2 rays per pixel) for {} dB",
+            "switch sizes chosen by previewing every level against the truth at {sizes:?} px (3 directions, 2×2 rays per pixel) for {} dB, then verified at both edges of every band (4 other directions, 3×3) and repaired where a level misses",
             needs.quality_db
         ));
         Ok((plan, MeshLodDecisions { targets, sizes }))
@@ -245,13 +246,13 @@ impl Representation for MeshLodRepr {
         let t1 = Instant::now();
         let previewing = crate::profile::timer("preview levels");
         let meshes: Vec<&Mesh> = simplified.iter().map(|(_, s)| &s.mesh).collect();
-        let reached = reach(source, &meshes, needs, &decisions.sizes)?;
+        let preview = reach(source, &meshes, needs, &decisions.sizes)?;
         previewing.stop();
         let preview_s = secs(t1);
         let t2 = Instant::now();
         let verifying = crate::profile::timer("verify chain");
         let (mut chain, verified, repairs) =
-            super::verified_chain(&meshes, &reached, &decisions.sizes, needs, source)?;
+            super::verified_chain(&meshes, &preview.reach, &decisions.sizes, needs, source)?;
         verifying.stop();
         let verify_s = secs(t2);
         let levels: Vec<Level> = simplified
@@ -293,7 +294,8 @@ impl Representation for MeshLodRepr {
             "kept": used,
             "dropped": dropped,
             "chain": chain,
-            "previewed_px": reached,
+            "previewed_px": preview.reach,
+            "preview_worst_db": preview.worst_db,
             "repairs": repairs,
             "simplify_s": simplify_s,
             "preview_s": preview_s,
@@ -303,10 +305,10 @@ impl Representation for MeshLodRepr {
     }
 
     fn write(lod: &MeshLod, w: &mut AssetWriter) -> Result<serde_json::Value, PipelineError> {
-        let mut image_bytes = Vec::new();
+        // The levels share the source's textures: each is written once, beside the files.
+        let mut images = ExternalImages::default();
         for (k, level) in lod.levels.iter().enumerate() {
-            let file = level.mesh.to_glb_file()?;
-            image_bytes.push(file.image_bytes);
+            let file = level.mesh.to_glb_beside(&mut images)?;
             w.glb(
                 &format!("level{k}"),
                 &format!("level{k}.glb"),
@@ -318,12 +320,34 @@ impl Representation for MeshLodRepr {
                 }],
             )?;
         }
+        let mut textures = Vec::new();
+        for image in images.files {
+            let channels = ["r", "g", "b", "a"]
+                .map(|c| Channel {
+                    name: format!("texture.{c} (as the .glb's materials read it)"),
+                    encoding: Encoding::Linear {
+                        scale: 1.0 / if image.sixteen_bit { 65535.0 } else { 255.0 },
+                        offset: 0.0,
+                    },
+                })
+                .to_vec();
+            let role = image.name.trim_end_matches(".png").to_string();
+            w.encoded_png(
+                &role,
+                &image.name,
+                image.sixteen_bit,
+                image.size,
+                image.png,
+                channels,
+            )?;
+            textures.push(image.name);
+        }
         let placement = lod.levels.first().map(|l| l.mesh.placement().of_written());
         let infos: Vec<&LevelInfo> = lod.levels.iter().map(|l| &l.info).collect();
         Ok(json!({
             "levels": infos,
             "chain": lod.chain,
-            "image_bytes": image_bytes,
+            "textures": textures,
             "to_object": placement.map(|p| rows(p.to_normalised)),
             "up": placement.map(|p| p.up.name()),
             "units": placement.map(|p| p.units),

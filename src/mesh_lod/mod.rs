@@ -153,6 +153,17 @@ pub fn preview_views(needs: &Needs) -> Vec<ViewDir> {
     measure_views(needs, 3)
 }
 
+/// What the preview found: for each level (finest first), its reach and the worst PSNR of
+/// every size it was drawn at.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Preview {
+    /// The largest size of the preview sizes up to which every preview view met the target.
+    pub reach: Vec<Option<f64>>,
+    /// `(size, worst PSNR dB over the preview views)` per level, for every size it was drawn
+    /// at: the level's error against screen size, up to its first failure.
+    pub worst_db: Vec<Vec<(usize, f64)>>,
+}
+
 /// For each level (finest first), the largest size of `sizes` (ascending) up to which every
 /// preview view meets `needs.quality_db`, searching upward from the smallest and stopping at
 /// the first failure (errors grow with the size: a level that fails at one size is not tried
@@ -163,9 +174,12 @@ pub fn reach(
     levels: &[&Mesh],
     needs: &Needs,
     sizes: &[usize],
-) -> Result<Vec<Option<f64>>, PipelineError> {
+) -> Result<Preview, PipelineError> {
     let views = preview_views(needs);
-    let mut reach: Vec<Option<f64>> = vec![None; levels.len()];
+    let mut preview = Preview {
+        reach: vec![None; levels.len()],
+        worst_db: vec![Vec::new(); levels.len()],
+    };
     let mut alive: Vec<usize> = (0..levels.len()).collect();
     for &size in sizes {
         if alive.is_empty() {
@@ -179,14 +193,15 @@ pub fn reach(
                 .iter()
                 .map(|s| s.psnr_db)
                 .fold(f64::INFINITY, f64::min);
+            preview.worst_db[l].push((size, worst));
             if worst >= needs.quality_db {
-                reach[l] = Some(size as f64);
+                preview.reach[l] = Some(size as f64);
                 still.push(l);
             }
         }
         alive = still;
     }
-    Ok(reach)
+    Ok(preview)
 }
 
 /// The chain for levels of `reach` (finest first): at each size the coarsest level that

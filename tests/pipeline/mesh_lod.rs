@@ -70,7 +70,21 @@ fn the_chain_meets_the_target_at_both_edges_of_every_band_from_unseen_directions
         assert_eq!(a.mesh.materials().len(), mesh.materials().len());
         assert!(a.mesh.materials()[0].base_texture.is_some());
     }
-    assert!(desc.files.iter().all(|f| f.path.ends_with(".glb")));
+    // One file per level, and the rock's one texture once, beside them.
+    let glbs = desc
+        .files
+        .iter()
+        .filter(|f| f.path.ends_with(".glb"))
+        .count();
+    let pngs: Vec<&str> = desc
+        .files
+        .iter()
+        .filter(|f| f.path.ends_with(".png"))
+        .map(|f| f.path.as_str())
+        .collect();
+    assert_eq!(glbs, back.levels.len());
+    assert_eq!(pngs, ["texture0.png"]);
+    assert_eq!(glbs + pngs.len(), desc.files.len());
     // Finest first, coarser after; bands cover the needs from end to end, meeting.
     for w in back.levels.windows(2) {
         assert!(w[1].info.triangles < w[0].info.triangles);

@@ -251,8 +251,11 @@ impl Representation for MeshLodRepr {
         let preview_s = secs(t1);
         let t2 = Instant::now();
         let verifying = crate::profile::timer("verify chain");
-        let (mut chain, verified, repairs) =
-            super::verified_chain(&meshes, &preview.reach, &decisions.sizes, needs, source)?;
+        let super::Verified {
+            mut chain,
+            reach: verified,
+            repairs,
+        } = super::verified_chain(&meshes, &preview.reach, &decisions.sizes, needs, source)?;
         verifying.stop();
         let verify_s = secs(t2);
         let levels: Vec<Level> = simplified

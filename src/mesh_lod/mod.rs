@@ -280,18 +280,29 @@ pub fn verify(
     Ok(out)
 }
 
+/// A chain that passed its verification ([`verified_chain`]).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Verified {
+    /// The bands.
+    pub chain: Vec<Band>,
+    /// Each level's reach after the repairs (finest first).
+    pub reach: Vec<Option<f64>>,
+    /// How many rounds of repair it took.
+    pub repairs: usize,
+}
+
 /// The chain for the previewed `reach` of `levels`, verified ([`verify`]) and repaired until
 /// every band meets the target at both edges: a level that misses it at a size has its reach
 /// lowered to the previewed size below (of `sizes`, ascending), and the chain is chosen again,
-/// so a finer level (or the source) takes that size. Ends: each repair lowers a reach. Returns
-/// the chain, the final reach and the number of repairs. Cost: one verification per round.
+/// so a finer level (or the source) takes that size. Ends: each repair lowers a reach. Cost: one
+/// verification per round.
 pub fn verified_chain(
     levels: &[&Mesh],
     reach: &[Option<f64>],
     sizes: &[usize],
     needs: &Needs,
     source: &Source,
-) -> Result<(Vec<Band>, Vec<Option<f64>>, usize), PipelineError> {
+) -> Result<Verified, PipelineError> {
     let mut reach = reach.to_vec();
     let mut repairs = 0;
     loop {
@@ -322,7 +333,11 @@ pub fn verified_chain(
             }
         }
         if !changed {
-            return Ok((chain, reach, repairs));
+            return Ok(Verified {
+                chain,
+                reach,
+                repairs,
+            });
         }
         repairs += 1;
     }

@@ -236,8 +236,11 @@ fn a_chain_chosen_on_a_wrong_preview_is_repaired_by_its_verification() {
     let levels = [&fine, &coarse];
     let sizes = altrep::mesh_lod::preview_sizes(&needs, 512.0);
     let claimed = [Some(64.0), Some(64.0)];
-    let (chain, reach, repairs) =
-        altrep::mesh_lod::verified_chain(&levels, &claimed, &sizes, &needs, &src).unwrap();
+    let altrep::mesh_lod::Verified {
+        chain,
+        reach,
+        repairs,
+    } = altrep::mesh_lod::verified_chain(&levels, &claimed, &sizes, &needs, &src).unwrap();
     println!("{chain:?} {reach:?} {repairs}");
     assert!(repairs >= 1);
     assert!(reach[1].is_none_or(|r| r < 64.0), "{reach:?}");

@@ -19,8 +19,9 @@
 //! cutoff, normal map with its scale, `doubleSided`. An OBJ alpha texture (`map_d`) goes into
 //! the base colour texture's alpha (the same product at texel centres; bilinear filtering
 //! between texels may differ slightly). Metallic and roughness are written as 0 and 1: altrep
-//! does not read them. Images are PNG, 8 bits per channel where every texel survives the round
-//! trip through 8 bits exactly, else 16, inside the file ([`Mesh::to_glb`]) or beside it, shared
+//! does not read them. Images are the source's own PNG or JPEG files where a texture was decoded
+//! from one and is written unchanged; otherwise PNG, 8 bits per channel where every texel
+//! survives the round trip through 8 bits exactly, else 16. They go inside the file ([`Mesh::to_glb`]) or beside it, shared
 //! by every file written through one [`ExternalImages`] store ([`Mesh::to_glb_beside`]: the levels
 //! of a simplified mesh share the source's textures).
 
@@ -122,7 +123,7 @@ impl Primitive {
     }
 }
 
-/// PNG images written beside `.glb` files instead of inside them ([`Mesh::to_glb_beside`]),
+/// Image files written beside `.glb` files instead of inside them ([`Mesh::to_glb_beside`]),
 /// each once for every file written through the same store: the levels of one mesh share their
 /// textures. The caller writes [`ExternalImages::files`] into the folder of the `.glb` files.
 #[derive(Default)]
@@ -135,15 +136,17 @@ pub struct ExternalImages {
     pub files: Vec<ImageFile>,
 }
 
-/// One PNG of an [`ExternalImages`] store.
+/// One image file of an [`ExternalImages`] store.
 pub struct ImageFile {
     /// File name, relative to the `.glb` files that reference it.
     pub name: String,
-    /// The PNG bytes.
-    pub png: Vec<u8>,
+    /// The file's bytes: the source's own PNG or JPEG, or a PNG altrep encoded (RGBA).
+    pub bytes: Vec<u8>,
+    /// `"image/png"` or `"image/jpeg"`.
+    pub mime: &'static str,
     /// Width and height in texels.
     pub size: (usize, usize),
-    /// 16 bits per channel (else 8); always RGBA.
+    /// A PNG of 16 bits per channel (else 8).
     pub sixteen_bit: bool,
 }
 
@@ -154,14 +157,16 @@ impl ExternalImages {
         if let Some(&i) = self.seen.get(&key) {
             return Ok(self.files[i].name.clone());
         }
-        let (png, sixteen_bit) = encode(img, srgb)?;
-        let hash = *blake3::hash(&png).as_bytes();
+        let (bytes, mime, sixteen_bit) = payload(img, srgb)?;
+        let hash = *blake3::hash(&bytes).as_bytes();
         let i = match self.by_content.get(&hash) {
             Some(&i) => i,
             None => {
+                let ext = if mime == "image/jpeg" { "jpg" } else { "png" };
                 self.files.push(ImageFile {
-                    name: format!("texture{}.png", self.files.len()),
-                    png,
+                    name: format!("texture{}.{ext}", self.files.len()),
+                    bytes,
+                    mime,
                     size: (img.width(), img.height()),
                     sixteen_bit,
                 });
@@ -186,6 +191,20 @@ struct Images<'s> {
     textures: Vec<Value>,
     /// Bytes of the encoded images.
     bytes: usize,
+}
+
+/// The file of an image: the source's own PNG or JPEG bytes when it was decoded from one (the
+/// same decode gives the same texels back), else [`encode`]d as PNG. Returns the bytes, the
+/// MIME type and whether the PNG is 16-bit.
+fn payload(img: &TextureImage, srgb: bool) -> Result<(Vec<u8>, &'static str, bool), DataGenError> {
+    if let Some(e) = img.encoded() {
+        // A PNG's bit depth is byte 24: after the signature (8), the IHDR chunk's length and
+        // type (8), width and height (8).
+        let sixteen = e.mime == "image/png" && e.bytes.get(24) == Some(&16);
+        return Ok((e.bytes.to_vec(), e.mime, sixteen));
+    }
+    let (png, sixteen) = encode(img, srgb)?;
+    Ok((png, "image/png", sixteen))
 }
 
 /// PNG bytes of `img`, RGB through the sRGB curve when `srgb`: 8 bits per channel when every
@@ -256,10 +275,10 @@ impl Images<'_> {
                 let entry = match &mut self.external {
                     Some(store) => json!({"uri": store.name_of(&t.image, srgb)?}),
                     None => {
-                        let (png, _) = encode(&t.image, srgb)?;
-                        self.bytes += png.len();
-                        let v = b.view(&png);
-                        json!({"bufferView": v, "mimeType": "image/png"})
+                        let (bytes, mime, _) = payload(&t.image, srgb)?;
+                        self.bytes += bytes.len();
+                        let v = b.view(&bytes);
+                        json!({"bufferView": v, "mimeType": mime})
                     }
                 };
                 self.images.push(entry);

@@ -431,12 +431,7 @@ pub(crate) fn load(
         encoded
             .into_par_iter()
             .map(|(key, at, data)| {
-                let decoded = image::load_from_memory(&data)
-                    .map_err(|e| err(path, &at, format!("image decode failed: {e}")))
-                    .and_then(|img| {
-                        TextureImage::from_dynamic(&img, key.1)
-                            .ok_or_else(|| err(path, &at, "the image is empty"))
-                    });
+                let decoded = TextureImage::decode(&data, key.1).map_err(|m| err(path, &at, m));
                 (key, decoded)
             })
             .collect()

@@ -89,7 +89,8 @@ pub use shared::{shared_mesh, shared_mesh_paths, shared_meshes, skip, under_ci};
 pub use simplify::{Simplified, SimplifyParams};
 pub use supersample::Supersample;
 pub use surface::{
-    Material, MaterialAlpha, SamplerFilter, TextureImage, TextureRef, UvTransform, Wrap,
+    EncodedImage, Material, MaterialAlpha, SamplerFilter, TextureImage, TextureRef, UvTransform,
+    Wrap,
 };
 pub use truth::{Light, TruthParams, render_silhouette, render_truth, render_truth_at_points};
 pub use volume::{Fill, Volume, Voxel, VoxelParams, voxelize};

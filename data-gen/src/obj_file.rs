@@ -69,10 +69,7 @@ pub(crate) fn load(
         };
         let data = std::fs::read(&file).map_err(|e| bad(e.to_string()))?;
         inputs.push((file.clone(), blake3::hash(&data)));
-        let img = image::load_from_memory(&data).map_err(|e| bad(e.to_string()))?;
-        let img = Arc::new(
-            TextureImage::from_dynamic(&img, srgb).ok_or_else(|| bad("empty image".into()))?,
-        );
+        let img = Arc::new(TextureImage::decode(&data, srgb).map_err(bad)?);
         images.push((name.to_string(), Arc::clone(&img)));
         Ok::<_, DataGenError>(TextureRef::from_image(img))
     };

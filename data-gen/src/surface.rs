@@ -101,6 +101,18 @@ pub struct TextureImage {
     texels: Vec<Vec4>,
     /// Levels 1, 2, … down to 1 × 1.
     mips: Vec<Level>,
+    /// The PNG or JPEG file it was decoded from, when it was (a writer copies it instead of
+    /// encoding the texels again).
+    encoded: Option<EncodedImage>,
+}
+
+/// The bytes of an image file as a source held it.
+#[derive(Clone, Debug, PartialEq)]
+pub struct EncodedImage {
+    /// The file's bytes.
+    pub bytes: Arc<[u8]>,
+    /// `"image/png"` or `"image/jpeg"`.
+    pub mime: &'static str,
 }
 
 impl TextureImage {
@@ -129,7 +141,31 @@ impl TextureImage {
             height,
             texels: base.texels,
             mips,
+            encoded: None,
         })
+    }
+
+    /// Decodes a PNG or JPEG file (any format `image` reads) as [`TextureImage::from_dynamic`]
+    /// does, keeping the file's bytes when it is PNG or JPEG ([`TextureImage::encoded`]).
+    /// Errors: the decoder's message, or an empty image.
+    pub fn decode(data: &[u8], srgb: bool) -> Result<Self, String> {
+        let img = image::load_from_memory(data).map_err(|e| format!("image decode failed: {e}"))?;
+        let mut t = Self::from_dynamic(&img, srgb).ok_or("the image is empty")?;
+        let mime = match image::guess_format(data) {
+            Ok(image::ImageFormat::Png) => Some("image/png"),
+            Ok(image::ImageFormat::Jpeg) => Some("image/jpeg"),
+            _ => None,
+        };
+        t.encoded = mime.map(|mime| EncodedImage {
+            bytes: data.into(),
+            mime,
+        });
+        Ok(t)
+    }
+
+    /// The PNG or JPEG file this image was decoded from ([`TextureImage::decode`]), if any.
+    pub fn encoded(&self) -> Option<&EncodedImage> {
+        self.encoded.as_ref()
     }
 
     /// Level `l` (0 is the image) as `(width, height, texels)`.

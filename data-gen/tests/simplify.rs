@@ -330,7 +330,7 @@ fn levels_written_beside_their_shared_textures_read_back_from_the_folder() {
     }
     assert_eq!(images.files.len(), 1, "one texture, shared");
     for f in &images.files {
-        std::fs::write(dir.path().join(&f.name), &f.png).unwrap();
+        std::fs::write(dir.path().join(&f.name), &f.bytes).unwrap();
     }
     for (k, level) in levels.iter().enumerate() {
         let back = Mesh::load(

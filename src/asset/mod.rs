@@ -174,9 +174,11 @@ pub enum FileFormat {
     Exr32,
     /// Little-endian records of `record_bytes` bytes; layout in `docs/asset-format.md`.
     Bin,
-    /// A glTF 2.0 binary file (`.glb`): a mesh with its materials and textures (width: its
-    /// triangles, height 1).
+    /// A glTF 2.0 binary file (`.glb`): a mesh with its materials (width: its triangles,
+    /// height 1).
     Glb,
+    /// A JPEG image, 8 bits per channel, as a source asset held it (a `.glb`'s texture).
+    Jpeg8,
 }
 
 /// The description of one file of an asset.

@@ -347,29 +347,34 @@ impl AssetWriter {
         )
     }
 
-    /// Adds a PNG already encoded (`bytes`, RGBA, 8 or 16 bits per channel as `sixteen_bit`
-    /// says, `size` texels), for files another encoder made (the textures of `.glb` files).
-    /// Errors: bytes that do not start as a PNG.
-    pub fn encoded_png(
+    /// Adds an image file already encoded (`bytes`, `size` texels): a PNG (`png8` or `png16`)
+    /// or a JPEG (`jpeg8`), for files another encoder made or a source held (the textures of
+    /// `.glb` files). Errors: another format, or bytes without that format's signature.
+    pub fn encoded_image(
         &mut self,
         role: &str,
         file: &str,
-        sixteen_bit: bool,
+        format: FileFormat,
         size: (usize, usize),
         bytes: Vec<u8>,
         channels: Vec<Channel>,
     ) -> Result<(), AssetError> {
-        if !bytes.starts_with(b"\x89PNG") {
+        let signature: &[u8] = match format {
+            FileFormat::Png8 | FileFormat::Png16 => b"\x89PNG",
+            FileFormat::Jpeg8 => b"\xFF\xD8\xFF",
+            _ => {
+                return Err(AssetError::BadData {
+                    role: role.into(),
+                    reason: format!("{format:?} is not an encoded image format"),
+                });
+            }
+        };
+        if !bytes.starts_with(signature) {
             return Err(AssetError::BadData {
                 role: role.into(),
-                reason: "not a PNG file (no PNG signature)".into(),
+                reason: format!("not a {format:?} file (no signature)"),
             });
         }
-        let format = if sixteen_bit {
-            FileFormat::Png16
-        } else {
-            FileFormat::Png8
-        };
         self.add(role, file, format, size, channels, 0, bytes)
     }
 

@@ -3,8 +3,8 @@
 //! Files: `level{k}.glb` for each level `k` the chain draws (finest first; the finest level
 //! alone, undrawn, when no level meets the target anywhere), a glTF 2.0 binary file of the level
 //! with the source's materials, in the object frame under a root node whose matrix is the
-//! placement's inverse; and `texture{i}.png`, the source's textures, written once beside the
-//! levels, which reference them by file name. `metadata.levels` lists each level's ratio, triangles, the
+//! placement's inverse; and `texture{i}.png` or `.jpg`, the source's textures (its own files where
+//! it had them), written once beside the levels, which reference them by file name. `metadata.levels` lists each level's ratio, triangles, the
 //! simplifier's error and the largest previewed size it met the target at; `metadata.chain`
 //! the bands (`from_px`, `to_px`, `level`; `null` draws the source mesh); `metadata.to_object`
 //! the row-major 3 × 4 map from the files' world coordinates back to the object frame (the exact
@@ -19,7 +19,7 @@ use serde::{Deserialize, Serialize};
 use serde_json::json;
 
 use super::{Band, Level, LevelInfo, MeshLod, draw, preview_sizes, reach};
-use crate::asset::{AssetReader, AssetWriter, Channel, Encoding};
+use crate::asset::{AssetReader, AssetWriter, Channel, Encoding, FileFormat};
 use crate::representation::{
     Estimate, InputSize, Measurement, Needs, Picture, PipelineError, Plan, Representation, Source,
     Window, elevation_note, fold, linear_bytes, measure_views, secs,
@@ -194,6 +194,21 @@ impl Representation for MeshLodRepr {
                 "the mesh has {n} triangles: no ratio leaves fewer than that and at least min_triangles = {}",
                 spec.min_triangles
             ));
+        } else if let Some(&(_, coarsest)) = targets.last() {
+            // One simplification, the coarsest (the cheapest of them), tells whether the mesh
+            // simplifies at all: where every vertex lies on a seam or an open border, none does.
+            let s = mesh.simplified(&SimplifyParams {
+                target_triangles: coarsest,
+                max_error: f64::INFINITY,
+                lock_border: spec.lock_border,
+                attribute_weight: spec.attribute_weight,
+            })?;
+            if s.mesh.triangle_count() >= n {
+                plan.refuse(format!(
+                    "the simplifier cannot take the mesh below its {n} triangles (every collapse would cross \
+                     a texture seam, a material border or an open border): images or volumes are its stand-ins"
+                ));
+            }
         }
         let sizes = preview_sizes(needs, spec.max_px);
         plan.build(format!(
@@ -334,13 +349,22 @@ impl Representation for MeshLodRepr {
                     },
                 })
                 .to_vec();
-            let role = image.name.trim_end_matches(".png").to_string();
-            w.encoded_png(
+            let role = image
+                .name
+                .rsplit_once('.')
+                .map_or(image.name.as_str(), |(stem, _)| stem)
+                .to_string();
+            let format = match (image.mime, image.sixteen_bit) {
+                ("image/jpeg", _) => FileFormat::Jpeg8,
+                (_, true) => FileFormat::Png16,
+                _ => FileFormat::Png8,
+            };
+            w.encoded_image(
                 &role,
                 &image.name,
-                image.sixteen_bit,
+                format,
                 image.size,
-                image.png,
+                image.bytes,
                 channels,
             )?;
             textures.push(image.name);

@@ -13,6 +13,7 @@
 //! bounding cylinder of radius `R` about the `y` axis and height `H`.
 
 pub mod asset;
+pub mod auto;
 pub mod cli;
 pub mod cylinder;
 pub mod ellipsoid;

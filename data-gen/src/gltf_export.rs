@@ -134,6 +134,9 @@ pub struct ExternalImages {
     by_content: HashMap<[u8; 32], usize>,
     /// The images to write, in the order first referenced.
     pub files: Vec<ImageFile>,
+    /// Put before each file's name in the `.glb` files' image URIs (not in
+    /// [`ImageFile::name`]): for files the caller writes under a prefixed name.
+    pub uri_prefix: String,
 }
 
 /// One image file of an [`ExternalImages`] store.
@@ -273,7 +276,10 @@ impl Images<'_> {
             Some(i) => *i,
             None => {
                 let entry = match &mut self.external {
-                    Some(store) => json!({"uri": store.name_of(&t.image, srgb)?}),
+                    Some(store) => {
+                        let name = store.name_of(&t.image, srgb)?;
+                        json!({"uri": format!("{}{name}", store.uri_prefix)})
+                    }
                     None => {
                         let (bytes, mime, _) = payload(&t.image, srgb)?;
                         self.bytes += bytes.len();

@@ -133,6 +133,39 @@ impl AssetReader {
         &self.description
     }
 
+    /// The member written under `prefix` ([`super::AssetWriter::member`]) as an asset of its
+    /// own: the files whose roles start with `prefix`, the prefix taken off their roles (their
+    /// file names keep it), described as `representation` with `metadata` (what the member's
+    /// writer returned, stored by the outer representation). Errors: no file with that prefix.
+    /// Cost: a copy of the member's bytes.
+    pub fn member(
+        &self,
+        prefix: &str,
+        representation: &str,
+        metadata: serde_json::Value,
+    ) -> Result<AssetReader, AssetError> {
+        let mut description = self.description.clone();
+        description.representation = representation.into();
+        description.metadata = metadata;
+        description.files.retain(|f| f.role.starts_with(prefix));
+        let mut bytes = HashMap::new();
+        for f in &mut description.files {
+            bytes.insert(
+                f.role[prefix.len()..].to_string(),
+                self.bytes[&f.role].clone(),
+            );
+            f.role = f.role[prefix.len()..].to_string();
+        }
+        if description.files.is_empty() {
+            return Err(self.content(format!("no file of the member '{prefix}'")));
+        }
+        Ok(Self {
+            dir: self.dir.clone(),
+            description,
+            bytes,
+        })
+    }
+
     /// Errors unless the asset holds `representation`.
     pub fn expect_representation(&self, representation: &str) -> Result<(), AssetError> {
         if self.description.representation == representation {

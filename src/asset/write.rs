@@ -28,6 +28,10 @@ pub struct AssetWriter {
     files: Vec<FileEntry>,
     /// PNGs still to encode and write: the index of their entry in `files` and the encoder.
     pending: Vec<(usize, PendingPng)>,
+    /// Prepended to every role and file name added ([`Self::member`]).
+    prefix: String,
+    /// Whether files are only encoded and counted, never written ([`Self::sizing`]).
+    dry: bool,
     committed: bool,
 }
 
@@ -41,6 +45,7 @@ impl std::fmt::Debug for AssetWriter {
             .field("target", &self.target)
             .field("files", &self.files)
             .field("pending", &self.pending.len())
+            .field("prefix", &self.prefix)
             .field("committed", &self.committed)
             .finish()
     }
@@ -127,13 +132,55 @@ impl AssetWriter {
             target: out.join(asset).join(repr),
             files: Vec::new(),
             pending: Vec::new(),
+            prefix: String::new(),
+            dry: false,
             committed: false,
         })
+    }
+
+    /// A writer that encodes what is added and counts its bytes without writing anything
+    /// ([`Self::sized`]): what a representation's files would weigh, for a planner choosing
+    /// between candidates by their cost. It cannot commit.
+    pub fn sizing() -> Self {
+        Self {
+            staging: PathBuf::new(),
+            target: PathBuf::new(),
+            files: Vec::new(),
+            pending: Vec::new(),
+            prefix: String::new(),
+            dry: true,
+            committed: false,
+        }
+    }
+
+    /// Encodes what is still pending and returns the bytes of every file added so far (what
+    /// they weigh on disk, `asset.json` apart). Cost: the PNG encodings, in parallel.
+    pub fn sized(&mut self) -> Result<u64, AssetError> {
+        self.flush()?;
+        Ok(self.files.iter().map(|f| f.bytes).sum())
     }
 
     /// The folder the asset will have once committed.
     pub fn target(&self) -> &Path {
         &self.target
+    }
+
+    /// What [`Self::member`] puts before the names added now (empty outside a member): for
+    /// files that name each other (a `.glb`'s image URIs).
+    pub fn prefix(&self) -> &str {
+        &self.prefix
+    }
+
+    /// Runs `f` with every role and file name it adds prefixed by `prefix` (a plain name
+    /// part, for example `impostor64-`): one representation written as a member of another in
+    /// the same folder (a level-of-detail chain's members), read back through
+    /// [`super::AssetReader::member`]. Prefixes nest.
+    pub fn member<T>(&mut self, prefix: &str, f: impl FnOnce(&mut Self) -> T) -> T {
+        let outer = self.prefix.clone();
+        self.prefix = format!("{outer}{prefix}");
+        let out = f(self);
+        self.prefix = outer;
+        out
     }
 
     /// Checks `role` and `file` (unique, plain names) and appends the file's entry, its size
@@ -147,6 +194,11 @@ impl AssetWriter {
         channels: Vec<Channel>,
         record_bytes: usize,
     ) -> Result<usize, AssetError> {
+        let (role, file) = (
+            format!("{}{role}", self.prefix),
+            format!("{}{file}", self.prefix),
+        );
+        let (role, file) = (role.as_str(), file.as_str());
         if self.files.iter().any(|f| f.role == role || f.path == file) {
             return Err(AssetError::BadData {
                 role: role.into(),
@@ -173,8 +225,12 @@ impl AssetWriter {
         Ok(self.files.len() - 1)
     }
 
-    /// Writes `bytes` as the file of `entry` in the staging folder; returns its size and hash.
+    /// Writes `bytes` as the file of `entry` in the staging folder (nowhere when `staging` is
+    /// empty: a [`Self::sizing`] writer); returns its size and hash.
     fn store(staging: &Path, entry: &FileEntry, bytes: &[u8]) -> Result<(u64, String), AssetError> {
+        if staging.as_os_str().is_empty() {
+            return Ok((bytes.len() as u64, String::new()));
+        }
         let path = staging.join(&entry.path);
         std::fs::write(&path, bytes).map_err(io(&path))?;
         Ok((bytes.len() as u64, hash_hex(bytes)))
@@ -416,6 +472,12 @@ impl AssetWriter {
         metadata: serde_json::Value,
         report: serde_json::Value,
     ) -> Result<AssetDescription, AssetError> {
+        if self.dry {
+            return Err(AssetError::BadData {
+                role: DESCRIPTION_FILE.into(),
+                reason: "a sizing writer cannot commit".into(),
+            });
+        }
         self.flush()?;
         let desc = AssetDescription {
             format_version: [FORMAT_MAJOR, FORMAT_MINOR],
@@ -464,7 +526,7 @@ impl AssetWriter {
 
 impl Drop for AssetWriter {
     fn drop(&mut self) {
-        if !self.committed {
+        if !self.committed && !self.dry {
             let _ = std::fs::remove_dir_all(&self.staging);
         }
     }

@@ -12,7 +12,9 @@
 
 use std::time::Instant;
 
-use altrep_data_gen::{ExternalImages, Mesh, MeshLoadOptions, Placement, SimplifyParams, UpAxis};
+use altrep_data_gen::{
+    ExternalImages, Mesh, MeshLoadOptions, Placement, Simplified, SimplifyParams, UpAxis,
+};
 use glam::{DAffine3, DMat4};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
@@ -84,6 +86,45 @@ fn source_mesh<'a>(source: &Source<'a>) -> Result<&'a Mesh, PipelineError> {
 fn rows(m: DAffine3) -> [[f64; 4]; 3] {
     let t = DMat4::from(m).transpose().to_cols_array_2d();
     [t[0], t[1], t[2]]
+}
+
+/// The levels of `targets` (`(ratio, triangle target)`, finest first, as
+/// [`MeshLodDecisions::targets`]) simplified from `mesh` with `spec`'s options, in parallel.
+/// A level the simplifier could not take below the one before it (it stops where every further
+/// collapse would cross a seam or tear a part) adds nothing: it is dropped, and the second list
+/// says why (one JSON record per level). Cost: one simplification per target.
+#[allow(clippy::type_complexity)] // the kept levels and the dropped ones' reasons
+pub fn simplify_levels(
+    mesh: &Mesh,
+    spec: &MeshLodSpec,
+    targets: &[(f64, usize)],
+) -> Result<(Vec<(f64, Simplified)>, Vec<serde_json::Value>), PipelineError> {
+    let simplified: Vec<_> = targets
+        .par_iter()
+        .map(|&(ratio, target)| {
+            mesh.simplified(&SimplifyParams {
+                target_triangles: target,
+                max_error: f64::INFINITY,
+                lock_border: spec.lock_border,
+                attribute_weight: spec.attribute_weight,
+            })
+            .map(|s| (ratio, s))
+        })
+        .collect::<Result<_, _>>()?;
+    let mut dropped = Vec::new();
+    let mut kept: Vec<(f64, Simplified)> = Vec::new();
+    for (ratio, s) in simplified {
+        let floor = kept
+            .last()
+            .map_or(mesh.triangle_count(), |(_, k)| k.mesh.triangle_count());
+        if s.mesh.triangle_count() >= floor {
+            dropped.push(json!({ "ratio": ratio, "triangles": s.mesh.triangle_count(),
+                "reason": format!("the simplifier stopped at {} triangles, no fewer than the level before ({floor})", s.mesh.triangle_count()) }));
+        } else {
+            kept.push((ratio, s));
+        }
+    }
+    Ok((kept, dropped))
 }
 
 impl Representation for MeshLodRepr {
@@ -227,37 +268,9 @@ impl Representation for MeshLodRepr {
         let mesh = source_mesh(source)?;
         let t0 = Instant::now();
         let simplifying = crate::profile::timer("simplify");
-        let simplified: Vec<_> = decisions
-            .targets
-            .par_iter()
-            .map(|&(ratio, target)| {
-                mesh.simplified(&SimplifyParams {
-                    target_triangles: target,
-                    max_error: f64::INFINITY,
-                    lock_border: spec.lock_border,
-                    attribute_weight: spec.attribute_weight,
-                })
-                .map(|s| (ratio, s))
-            })
-            .collect::<Result<_, _>>()?;
+        let (simplified, dropped) = simplify_levels(mesh, spec, &decisions.targets)?;
         simplifying.stop();
         let simplify_s = secs(t0);
-        // A level the simplifier could not take below the one before it (it stops where every
-        // further collapse would cross a seam or tear a part) adds nothing: dropped, and said.
-        let mut dropped = Vec::new();
-        let mut kept: Vec<(f64, altrep_data_gen::Simplified)> = Vec::new();
-        for (ratio, s) in simplified {
-            let floor = kept
-                .last()
-                .map_or(mesh.triangle_count(), |(_, k)| k.mesh.triangle_count());
-            if s.mesh.triangle_count() >= floor {
-                dropped.push(json!({ "ratio": ratio, "triangles": s.mesh.triangle_count(),
-                    "reason": format!("the simplifier stopped at {} triangles, no fewer than the level before ({floor})", s.mesh.triangle_count()) }));
-            } else {
-                kept.push((ratio, s));
-            }
-        }
-        let simplified = kept;
         let t1 = Instant::now();
         let previewing = crate::profile::timer("preview levels");
         let meshes: Vec<&Mesh> = simplified.iter().map(|(_, s)| &s.mesh).collect();
@@ -325,6 +338,7 @@ impl Representation for MeshLodRepr {
     fn write(lod: &MeshLod, w: &mut AssetWriter) -> Result<serde_json::Value, PipelineError> {
         // The levels share the source's textures: each is written once, beside the files.
         let mut images = ExternalImages::default();
+        images.uri_prefix = w.prefix().to_string();
         for (k, level) in lod.levels.iter().enumerate() {
             let file = level.mesh.to_glb_beside(&mut images)?;
             w.glb(
@@ -435,7 +449,11 @@ impl Representation for MeshLodRepr {
             for (k, info) in infos.into_iter().enumerate() {
                 let role = format!("level{k}");
                 let (bytes, triangles) = r.glb(&role)?;
-                let path = r.dir().join(format!("{role}.glb"));
+                let file = r
+                    .description()
+                    .file(&role)
+                    .map_or(format!("{role}.glb"), |e| e.path.clone());
+                let path = r.dir().join(file);
                 let mesh = Mesh::from_gltf_bytes(
                     bytes,
                     &path,

@@ -29,6 +29,8 @@ macro_rules! for_each_representation {
                 "Stacks of alpha slices of the object ([`crate::slices`]), if wanted (baked lighting)."),
             (mesh_lod, MeshLod, $crate::mesh_lod::asset::MeshLodRepr,
                 "Simplified meshes with their switch sizes ([`crate::mesh_lod`]), if wanted (mesh assets only)."),
+            (auto, Auto, $crate::auto::asset::AutoRepr,
+                "The automatic level-of-detail chain over simplified meshes and impostors ([`crate::auto`]), if wanted (mesh assets only)."),
         }
     };
 }

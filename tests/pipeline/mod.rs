@@ -678,6 +678,7 @@ fn the_library_the_manifest_and_the_command_accept_the_same_view_counts() {
     assert_eq!(accepted, [3, 4, 8, 1023, 1024]);
 }
 
+mod auto;
 #[cfg(unix)]
 mod faults;
 mod judged;

@@ -1,0 +1,850 @@
+//! The automatic level-of-detail chain (docs/design.md §10c) in the pipeline: `[asset.auto]`.
+//!
+//! Files: the members the chain draws, each written by its own representation under a prefix
+//! in this one folder: `mesh-level{k}.glb` and `mesh-texture{i}.png|.jpg` (simplified meshes,
+//! as [`crate::mesh_lod`] writes them), `impostor{S}-…` (images with parallax of `S²` views,
+//! as [`crate::parallax`] writes them). `metadata.chain` lists the bands (`from_px`, `to_px`,
+//! `member`, triangles, steps per pixel, draw cost); `metadata.members` each member's prefix,
+//! representation and the metadata its writer returned; `metadata.target_db` the target.
+
+use std::collections::HashMap;
+use std::time::Instant;
+
+use altrep_data_gen::{ExternalImages, Mesh, RgbaImage, Supersample};
+use serde::{Deserialize, Serialize};
+use serde_json::json;
+
+use super::{
+    AutoBand, Candidate, Chain, CostModel, Family, Member, band_tops, cheapest_chain, pareto_fronts,
+};
+use crate::asset::{AssetReader, AssetWriter};
+use crate::mesh_lod::asset::{MeshLodDecisions, MeshLodRepr, MeshLodSpec, simplify_levels};
+use crate::mesh_lod::{Band, Level, LevelInfo, MeshLod, draw, preview_sizes, reach, score_levels};
+use crate::parallax::asset::{Parallax, ParallaxData, ParallaxDecisions, ParallaxSpec};
+use crate::parallax::{RenderParams, WarpMethod, render};
+use crate::representation::{
+    Estimate, InputSize, Measurement, Needs, Picture, PipelineError, Plan, Representation, Source,
+    Window, elevation_note, measure_views, secs,
+};
+
+/// Manifest parameters of the automatic chain (`[asset.auto]`).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct AutoSpec {
+    /// Quality target (PSNR dB against the truth) every band must meet at both its edges
+    /// (default: the asset's `quality_db`).
+    pub target_db: Option<f64>,
+    /// Families of candidates: `mesh_lod` (simplified meshes, mesh assets only) and
+    /// `parallax` (impostors: images with parallax) (default both).
+    pub families: Vec<String>,
+    /// Largest screen size (pixels, 8–2048; default 512) at which candidates are previewed and
+    /// verified: above it the chain draws the source.
+    pub max_px: f64,
+    /// The simplified levels' parameters (`[asset.auto.mesh_lod]`; its `max_px` is this one's).
+    pub mesh_lod: MeshLodSpec,
+    /// The impostors' parameters (`[asset.auto.parallax]`): one candidate per preview size up
+    /// to its `size` (default 256 here), with its views, depth and bounds.
+    pub parallax: ParallaxSpec,
+    /// The combination of costs the chain minimises ([`CostModel`]).
+    pub cost: CostModel,
+}
+
+impl Default for AutoSpec {
+    fn default() -> Self {
+        Self {
+            target_db: None,
+            families: vec!["mesh_lod".into(), "parallax".into()],
+            max_px: 512.0,
+            mesh_lod: MeshLodSpec::default(),
+            parallax: ParallaxSpec {
+                size: 256,
+                ..ParallaxSpec::default()
+            },
+            cost: CostModel::default(),
+        }
+    }
+}
+
+/// What the planner decided: the target, the preview sizes and each candidate family's plan.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct AutoDecisions {
+    /// The quality target (dB).
+    pub target_db: f64,
+    /// Screen sizes (pixels) at which candidates are previewed: the bands' tops.
+    pub sizes: Vec<usize>,
+    /// The simplified levels' plan, when that family applies.
+    pub mesh: Option<MeshLodDecisions>,
+    /// `(view size, plan)` of each impostor candidate.
+    pub impostors: Vec<(usize, ParallaxDecisions)>,
+}
+
+/// The chain as built or loaded: its bands and the members they draw.
+pub struct AutoChain {
+    /// The bands, smallest sizes first; [`Member::Mesh`] indexes `mesh.levels`.
+    pub chain: Vec<AutoBand>,
+    /// The simplified levels the chain draws (their own chain: the bands that draw them).
+    pub mesh: Option<MeshLod>,
+    /// `(view size, data)` of each impostor the chain draws.
+    pub impostors: Vec<(usize, ParallaxData)>,
+    /// The quality target (dB) the chain was verified for.
+    pub target_db: f64,
+}
+
+/// Prefix of the simplified levels' files in the folder.
+const MESH_PREFIX: &str = "mesh-";
+
+/// The automatic chain for the pipeline.
+pub struct AutoRepr;
+
+/// The needs with the chain's target as their quality.
+fn with_target(needs: &Needs, target_db: f64) -> Needs {
+    Needs {
+        quality_db: target_db,
+        ..needs.clone()
+    }
+}
+
+/// The needs an impostor of `size²` views is planned for: the sizes up to its own.
+fn impostor_needs(needs: &Needs, size: usize) -> Needs {
+    let s = size as f64;
+    Needs {
+        screen_px: [needs.screen_px[0].min(s), s],
+        ..needs.clone()
+    }
+}
+
+fn impostor_spec(spec: &AutoSpec, size: usize) -> ParallaxSpec {
+    ParallaxSpec {
+        size,
+        ..spec.parallax.clone()
+    }
+}
+
+/// Worst PSNR of a member at `size` pixels over the 4 measured directions (3 × 3 rays per
+/// pixel), as every representation is measured; the source is the truth (infinite).
+fn worst_at(
+    member: Member,
+    size: usize,
+    levels: &[&Mesh],
+    impostors: &[(usize, &ParallaxData)],
+    needs: &Needs,
+    source: &Source,
+) -> Result<(f64, Measurement), PipelineError> {
+    match member {
+        Member::Source => Ok((f64::INFINITY, Measurement::default())),
+        Member::Mesh { level } => {
+            let scores = score_levels(
+                source,
+                &[levels[level]],
+                needs,
+                size,
+                &measure_views(needs, 4),
+                Supersample::of(3),
+            )?
+            .remove(0);
+            let m = crate::representation::fold(String::new(), &scores, Some(1.0));
+            Ok((m.worst_psnr_db, m))
+        }
+        Member::Impostor { size: s } => {
+            let data = impostors
+                .iter()
+                .find(|(k, _)| *k == s)
+                .map(|(_, d)| *d)
+                .ok_or_else(|| PipelineError::Spec(format!("no impostor of {s}² views")))?;
+            let (m, _) = Parallax::measure(data, needs, size, source)?;
+            Ok((m.worst_psnr_db, m))
+        }
+    }
+}
+
+/// The edges at which a band is measured: both ends within the needs, raised to the smallest
+/// measured size.
+fn edges(band: &AutoBand, needs: &Needs) -> Vec<usize> {
+    let [s0, s1] = needs.screen_px;
+    let (from, to) = (band.from_px.max(s0), band.to_px.min(s1));
+    let min = crate::mesh_lod::MIN_MEASURED_PX;
+    let mut sizes = vec![from.max(min).round() as usize, to.max(min).round() as usize];
+    sizes.dedup();
+    sizes
+}
+
+/// A chain verified at both edges of every band, with what it measured.
+struct VerifiedChain {
+    chain: Chain,
+    /// `(band, size, worst PSNR dB)` per measured edge.
+    edges: Vec<(usize, usize, f64)>,
+    repairs: usize,
+}
+
+/// The cheapest chain of `family`, verified: every band's member measured at both its edges
+/// (results cached in `seen`, shared by the families), a member that misses the target at a
+/// size has its reach lowered below that size and the chain is chosen again. Ends: every
+/// repair lowers a reach.
+#[allow(clippy::too_many_arguments)]
+fn verified(
+    candidates: &mut [Candidate],
+    family: Family,
+    tops: &[f64],
+    model: &CostModel,
+    texture_bytes: u64,
+    measure: &mut dyn FnMut(Member, usize) -> Result<f64, PipelineError>,
+    needs: &Needs,
+) -> Result<Option<VerifiedChain>, PipelineError> {
+    let mut repairs = 0;
+    loop {
+        let Some(chain) = cheapest_chain(
+            candidates,
+            family,
+            tops,
+            needs.screen_px[0],
+            model,
+            texture_bytes,
+        ) else {
+            return Ok(None);
+        };
+        let mut measured = Vec::new();
+        let mut changed = false;
+        for (b, band) in chain.bands.iter().enumerate() {
+            if band.member == Member::Source {
+                continue;
+            }
+            for size in edges(band, needs) {
+                let worst = measure(band.member, size)?;
+                measured.push((b, size, worst));
+                if worst >= needs.quality_db {
+                    continue;
+                }
+                let c = candidates
+                    .iter_mut()
+                    .find(|c| c.member == band.member)
+                    .expect("a chain's member is a candidate");
+                if (size as f64) < band.to_px.min(needs.screen_px[1]).round() {
+                    // The bottom edge: drawn only above it from now on.
+                    let f = c.floor_px.map_or(size as f64, |f| f.max(size as f64));
+                    if c.floor_px != Some(f) {
+                        c.floor_px = Some(f);
+                        changed = true;
+                    }
+                    continue;
+                }
+                let below = tops.iter().rev().copied().find(|&t| t < size as f64);
+                let lowered = match (c.reach, below) {
+                    (Some(r), Some(b)) if b < r => Some(b),
+                    _ => None,
+                };
+                if lowered != c.reach {
+                    c.reach = lowered;
+                    changed = true;
+                }
+            }
+        }
+        if !changed {
+            return Ok(Some(VerifiedChain {
+                chain,
+                edges: measured,
+                repairs,
+            }));
+        }
+        repairs += 1;
+    }
+}
+
+impl Representation for AutoRepr {
+    const NAME: &'static str = "auto";
+    const CASTS_RAYS: bool = true;
+    type Spec = AutoSpec;
+    type Data = AutoChain;
+    type Decisions = AutoDecisions;
+
+    fn validate(spec: &AutoSpec) -> Result<(), String> {
+        if let Some(t) = spec.target_db
+            && !(t.is_finite() && t > 0.0)
+        {
+            return Err(format!(
+                "auto.target_db = {t} must be a positive number of dB"
+            ));
+        }
+        if spec.families.is_empty() {
+            return Err("auto.families must list at least one of mesh_lod, parallax".into());
+        }
+        for f in &spec.families {
+            if !["mesh_lod", "parallax"].contains(&f.as_str()) {
+                return Err(format!(
+                    "auto.families: unknown family '{f}' (mesh_lod, parallax)"
+                ));
+            }
+        }
+        if !(8.0..=2048.0).contains(&spec.max_px) {
+            return Err(format!(
+                "auto.max_px = {} must lie in 8..=2048",
+                spec.max_px
+            ));
+        }
+        MeshLodRepr::validate(&spec.mesh_lod).map_err(|e| format!("auto.{e}"))?;
+        Parallax::validate(&spec.parallax).map_err(|e| format!("auto.{e}"))?;
+        spec.cost.validate()
+    }
+
+    fn relevant_needs(needs: &Needs) -> serde_json::Value {
+        json!({ "screen_px": needs.screen_px, "azimuth_deg": needs.azimuth_deg,
+                "elevation_deg": needs.elevation_deg, "quality_db": needs.quality_db,
+                "lighting": needs.lighting })
+    }
+
+    fn estimate(spec: &AutoSpec, needs: &Needs, input: &InputSize) -> Estimate {
+        // Every candidate is built and held at once: the levels' estimate and each impostor's.
+        let mut e = Estimate::default();
+        let mut add = |x: Estimate| {
+            e.peak_bytes += x.peak_bytes;
+            e.output_bytes += x.output_bytes;
+        };
+        if spec.families.iter().any(|f| f == "mesh_lod") && input.mesh.is_some() {
+            add(MeshLodRepr::estimate(&spec.mesh_lod, needs, input));
+        }
+        if spec.families.iter().any(|f| f == "parallax") {
+            for s in preview_sizes(needs, spec.max_px) {
+                if s <= spec.parallax.size {
+                    add(Parallax::estimate(
+                        &impostor_spec(spec, s),
+                        &impostor_needs(needs, s),
+                        input,
+                    ));
+                }
+            }
+        }
+        e
+    }
+
+    fn plan(
+        spec: &AutoSpec,
+        needs: &Needs,
+        source: &Source,
+    ) -> Result<(Plan, AutoDecisions), PipelineError> {
+        let target_db = spec.target_db.unwrap_or(needs.quality_db);
+        let needs = with_target(needs, target_db);
+        let mut plan = Plan::default();
+        let sizes = preview_sizes(&needs, spec.max_px);
+        if source.shape()?.as_mesh().is_none() {
+            plan.refuse(
+                "the chain needs a mesh (`mesh = ...`): its bands end at the source mesh, drawn where no stand-in meets the target".into(),
+            );
+            return Ok((
+                plan,
+                AutoDecisions {
+                    target_db,
+                    sizes,
+                    mesh: None,
+                    impostors: Vec::new(),
+                },
+            ));
+        }
+        let mut mesh = None;
+        if spec.families.iter().any(|f| f == "mesh_lod") {
+            let lod_spec = MeshLodSpec {
+                max_px: spec.max_px,
+                ..spec.mesh_lod.clone()
+            };
+            let (p, d) = MeshLodRepr::plan(&lod_spec, &needs, source)?;
+            match p.refused {
+                Some(reason) => plan.skip("simplified meshes".into(), reason),
+                None => {
+                    for item in p.items {
+                        match item.skipped {
+                            None => plan.build(format!("mesh_lod: {}", item.what)),
+                            Some(r) => plan.skip(format!("mesh_lod: {}", item.what), r),
+                        }
+                    }
+                    mesh = Some(d);
+                }
+            }
+        }
+        let mut impostors = Vec::new();
+        if spec.families.iter().any(|f| f == "parallax") {
+            for &s in &sizes {
+                if s > spec.parallax.size {
+                    plan.skip(
+                        format!("impostor of {s}² views"),
+                        format!("above auto.parallax.size = {}", spec.parallax.size),
+                    );
+                    continue;
+                }
+                let (p, d) =
+                    Parallax::plan(&impostor_spec(spec, s), &impostor_needs(&needs, s), source)?;
+                match p.refused {
+                    Some(reason) => plan.skip(format!("impostor of {s}² views"), reason),
+                    None => {
+                        plan.build(format!(
+                            "impostor candidate: {} of {} views of {s}²",
+                            d.views.len(),
+                            spec.parallax.views
+                        ));
+                        impostors.push((s, d));
+                    }
+                }
+            }
+        }
+        if mesh.is_none() && impostors.is_empty() {
+            plan.refuse(format!(
+                "no candidate family applies (families {:?}): nothing but the source to draw",
+                spec.families
+            ));
+        }
+        plan.build(format!(
+            "the chain chosen over bands ending at {sizes:?} px for {target_db} dB: at each band the candidate of least cost (draw steps at its top, {} steps per triangle, {} per byte) that met the target there, then verified at both edges of every band (4 directions, 3×3) and chosen again where a member misses",
+            spec.cost.triangle_steps, spec.cost.byte_steps
+        ));
+        Ok((
+            plan,
+            AutoDecisions {
+                target_db,
+                sizes,
+                mesh,
+                impostors,
+            },
+        ))
+    }
+
+    fn build(
+        spec: &AutoSpec,
+        needs: &Needs,
+        decisions: &AutoDecisions,
+        source: &Source,
+    ) -> Result<(AutoChain, serde_json::Value), PipelineError> {
+        let needs = &with_target(needs, decisions.target_db);
+        let sizes = &decisions.sizes;
+        let tops = band_tops(sizes, needs.screen_px);
+        let mut candidates = Vec::new();
+        let source_triangles = source.shape()?.as_mesh().map(|m| m.triangle_count());
+        // The object's share of the picture: what a mesh shades.
+        let coverage = {
+            let window = Window::for_needs(needs, 64);
+            let view = measure_views(needs, 1)[0];
+            let truth = window.truth(source, view, Supersample::of(2))?;
+            let n = truth.pixels.len().max(1) as f64;
+            truth.pixels.iter().map(|p| f64::from(p[3])).sum::<f64>() / n
+        };
+        candidates.push(Candidate {
+            member: Member::Source,
+            triangles: source_triangles.unwrap_or(0),
+            bytes: 0,
+            shares_textures: false,
+            steps_per_pixel: 1.0,
+            pixel_share: coverage,
+            reach: None,
+            floor_px: None,
+        });
+        // Simplified levels: built, previewed (3 directions, 2 × 2), their files sized.
+        let t0 = Instant::now();
+        let mut levels: Vec<(f64, altrep_data_gen::Simplified)> = Vec::new();
+        let mut texture_bytes = 0;
+        let mut lod_report = serde_json::Value::Null;
+        if let (Some(d), Some(mesh)) = (&decisions.mesh, source.shape()?.as_mesh()) {
+            let (kept, dropped) = simplify_levels(mesh, &spec.mesh_lod, &d.targets)?;
+            let meshes: Vec<&Mesh> = kept.iter().map(|(_, s)| &s.mesh).collect();
+            let preview = reach(source, &meshes, needs, sizes)?;
+            // Sized as written: under the members' prefix, which the levels' image URIs carry.
+            let mut images = ExternalImages::default();
+            images.uri_prefix = MESH_PREFIX.into();
+            for (l, (_, s)) in kept.iter().enumerate() {
+                let file = s.mesh.to_glb_beside(&mut images)?;
+                candidates.push(Candidate {
+                    member: Member::Mesh { level: l },
+                    triangles: s.mesh.triangle_count(),
+                    bytes: file.bytes.len() as u64,
+                    shares_textures: true,
+                    steps_per_pixel: 1.0,
+                    pixel_share: coverage,
+                    reach: preview.reach[l],
+                    floor_px: None,
+                });
+            }
+            texture_bytes = images.files.iter().map(|f| f.bytes.len() as u64).sum();
+            // The source reads the same textures (the user holds them).
+            lod_report = json!({ "dropped": dropped, "preview_worst_db": preview.worst_db });
+            levels = kept;
+        }
+        let mesh_s = secs(t0);
+        // Impostors: built, measured at their own size (4 directions, 3 × 3), files sized.
+        let t1 = Instant::now();
+        let mut impostors: Vec<(usize, ParallaxData)> = Vec::new();
+        let mut measured: HashMap<(Member, usize), f64> = HashMap::new();
+        let mut pruned = Vec::new();
+        for (s, d) in &decisions.impostors {
+            // The cost model first: an impostor shades at least one step per pixel of its
+            // quad, so where a previewed level meets the target at this size for no more than
+            // that (bytes weighed in), the impostor cannot be cheaper here: not built.
+            let p = *s as f64;
+            let least = p * p;
+            if let Some(c) = candidates.iter().find(|c| {
+                matches!(c.member, Member::Mesh { .. })
+                    && c.reaches(p)
+                    && spec.cost.draw_steps(c, p)
+                        + spec.cost.byte_steps * (c.bytes + texture_bytes) as f64
+                        <= least
+            }) {
+                pruned.push(json!({ "size": s, "reason": format!(
+                    "{:?} meets the target at {s} px for {:.0} steps, no more than an impostor's least ({least:.0}: one per pixel)",
+                    c.member, spec.cost.draw_steps(c, p)) }));
+                continue;
+            }
+            let (data, _) = Parallax::build(
+                &impostor_spec(spec, *s),
+                &impostor_needs(needs, *s),
+                d,
+                source,
+            )?;
+            let (m, _) = Parallax::measure(&data, needs, *s, source)?;
+            let mut w = AssetWriter::sizing();
+            Parallax::write(&data, &mut w)?;
+            let member = Member::Impostor { size: *s };
+            measured.insert((member, *s), m.worst_psnr_db);
+            candidates.push(Candidate {
+                member,
+                triangles: 0,
+                bytes: w.sized()?,
+                shares_textures: false,
+                steps_per_pixel: m.mean_steps.unwrap_or(1.0),
+                pixel_share: 1.0,
+                reach: (m.worst_psnr_db >= needs.quality_db).then_some(*s as f64),
+                floor_px: None,
+            });
+            impostors.push((*s, data));
+        }
+        let impostor_s = secs(t1);
+        let previewed = candidates.clone();
+        // The chains: automatic, then the single-family ones for comparison, each verified.
+        let t2 = Instant::now();
+        let meshes: Vec<&Mesh> = levels.iter().map(|(_, s)| &s.mesh).collect();
+        let impostor_refs: Vec<(usize, &ParallaxData)> =
+            impostors.iter().map(|(s, d)| (*s, d)).collect();
+        let mut measure = |member: Member, size: usize| -> Result<f64, PipelineError> {
+            if let Some(&w) = measured.get(&(member, size)) {
+                return Ok(w);
+            }
+            let (w, _) = worst_at(member, size, &meshes, &impostor_refs, needs, source)?;
+            measured.insert((member, size), w);
+            Ok(w)
+        };
+        let mut chains = Vec::new();
+        for family in [Family::All, Family::Meshes, Family::Impostors] {
+            let mut c = candidates.clone();
+            let v = verified(
+                &mut c,
+                family,
+                &tops,
+                &spec.cost,
+                texture_bytes,
+                &mut measure,
+                needs,
+            )?;
+            if family == Family::All {
+                candidates = c;
+            }
+            chains.push((family, v));
+        }
+        let verify_s = secs(t2);
+        let fronts = pareto_fronts(&candidates, &tops, &spec.cost, texture_bytes);
+        let Some(auto) = chains[0].1.as_ref() else {
+            return Err(PipelineError::Spec(
+                "no chain: the source is always a candidate".into(),
+            ));
+        };
+        let chain_report = |v: &Option<VerifiedChain>| {
+            v.as_ref().map(|v| {
+                json!({ "bands": v.chain.bands, "bytes": v.chain.bytes, "cost": v.chain.cost,
+                        "edges_worst_db": v.edges, "repairs": v.repairs,
+                        "triangles_max": v.chain.bands.iter().map(|b| b.triangles).max() })
+            })
+        };
+        let report = json!({
+            "target_db": decisions.target_db,
+            "tops_px": tops,
+            "coverage": coverage,
+            "texture_bytes": texture_bytes,
+            "candidates": previewed,
+            "auto": chain_report(&chains[0].1),
+            "meshes_only": chain_report(&chains[1].1),
+            "impostors_only": chain_report(&chains[2].1),
+            "pareto": fronts,
+            "mesh_lod": lod_report,
+            "impostors_pruned": pruned,
+            "mesh_s": mesh_s,
+            "impostor_s": impostor_s,
+            "verify_s": verify_s,
+        });
+        // Keep what the automatic chain draws, renumbered.
+        let mut bands = auto.chain.bands.clone();
+        let used_levels: Vec<usize> = (0..levels.len())
+            .filter(|l| bands.iter().any(|b| b.member == Member::Mesh { level: *l }))
+            .collect();
+        for b in &mut bands {
+            if let Member::Mesh { level } = b.member {
+                b.member = Member::Mesh {
+                    level: used_levels.iter().position(|u| *u == level).unwrap_or(0),
+                };
+            }
+        }
+        let lod_levels: Vec<Level> = levels
+            .into_iter()
+            .enumerate()
+            .filter(|(l, _)| used_levels.contains(l))
+            .enumerate()
+            .map(|(i, (_, (ratio, s)))| Level {
+                info: LevelInfo {
+                    ratio,
+                    triangles: s.mesh.triangle_count(),
+                    error: s.error,
+                    // The largest size the chain draws it at (verified there).
+                    max_px: bands
+                        .iter()
+                        .filter(|b| b.member == Member::Mesh { level: i })
+                        .map(|b| b.to_px)
+                        .reduce(f64::max),
+                },
+                mesh: s.mesh,
+            })
+            .collect();
+        let mesh = (!lod_levels.is_empty()).then(|| MeshLod {
+            chain: mesh_bands(&bands),
+            levels: lod_levels,
+        });
+        let impostors = impostors
+            .into_iter()
+            .filter(|(s, _)| {
+                bands
+                    .iter()
+                    .any(|b| b.member == Member::Impostor { size: *s })
+            })
+            .collect();
+        Ok((
+            AutoChain {
+                chain: bands,
+                mesh,
+                impostors,
+                target_db: decisions.target_db,
+            },
+            report,
+        ))
+    }
+
+    fn write(data: &AutoChain, w: &mut AssetWriter) -> Result<serde_json::Value, PipelineError> {
+        let mut members = Vec::new();
+        if let Some(lod) = &data.mesh {
+            let m = w.member(MESH_PREFIX, |w| MeshLodRepr::write(lod, w))?;
+            members.push(
+                json!({ "prefix": MESH_PREFIX, "representation": MeshLodRepr::NAME, "metadata": m }),
+            );
+        }
+        for (s, d) in &data.impostors {
+            let prefix = format!("impostor{s}-");
+            let m = w.member(&prefix, |w| Parallax::write(d, w))?;
+            members.push(json!({ "prefix": prefix, "representation": Parallax::NAME,
+                                 "size": s, "metadata": m }));
+        }
+        Ok(json!({ "chain": data.chain, "members": members, "target_db": data.target_db }))
+    }
+
+    fn read(r: &AssetReader) -> Result<AutoChain, PipelineError> {
+        r.expect_representation(Self::NAME)?;
+        let m = &r.description().metadata;
+        let chain: Vec<AutoBand> = serde_json::from_value(m["chain"].clone())
+            .map_err(|e| r.content(format!("metadata.chain: {e}")))?;
+        let target_db = m["target_db"]
+            .as_f64()
+            .ok_or_else(|| r.content("metadata.target_db is not a number".into()))?;
+        let members = m["members"]
+            .as_array()
+            .ok_or_else(|| r.content("metadata.members is not a list".into()))?;
+        let (mut mesh, mut impostors) = (None, Vec::new());
+        for (i, member) in members.iter().enumerate() {
+            let prefix = member["prefix"]
+                .as_str()
+                .ok_or_else(|| r.content(format!("metadata.members[{i}].prefix")))?;
+            let repr = member["representation"].as_str().unwrap_or_default();
+            let inner = r.member(prefix, repr, member["metadata"].clone())?;
+            if repr == MeshLodRepr::NAME && mesh.is_none() {
+                mesh = Some(MeshLodRepr::read(&inner)?);
+            } else if repr == Parallax::NAME {
+                let size = member["size"]
+                    .as_u64()
+                    .ok_or_else(|| r.content(format!("metadata.members[{i}].size")))?
+                    as usize;
+                let data = Parallax::read(&inner)?;
+                if data.images.params.width != size {
+                    return Err(r
+                        .content(format!(
+                            "metadata.members[{i}]: views of {}², the member says {size}²",
+                            data.images.params.width
+                        ))
+                        .into());
+                }
+                impostors.push((size, data));
+            } else {
+                return Err(r
+                    .content(format!(
+                        "metadata.members[{i}]: representation '{repr}' (mesh_lod once, parallax)"
+                    ))
+                    .into());
+            }
+        }
+        // Every band's member must be held.
+        let levels = mesh.as_ref().map_or(0, |m: &MeshLod| m.levels.len());
+        for (b, band) in chain.iter().enumerate() {
+            let held = match band.member {
+                Member::Source => true,
+                Member::Mesh { level } => level < levels,
+                Member::Impostor { size } => impostors.iter().any(|(s, _)| *s == size),
+            };
+            let ordered =
+                band.from_px.is_finite() && band.to_px.is_finite() && band.from_px <= band.to_px;
+            if !held || !ordered {
+                return Err(r
+                    .content(format!(
+                        "metadata.chain[{b}] draws {:?} over [{}, {}] px, which the folder does not hold",
+                        band.member, band.from_px, band.to_px
+                    ))
+                    .into());
+            }
+        }
+        Ok(AutoChain {
+            chain,
+            mesh,
+            impostors,
+            target_db,
+        })
+    }
+
+    fn measure_size(d: &AutoDecisions) -> usize {
+        d.sizes.last().copied().unwrap_or(0)
+    }
+
+    fn measure(
+        data: &AutoChain,
+        needs: &Needs,
+        _size: usize,
+        source: &Source,
+    ) -> Result<(Measurement, Vec<Picture>), PipelineError> {
+        let needs = &with_target(needs, data.target_db);
+        let meshes: Vec<&Mesh> = data
+            .mesh
+            .as_ref()
+            .map(|m| m.levels.iter().map(|l| &l.mesh).collect())
+            .unwrap_or_default();
+        let impostors: Vec<(usize, &ParallaxData)> =
+            data.impostors.iter().map(|(s, d)| (*s, d)).collect();
+        let mut parts = Vec::new();
+        let mut what = Vec::new();
+        for (b, band) in data.chain.iter().enumerate() {
+            if band.member == Member::Source {
+                continue;
+            }
+            for size in edges(band, needs) {
+                let (_, m) = worst_at(band.member, size, &meshes, &impostors, needs, source)?;
+                what.push(format!("band {b} at {size} px"));
+                parts.push((m, band.steps_per_pixel));
+            }
+        }
+        let biggest = data
+            .chain
+            .iter()
+            .filter(|b| b.member != Member::Source)
+            .map(|b| b.to_px.min(needs.screen_px[1]).round() as usize)
+            .max()
+            .unwrap_or(0)
+            .max(crate::mesh_lod::MIN_MEASURED_PX as usize);
+        let window = Window::for_needs(needs, biggest);
+        if parts.is_empty() {
+            return Err(PipelineError::Spec(
+                "the chain draws the source everywhere: no stand-in to measure".into(),
+            ));
+        }
+        let n = parts.len() as f64;
+        let mut m = Measurement {
+            method: format!(
+                "each band's member at both its edges ({}), 4 needed directions each, vs truth 3×3 supersampled{}",
+                what.join(", "),
+                elevation_note(needs, window)
+            ),
+            psnr_db: parts.iter().map(|(m, _)| m.psnr_db).sum::<f64>() / n,
+            worst_psnr_db: parts
+                .iter()
+                .map(|(m, _)| m.worst_psnr_db)
+                .fold(f64::INFINITY, f64::min),
+            iou: parts.iter().map(|(m, _)| m.iou).sum::<f64>() / n,
+            coverage_error: Some(
+                parts
+                    .iter()
+                    .map(|(m, _)| m.coverage_error.unwrap_or(0.0))
+                    .sum::<f64>()
+                    / n,
+            ),
+            mean_steps: Some(parts.iter().map(|(_, s)| s).sum::<f64>() / n),
+            ..Measurement::default()
+        };
+        m.size = biggest;
+        // The picture: truth | each member of the chain, smallest sizes first, at the largest
+        // measured size.
+        let view = measure_views(needs, 4)[0];
+        let k = Supersample::of(3);
+        let mut images = vec![window.truth(source, view, k)?];
+        let mut drawn = Vec::new();
+        for band in &data.chain {
+            let image = match band.member {
+                Member::Source => continue,
+                Member::Mesh { level } => draw(source, meshes[level], window, view, k)?,
+                Member::Impostor { size } => {
+                    let d = impostors
+                        .iter()
+                        .find(|(s, _)| *s == size)
+                        .map(|(_, d)| *d)
+                        .ok_or_else(|| PipelineError::Spec(format!("no impostor {size}²")))?;
+                    let screen = RenderParams {
+                        width: biggest,
+                        height: biggest * d.images.params.height / d.images.params.width,
+                        supersample: Supersample::ONE,
+                        light: source.light,
+                        mip: biggest != size,
+                    };
+                    window.place(&render(
+                        &d.images,
+                        view.azimuth,
+                        WarpMethod::Inverse,
+                        &screen,
+                    )?)
+                }
+            };
+            images.push(image);
+            drawn.push(format!(
+                "{:?} for {}–{} px",
+                band.member, band.from_px, band.to_px
+            ));
+        }
+        let refs: Vec<&RgbaImage> = images.iter().collect();
+        let picture = Picture {
+            file: format!("{}-auto.png", source.name),
+            caption: format!(
+                "{}: ground truth | {} (drawn at {biggest} px), azimuth {:.0}°",
+                source.name,
+                drawn.join(" | "),
+                view.azimuth.to_degrees()
+            ),
+            image: RgbaImage::side_by_side(&refs),
+        };
+        Ok((m, vec![picture]))
+    }
+}
+
+/// The bands of `bands` that draw a mesh level, as the simplified meshes' own chain.
+fn mesh_bands(bands: &[AutoBand]) -> Vec<Band> {
+    bands
+        .iter()
+        .filter_map(|b| match b.member {
+            Member::Mesh { level } => Some(Band {
+                from_px: b.from_px,
+                to_px: b.to_px,
+                level: Some(level),
+            }),
+            _ => None,
+        })
+        .collect()
+}

@@ -217,7 +217,7 @@ fn a_renderer_far_below_its_exact_renderer_is_flagged() {
 /// is only what was built.
 #[test]
 fn everything_is_measured_at_the_planned_conditions() {
-    let scene = "[[asset]]\nname = \"pear\"\nshape = \"pear\"\n[asset.needs]\nazimuth_deg = [0, 120]\nscreen_px = [4, 16]\nlighting = \"baked\"\n[asset.parallax]\nviews = 8\nsize = 64\nbounds = [\"zminmax\"]\n[asset.cylinder]\ncolumns = 128\nrows = 64\n[asset.octree]\nresolution = 64\n[asset.slices]\nresolution = 64\n\n[[asset]]\nname = \"truck\"\nshape = \"truck\"\n[asset.needs]\nelevation_deg = [20, 60]\nscreen_px = [4, 32]\n[asset.sphere]\ngrid = 4\nsize = 64\n\n[[asset]]\nname = \"grain\"\ntest_texture = { size = 64, seed = 2 }\n[asset.needs]\nscreen_px = [4, 16]\ngrazing_deg = 60\n[asset.pyramid]\nwrap = [\"Repeat\", \"Repeat\"]\n\n[[asset]]\nname = \"rock\"\nmesh = \"rock.glb\"\n[asset.needs]\nscreen_px = [4, 16]\n[asset.mesh_lod]\n";
+    let scene = "[[asset]]\nname = \"pear\"\nshape = \"pear\"\n[asset.needs]\nazimuth_deg = [0, 120]\nscreen_px = [4, 16]\nlighting = \"baked\"\n[asset.parallax]\nviews = 8\nsize = 64\nbounds = [\"zminmax\"]\n[asset.cylinder]\ncolumns = 128\nrows = 64\n[asset.octree]\nresolution = 64\n[asset.slices]\nresolution = 64\n\n[[asset]]\nname = \"truck\"\nshape = \"truck\"\n[asset.needs]\nelevation_deg = [20, 60]\nscreen_px = [4, 32]\n[asset.sphere]\ngrid = 4\nsize = 64\n\n[[asset]]\nname = \"grain\"\ntest_texture = { size = 64, seed = 2 }\n[asset.needs]\nscreen_px = [4, 16]\ngrazing_deg = 60\n[asset.pyramid]\nwrap = [\"Repeat\", \"Repeat\"]\n\n[[asset]]\nname = \"rock\"\nmesh = \"rock.glb\"\n[asset.needs]\nscreen_px = [4, 16]\n[asset.mesh_lod]\n[asset.auto]\n";
     let dir = tempfile::tempdir().unwrap();
     std::fs::write(
         dir.path().join("rock.glb"),
@@ -242,7 +242,10 @@ fn everything_is_measured_at_the_planned_conditions() {
             p.asset, p.representation, mp.psnr_db, p.bytes, me.psnr_db, e.bytes, mp.size
         );
         assert_eq!(mp.size, me.size, "{}/{}", p.asset, p.representation);
-        if p.representation == "mesh_lod" {
+        if p.representation == "auto" {
+            // Chosen by cost over the bands of the needs: wider needs may draw other members
+            // (cheaper over more bands), so bytes have no order.
+        } else if p.representation == "mesh_lod" {
             // A chain keeps the levels it draws, chosen by measurement: wider needs draw the
             // same levels over the planned sizes and perhaps more beyond, never fewer.
             assert!(e.bytes >= p.bytes, "{}/{}", p.asset, p.representation);
@@ -252,11 +255,11 @@ fn everything_is_measured_at_the_planned_conditions() {
         assert!(mp.psnr_db.is_finite() && me.psnr_db.is_finite());
         compared += 1;
     }
-    assert_eq!(compared, 7);
+    assert_eq!(compared, 8);
     // The sizes are those a planned run picks, below what `--everything` built.
     let size = |o: &altrep::pipeline::AssetOutcome| o.measurement.as_ref().unwrap().size;
     let sizes: Vec<usize> = planned.outcomes.iter().map(size).collect();
-    assert_eq!(sizes, [16, 16, 16, 16, 32, 0, 16]);
+    assert_eq!(sizes, [16, 16, 16, 16, 32, 0, 16, 16]);
     // Every folder opens as what it is through the one list of representations, whichever it
     // holds; a folder of something else is refused, naming it.
     let mut opened = Vec::new();

@@ -539,4 +539,92 @@ mod tests {
             "the 32² impostor does not reach 64 px"
         );
     }
+
+    /// The objective of `chain` recomputed from its bands: draw cost at every band top, bytes
+    /// of each member where it starts a run (a member taken again pays again), the textures
+    /// once.
+    fn objective(c: &[Candidate], chain: &Chain, tops: &[f64], model: &CostModel, tex: u64) -> f64 {
+        let mut cost = 0.0;
+        let mut paid = false;
+        let mut last: Option<Member> = None;
+        for &top in tops {
+            let band = chain.bands.iter().find(|b| top <= b.to_px).unwrap();
+            let cand = c.iter().find(|x| x.member == band.member).unwrap();
+            cost += model.draw_steps(cand, top);
+            if last != Some(band.member) {
+                cost += cand.bytes as f64 * model.byte_steps;
+                if cand.shares_textures && !paid {
+                    cost += tex as f64 * model.byte_steps;
+                    paid = true;
+                }
+            }
+            last = Some(band.member);
+        }
+        cost
+    }
+
+    proptest::proptest! {
+        /// Random candidates and weights: the chain covers the needs from end to end, every
+        /// band's member is admitted there, its cost is the objective of its bands, no chain
+        /// of one member beats it, and each single family costs at least as much.
+        #[test]
+        fn the_chain_is_admissible_and_no_single_member_beats_it(
+            cands in proptest::collection::vec(
+                (0usize..3, 0usize..5000, 0u64..100_000, 0.0f64..50.0, proptest::option::of(0usize..7), proptest::option::of(0usize..7)),
+                0..8),
+            triangle_steps in 0.0f64..64.0,
+            byte_steps in 0.0f64..1.0,
+            tex in 0u64..50_000,
+            s0 in 1.0f64..12.0,
+        ) {
+            let sizes = [8usize, 16, 32, 64, 128];
+            let tops = band_tops(&sizes, [s0, 200.0]);
+            let model = CostModel { triangle_steps, byte_steps };
+            let mut c = vec![source(10_000)];
+            for (i, &(kind, tris, bytes, steps, reach, floor)) in cands.iter().enumerate() {
+                let member = match kind {
+                    0 => Member::Mesh { level: i },
+                    _ => Member::Impostor { size: 1000 + i },
+                };
+                c.push(Candidate {
+                    member,
+                    triangles: if kind == 0 { tris } else { 0 },
+                    bytes,
+                    shares_textures: kind == 0,
+                    steps_per_pixel: if kind == 0 { 1.0 } else { steps },
+                    pixel_share: if kind == 0 { 0.5 } else { 1.0 },
+                    reach: reach.map(|r| tops[r.min(tops.len() - 1)]),
+                    floor_px: floor.map(|f| tops[f.min(tops.len() - 1)]),
+                });
+            }
+            let auto = cheapest_chain(&c, Family::All, &tops, s0, &model, tex).unwrap();
+            approx::assert_abs_diff_eq!(auto.bands[0].from_px, s0.min(tops[0]));
+            approx::assert_abs_diff_eq!(auto.bands.last().unwrap().to_px, 200.0);
+            for w in auto.bands.windows(2) {
+                proptest::prop_assert!(w[0].to_px == w[1].from_px && w[0].member != w[1].member);
+            }
+            for (i, &top) in tops.iter().enumerate() {
+                let bottom = if i == 0 { s0 } else { tops[i - 1] };
+                let band = auto.bands.iter().find(|b| top <= b.to_px).unwrap();
+                let cand = c.iter().find(|x| x.member == band.member).unwrap();
+                proptest::prop_assert!(cand.admits_band(bottom, top));
+            }
+            let recomputed = objective(&c, &auto, &tops, &model, tex);
+            approx::assert_relative_eq!(auto.cost, recomputed, max_relative = 1e-9, epsilon = 1e-6);
+            // Any single admissible member over every band costs at least as much.
+            for one in &c {
+                if (0..tops.len()).all(|i| one.admits_band(if i == 0 { s0 } else { tops[i - 1] }, tops[i])) {
+                    let single = Chain { bands: vec![AutoBand {
+                        from_px: s0.min(tops[0]), to_px: 200.0, member: one.member, triangles: one.triangles,
+                        steps_per_pixel: 0.0, draw_steps: 0.0 }], bytes: 0, cost: 0.0 };
+                    let cost = objective(&c, &single, &tops, &model, tex);
+                    proptest::prop_assert!(auto.cost <= cost * (1.0 + 1e-12) + 1e-9, "{} > {}", auto.cost, cost);
+                }
+            }
+            for family in [Family::Meshes, Family::Impostors] {
+                let one = cheapest_chain(&c, family, &tops, s0, &model, tex).unwrap();
+                proptest::prop_assert!(auto.cost <= one.cost * (1.0 + 1e-12) + 1e-9);
+            }
+        }
+    }
 }

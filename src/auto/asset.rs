@@ -719,6 +719,107 @@ impl Representation for AutoRepr {
         })
     }
 
+    fn details(build: &serde_json::Value) -> Option<String> {
+        let member = |m: &serde_json::Value| -> String {
+            match serde_json::from_value::<Member>(m.clone()) {
+                Ok(Member::Source) => "source".into(),
+                Ok(Member::Mesh { level }) => format!("level {level}"),
+                Ok(Member::Impostor { size }) => format!("impostor {size}²"),
+                Err(_) => "?".into(),
+            }
+        };
+        let mut md = format!(
+            "Chains over the same candidates, verified at both edges of every band (target {} dB): \
+             the automatic one, meshes and the source only, impostors and the source only. Cost: \
+             shader steps (docs/design.md §10c).\n\n\
+             | chain | bands: sizes (px) → member, triangles, worst dB at the edges | bytes | cost | repairs |\n\
+             |---|---|---|---|---|\n",
+            build.get("target_db")?.as_f64()?
+        );
+        for (key, name) in [
+            ("auto", "automatic"),
+            ("meshes_only", "meshes only"),
+            ("impostors_only", "impostors only"),
+        ] {
+            let c = &build[key];
+            let Some(bands) = c["bands"].as_array() else {
+                md += &format!("| {name} | none: some band had no candidate | – | – | – |\n");
+                continue;
+            };
+            let edges = c["edges_worst_db"].as_array().cloned().unwrap_or_default();
+            let text: Vec<String> = bands
+                .iter()
+                .enumerate()
+                .map(|(b, band)| {
+                    let worst: Vec<String> = edges
+                        .iter()
+                        .filter(|e| e[0].as_u64() == Some(b as u64))
+                        .map(|e| format!("{:.2}", e[2].as_f64().unwrap_or(f64::NAN)))
+                        .collect();
+                    format!(
+                        "{}–{} → {}, {} tris{}",
+                        band["from_px"],
+                        band["to_px"],
+                        member(&band["member"]),
+                        band["triangles"],
+                        if worst.is_empty() {
+                            String::new()
+                        } else {
+                            format!(" ({})", worst.join(", "))
+                        }
+                    )
+                })
+                .collect();
+            md += &format!(
+                "| {name} | {} | {} | {:.0} | {} |\n",
+                text.join("; "),
+                c["bytes"],
+                c["cost"].as_f64().unwrap_or(f64::NAN),
+                c["repairs"]
+            );
+        }
+        md += "\nCandidates (as previewed; reach: the largest size where every preview view met the target):\n\n\
+               | candidate | triangles | bytes | steps per pixel | reach (px) |\n|---|---|---|---|---|\n";
+        for c in build["candidates"].as_array()? {
+            md += &format!(
+                "| {} | {} | {} | {:.2} | {} |\n",
+                member(&c["member"]),
+                c["triangles"],
+                c["bytes"],
+                c["steps_per_pixel"].as_f64().unwrap_or(f64::NAN),
+                c["reach"].as_f64().map_or("–".into(), |r| format!("{r}"))
+            );
+        }
+        if let Some(pruned) = build["impostors_pruned"]
+            .as_array()
+            .filter(|p| !p.is_empty())
+        {
+            let sizes: Vec<String> = pruned.iter().map(|p| format!("{}²", p["size"])).collect();
+            md += &format!(
+                "\nImpostors not built (a level meets the target there for less than an impostor's least cost): {}.\n",
+                sizes.join(", ")
+            );
+        }
+        md += "\nPareto front of each band's top (draw steps, bytes) among the candidates meeting the target there:\n\n";
+        for entry in build["pareto"].as_array()? {
+            let front: Vec<String> = entry[1]
+                .as_array()?
+                .iter()
+                .filter(|p| p["on_front"].as_bool() == Some(true))
+                .map(|p| {
+                    format!(
+                        "{} ({:.0} steps, {} B)",
+                        member(&p["member"]),
+                        p["draw_steps"].as_f64().unwrap_or(f64::NAN),
+                        p["bytes"]
+                    )
+                })
+                .collect();
+            md += &format!("- {} px: {}\n", entry[0], front.join(", "));
+        }
+        Some(md)
+    }
+
     fn measure_size(d: &AutoDecisions) -> usize {
         d.sizes.last().copied().unwrap_or(0)
     }

@@ -142,6 +142,10 @@ pub struct AssetOutcome {
     pub measurement: Option<Measurement>,
     /// Report pictures written (relative to the output folder).
     pub pictures: Vec<(String, String)>,
+    /// A markdown section the representation writes from its build report
+    /// ([`Representation::details`]), for the run's report.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub details: Option<String>,
 }
 
 /// The result of a run.
@@ -406,6 +410,7 @@ pub fn run_scene(manifest: &Manifest, options: &RunOptions) -> Result<RunSummary
             cache_note: None,
             measurement: None,
             pictures: Vec::new(),
+            details: None,
         };
         let (loaded, input_hash) = match loaded {
             Ok(l) => l,
@@ -635,6 +640,7 @@ fn build_one<'a, R: Representation>(
             cache_note: None,
             measurement: None,
             pictures: Vec::new(),
+            details: None,
         })));
     }
     let mut key = cache_key::<R>(spec, &decisions, needs, input_hash, &source.light);
@@ -685,6 +691,7 @@ fn build_one<'a, R: Representation>(
                         // Empty for a folder built without measuring.
                         pictures: serde_json::from_value(rep["pictures"].clone())
                             .unwrap_or_default(),
+                        details: R::details(&rep["build"]),
                     })));
                 }
                 cache_note = Some(
@@ -729,6 +736,7 @@ fn build_one<'a, R: Representation>(
         cache_note,
         measurement: None,
         pictures: Vec::new(),
+        details: R::details(&desc.report["build"]),
     };
     if !options.measure {
         return Ok(Built::Done(Box::new(outcome)));
@@ -834,6 +842,9 @@ fn write_report(summary: &RunSummary, options: &RunOptions) -> Result<(), Pipeli
         }
         for (file, caption) in &o.pictures {
             md += &format!("\n![{caption}]({file})\n\n_{caption} (pixels magnified)_\n");
+        }
+        if let Some(d) = &o.details {
+            md += &format!("\n{d}");
         }
     }
     if let Some(p) = &summary.profile {

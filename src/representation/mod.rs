@@ -404,6 +404,14 @@ pub trait Representation {
     /// the needs' screen sizes, return 0.
     fn measure_size(decisions: &Self::Decisions) -> usize;
 
+    /// A markdown section for the run's report, written from the build report `build` (what
+    /// [`Representation::build`] returned, or what a cached folder's `asset.json` holds): the
+    /// tables a reader wants beside the figures. Default: none.
+    fn details(build: &serde_json::Value) -> Option<String> {
+        let _ = build;
+        None
+    }
+
     /// Measures the (loaded) data against the ray-cast ground truth at the directions `needs`
     /// asks for, drawn `size` pixels across ([`Representation::measure_size`]; data larger than
     /// that is drawn minified, as a display would at that screen size), returning the figures

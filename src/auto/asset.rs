@@ -86,6 +86,10 @@ pub struct AutoChain {
     pub mesh: Option<MeshLod>,
     /// `(view size, data)` of each impostor the chain draws.
     pub impostors: Vec<(usize, ParallaxData)>,
+    /// Where the chain draws the source at every size: the candidate kept, undrawn, that came
+    /// closest to the target (the finest level, else the largest impostor), which the
+    /// measurement reports below the target. `None` otherwise.
+    pub undrawn: Option<Member>,
     /// The quality target (dB) the chain was verified for.
     pub target_db: f64,
 }
@@ -414,7 +418,19 @@ impl Representation for AutoRepr {
         let sizes = &decisions.sizes;
         let tops = band_tops(sizes, needs.screen_px);
         let mut candidates = Vec::new();
-        let source_triangles = source.shape()?.as_mesh().map(|m| m.triangle_count());
+        let source_mesh = source
+            .shape()?
+            .as_mesh()
+            .ok_or_else(|| PipelineError::WrongSource {
+                asset: source.name.into(),
+                needed: "a mesh (the chain ends at the source mesh: `mesh = ...`)",
+            })?;
+        // The levels' files as written: under the members' prefix, which their image URIs
+        // carry; the source sized the same way, sharing the same textures (what drawing it
+        // needs resident).
+        let mut images = ExternalImages::default();
+        images.uri_prefix = MESH_PREFIX.into();
+        let source_bytes = source_mesh.to_glb_beside(&mut images)?.bytes.len() as u64;
         // The object's share of the picture: what a mesh shades.
         let coverage = {
             let window = Window::for_needs(needs, 64);
@@ -425,9 +441,9 @@ impl Representation for AutoRepr {
         };
         candidates.push(Candidate {
             member: Member::Source,
-            triangles: source_triangles.unwrap_or(0),
-            bytes: 0,
-            shares_textures: false,
+            triangles: source_mesh.triangle_count(),
+            bytes: source_bytes,
+            shares_textures: true,
             steps_per_pixel: 1.0,
             pixel_share: coverage,
             reach: None,
@@ -436,15 +452,11 @@ impl Representation for AutoRepr {
         // Simplified levels: built, previewed (3 directions, 2 × 2), their files sized.
         let t0 = Instant::now();
         let mut levels: Vec<(f64, altrep_data_gen::Simplified)> = Vec::new();
-        let mut texture_bytes = 0;
         let mut lod_report = serde_json::Value::Null;
-        if let (Some(d), Some(mesh)) = (&decisions.mesh, source.shape()?.as_mesh()) {
-            let (kept, dropped) = simplify_levels(mesh, &spec.mesh_lod, &d.targets)?;
+        if let Some(d) = &decisions.mesh {
+            let (kept, dropped) = simplify_levels(source_mesh, &spec.mesh_lod, &d.targets)?;
             let meshes: Vec<&Mesh> = kept.iter().map(|(_, s)| &s.mesh).collect();
             let preview = reach(source, &meshes, needs, sizes)?;
-            // Sized as written: under the members' prefix, which the levels' image URIs carry.
-            let mut images = ExternalImages::default();
-            images.uri_prefix = MESH_PREFIX.into();
             for (l, (_, s)) in kept.iter().enumerate() {
                 let file = s.mesh.to_glb_beside(&mut images)?;
                 candidates.push(Candidate {
@@ -458,12 +470,12 @@ impl Representation for AutoRepr {
                     floor_px: None,
                 });
             }
-            texture_bytes = images.files.iter().map(|f| f.bytes.len() as u64).sum();
             // The source reads the same textures (the user holds them).
             lod_report = json!({ "dropped": dropped, "preview_worst_db": preview.worst_db });
             levels = kept;
         }
         let mesh_s = secs(t0);
+        let texture_bytes: u64 = images.files.iter().map(|f| f.bytes.len() as u64).sum();
         // Impostors: built, measured at their own size (4 directions, 3 × 3), files sized.
         let t1 = Instant::now();
         let mut impostors: Vec<(usize, ParallaxData)> = Vec::new();
@@ -577,17 +589,39 @@ impl Representation for AutoRepr {
             "impostor_s": impostor_s,
             "verify_s": verify_s,
         });
-        // Keep what the automatic chain draws, renumbered.
+        // Keep what the automatic chain draws, renumbered. A chain that draws the source at
+        // every size (no stand-in met the target over any band, or none was cheaper) keeps the
+        // candidate that came closest, undrawn, so that the measurement says by how much it
+        // misses: the finest level, else the largest impostor.
         let mut bands = auto.chain.bands.clone();
+        let mut undrawn = None;
+        if bands.iter().all(|b| b.member == Member::Source) {
+            undrawn = if levels.is_empty() {
+                impostors
+                    .iter()
+                    .map(|(s, _)| Member::Impostor { size: *s })
+                    .next_back()
+            } else {
+                Some(Member::Mesh { level: 0 })
+            };
+        }
+        let keeps = |m: Member| undrawn == Some(m) || bands.iter().any(|b| b.member == m);
         let used_levels: Vec<usize> = (0..levels.len())
-            .filter(|l| bands.iter().any(|b| b.member == Member::Mesh { level: *l }))
+            .filter(|l| keeps(Member::Mesh { level: *l }))
             .collect();
+        let renumber = |m: Member| match m {
+            Member::Mesh { level } => Member::Mesh {
+                level: used_levels.iter().position(|u| *u == level).unwrap_or(0),
+            },
+            other => other,
+        };
+        let impostors: Vec<(usize, ParallaxData)> = impostors
+            .into_iter()
+            .filter(|(s, _)| keeps(Member::Impostor { size: *s }))
+            .collect();
+        let undrawn = undrawn.map(renumber);
         for b in &mut bands {
-            if let Member::Mesh { level } = b.member {
-                b.member = Member::Mesh {
-                    level: used_levels.iter().position(|u| *u == level).unwrap_or(0),
-                };
-            }
+            b.member = renumber(b.member);
         }
         let lod_levels: Vec<Level> = levels
             .into_iter()
@@ -613,19 +647,12 @@ impl Representation for AutoRepr {
             chain: mesh_bands(&bands),
             levels: lod_levels,
         });
-        let impostors = impostors
-            .into_iter()
-            .filter(|(s, _)| {
-                bands
-                    .iter()
-                    .any(|b| b.member == Member::Impostor { size: *s })
-            })
-            .collect();
         Ok((
             AutoChain {
                 chain: bands,
                 mesh,
                 impostors,
+                undrawn,
                 target_db: decisions.target_db,
             },
             report,
@@ -646,7 +673,10 @@ impl Representation for AutoRepr {
             members.push(json!({ "prefix": prefix, "representation": Parallax::NAME,
                                  "size": s, "metadata": m }));
         }
-        Ok(json!({ "chain": data.chain, "members": members, "target_db": data.target_db }))
+        Ok(
+            json!({ "chain": data.chain, "members": members, "undrawn": data.undrawn,
+                   "target_db": data.target_db }),
+        )
     }
 
     fn read(r: &AssetReader) -> Result<AutoChain, PipelineError> {
@@ -692,14 +722,24 @@ impl Representation for AutoRepr {
                     .into());
             }
         }
-        // Every band's member must be held.
+        let undrawn: Option<Member> = serde_json::from_value(m["undrawn"].clone())
+            .map_err(|e| r.content(format!("metadata.undrawn: {e}")))?;
+        // Every band's member must be held, and the undrawn one.
         let levels = mesh.as_ref().map_or(0, |m: &MeshLod| m.levels.len());
+        let holds = |member: Member| match member {
+            Member::Source => true,
+            Member::Mesh { level } => level < levels,
+            Member::Impostor { size } => impostors.iter().any(|(s, _)| *s == size),
+        };
+        if let Some(u) = undrawn.filter(|u| !holds(*u) || *u == Member::Source) {
+            return Err(r
+                .content(format!(
+                    "metadata.undrawn names {u:?}, which the folder does not hold"
+                ))
+                .into());
+        }
         for (b, band) in chain.iter().enumerate() {
-            let held = match band.member {
-                Member::Source => true,
-                Member::Mesh { level } => level < levels,
-                Member::Impostor { size } => impostors.iter().any(|(s, _)| *s == size),
-            };
+            let held = holds(band.member);
             let ordered =
                 band.from_px.is_finite() && band.to_px.is_finite() && band.from_px <= band.to_px;
             if !held || !ordered {
@@ -715,6 +755,7 @@ impl Representation for AutoRepr {
             chain,
             mesh,
             impostors,
+            undrawn,
             target_db,
         })
     }
@@ -827,7 +868,7 @@ impl Representation for AutoRepr {
     fn measure(
         data: &AutoChain,
         needs: &Needs,
-        _size: usize,
+        size: usize,
         source: &Source,
     ) -> Result<(Measurement, Vec<Picture>), PipelineError> {
         let needs = &with_target(needs, data.target_db);
@@ -840,6 +881,7 @@ impl Representation for AutoRepr {
             data.impostors.iter().map(|(s, d)| (*s, d)).collect();
         let mut parts = Vec::new();
         let mut what = Vec::new();
+        let mut measured_sizes = Vec::new();
         for (b, band) in data.chain.iter().enumerate() {
             if band.member == Member::Source {
                 continue;
@@ -848,22 +890,38 @@ impl Representation for AutoRepr {
                 let (_, m) = worst_at(band.member, size, &meshes, &impostors, needs, source)?;
                 what.push(format!("band {b} at {size} px"));
                 parts.push((m, band.steps_per_pixel));
+                measured_sizes.push(size);
             }
         }
-        let biggest = data
-            .chain
-            .iter()
-            .filter(|b| b.member != Member::Source)
-            .map(|b| b.to_px.min(needs.screen_px[1]).round() as usize)
-            .max()
-            .unwrap_or(0)
-            .max(crate::mesh_lod::MIN_MEASURED_PX as usize);
-        let window = Window::for_needs(needs, biggest);
         if parts.is_empty() {
-            return Err(PipelineError::Spec(
-                "the chain draws the source everywhere: no stand-in to measure".into(),
-            ));
+            // The source at every size: the candidate that came closest, at the needs' ends.
+            let Some(u) = data.undrawn else {
+                return Err(PipelineError::Spec(
+                    "the chain draws the source everywhere and keeps no candidate to measure"
+                        .into(),
+                ));
+            };
+            let min = crate::mesh_lod::MIN_MEASURED_PX;
+            let top = match u {
+                Member::Impostor { size: s } => size.min(s),
+                _ => size,
+            };
+            let mut sizes = vec![
+                needs.screen_px[0].max(min).round() as usize,
+                top.max(min as usize),
+            ];
+            sizes.dedup();
+            for s in sizes {
+                let (_, m) = worst_at(u, s, &meshes, &impostors, needs, source)?;
+                what.push(format!(
+                    "{u:?} (the chain draws the source at every size; kept undrawn) at {s} px"
+                ));
+                parts.push((m, 0.0));
+                measured_sizes.push(s);
+            }
         }
+        let biggest = measured_sizes.iter().copied().max().unwrap_or(size);
+        let window = Window::for_needs(needs, biggest);
         let n = parts.len() as f64;
         let mut m = Measurement {
             method: format!(
@@ -894,7 +952,15 @@ impl Representation for AutoRepr {
         let k = Supersample::of(3);
         let mut images = vec![window.truth(source, view, k)?];
         let mut drawn = Vec::new();
-        for band in &data.chain {
+        let undrawn = data.undrawn.map(|u| AutoBand {
+            from_px: needs.screen_px[0],
+            to_px: needs.screen_px[1],
+            member: u,
+            triangles: 0,
+            steps_per_pixel: 0.0,
+            draw_steps: 0.0,
+        });
+        for band in data.chain.iter().chain(&undrawn) {
             let image = match band.member {
                 Member::Source => continue,
                 Member::Mesh { level } => draw(source, meshes[level], window, view, k)?,
@@ -920,10 +986,11 @@ impl Representation for AutoRepr {
                 }
             };
             images.push(image);
-            drawn.push(format!(
-                "{:?} for {}–{} px",
-                band.member, band.from_px, band.to_px
-            ));
+            drawn.push(if data.chain.iter().any(|b| b.member == band.member) {
+                format!("{:?} for {}–{} px", band.member, band.from_px, band.to_px)
+            } else {
+                format!("{:?} (undrawn: the chain draws the source)", band.member)
+            });
         }
         let refs: Vec<&RgbaImage> = images.iter().collect();
         let picture = Picture {

@@ -25,7 +25,8 @@
 //!   and a mesh shades each covered pixel once (`steps_per_pixel` 1, `pixel_share` the object's
 //!   measured coverage). A chain's cost is the sum over the bands of the draw cost at each
 //!   band's top, plus `byte_steps` per byte of the distinct members' files (the textures the
-//!   mesh levels share counted once).
+//!   source and its levels share counted once; the source's own geometry counted where it is
+//!   drawn, though the chain's files do not hold it).
 
 pub mod asset;
 
@@ -82,10 +83,11 @@ pub struct Candidate {
     /// Triangles drawn (0 for an impostor's quad, counted as its two triangles' worth of
     /// nothing: its cost is its pixels).
     pub triangles: usize,
-    /// Bytes of its own files (a level's `.glb`, an impostor's PNGs; 0 for the source, which
-    /// the user holds). Textures that mesh levels share are counted apart.
+    /// Bytes of its own files (a level's `.glb`, an impostor's PNGs; for the source, its
+    /// geometry as a `.glb`: what drawing it needs resident). Textures that the source and its
+    /// levels share are counted apart.
     pub bytes: u64,
-    /// Whether it reads the textures the mesh levels share.
+    /// Whether it reads the textures the source and its levels share.
     pub shares_textures: bool,
     /// Mean shader steps per pixel it runs on.
     pub steps_per_pixel: f64,
@@ -204,7 +206,7 @@ pub fn band_tops(sizes: &[usize], screen_px: [f64; 2]) -> Vec<f64> {
 /// The cheapest chain of `candidates` in `family` over the bands ending at `tops` (ascending),
 /// from `s0`: a dynamic program over (band, member, whether the shared textures are paid for).
 /// Returns `None` when some band has no admitted candidate reaching it (never with the source
-/// among the candidates). `texture_bytes`: the files the mesh levels share. Cost:
+/// among the candidates). `texture_bytes`: the files the source and its levels share. Cost:
 /// `O(bands · candidates²)`.
 pub fn cheapest_chain(
     candidates: &[Candidate],
@@ -306,14 +308,16 @@ pub fn cheapest_chain(
     Some(Chain { bands, bytes, cost })
 }
 
-/// Bytes of the distinct members of `bands` (found in `candidates`), the shared textures once
-/// where a member reads them.
+/// Bytes of the files of `bands`: the distinct members' own (found in `candidates`), and the
+/// shared textures once where a written member reads them. The source is the user's, not
+/// written: its bytes count in the objective (drawing it needs its geometry and textures
+/// resident), not here.
 pub fn chain_bytes(candidates: &[Candidate], bands: &[AutoBand], texture_bytes: u64) -> u64 {
     let mut seen: Vec<Member> = Vec::new();
     let mut bytes = 0;
     let mut textures = false;
     for b in bands {
-        if seen.contains(&b.member) {
+        if seen.contains(&b.member) || b.member == Member::Source {
             continue;
         }
         seen.push(b.member);

@@ -177,3 +177,40 @@ fn the_automatic_chain_refuses_procedural_shapes_and_bad_parameters() {
         assert!(e.contains(key), "{e}");
     }
 }
+
+/// A target no stand-in meets (60 dB on the rock from 4 to 16 px): the chain draws the source
+/// at every size and keeps the finest level, undrawn; the measurement of the files read back
+/// reports that level's figures, below the target (a run flags them), never a zero error on
+/// nothing.
+#[test]
+fn a_chain_of_the_source_alone_keeps_the_closest_candidate_and_reports_it_below_the_target() {
+    let mesh = rock();
+    let src = Source {
+        placement: Some(*mesh.placement()),
+        ..source("rock", &mesh)
+    };
+    let needs = Needs {
+        screen_px: [4.0, 16.0],
+        quality_db: 60.0,
+        ..Needs::default()
+    };
+    let spec = AutoSpec::default();
+    let (_, decisions) = AutoRepr::plan(&spec, &needs, &src).unwrap();
+    let (chain, _) = AutoRepr::build(&spec, &needs, &decisions, &src).unwrap();
+    assert!(
+        chain.chain.iter().all(|b| b.member == Member::Source),
+        "{:?}",
+        chain.chain
+    );
+    assert_eq!(chain.undrawn, Some(Member::Mesh { level: 0 }));
+    let dir = tempfile::tempdir().unwrap();
+    let (back, _) = round_trip::<AutoRepr>(dir.path(), "rock", &chain);
+    assert_eq!(back.undrawn, chain.undrawn);
+    assert_eq!(back.mesh.as_ref().map(|m| m.levels.len()), Some(1));
+    let (m, _) =
+        AutoRepr::measure(&back, &needs, AutoRepr::measure_size(&decisions), &src).unwrap();
+    println!("{m:?}");
+    assert!(m.worst_psnr_db < needs.quality_db, "{m:?}");
+    assert!(m.psnr_db.is_finite() && m.psnr_db > 15.0, "{m:?}");
+    assert!(m.method.contains("undrawn"), "{}", m.method);
+}

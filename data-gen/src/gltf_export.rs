@@ -249,7 +249,7 @@ fn encode(img: &TextureImage, srgb: bool) -> Result<(Vec<u8>, bool), DataGenErro
     let bytes16: Vec<u8> = texels
         .iter()
         .flat_map(|t| {
-            (0..4).flat_map(move |k| (((curve(t[k], k) * 65535.0).round()) as u16).to_be_bytes())
+            (0..4).flat_map(move |k| (((curve(t[k], k) * 65535.0).round()) as u16).to_ne_bytes())
         })
         .collect();
     Ok((

@@ -50,6 +50,7 @@ use crate::placement::{Placement, UpAxis};
 use crate::radial::RadialTracer;
 use crate::shape::{OneByOne, ParallelTracer, RadialOneByOne, Shape};
 use crate::surface::{Material, SurfaceTri, barycentric, stops, uv_axes};
+use crate::surface::{TextureImage, TextureRef};
 use crate::watertight::Shear;
 use crate::yz_grid::YzGrid;
 
@@ -588,6 +589,48 @@ impl Mesh {
             yz_grid: OnceLock::new(),
         };
         template.with_parts(triangles, colors)
+    }
+
+    /// This mesh with every texture of its materials larger than `max_side` texels on a side
+    /// replaced by the first level of its mip chain that fits ([`TextureImage::reduced`]):
+    /// textures for a mesh drawn no larger than a few hundred pixels. Images shared between
+    /// materials stay shared. Returns the mesh and the largest side of any texture it keeps
+    /// (`None` without textures). Cost: a copy of the triangles and of the reduced texels.
+    pub fn with_textures_at_most(
+        &self,
+        max_side: usize,
+    ) -> Result<(Self, Option<usize>), DataGenError> {
+        use std::collections::HashMap;
+        let mut mesh = self.with_parts(self.input.clone(), self.input_colors.clone())?;
+        let mut done: HashMap<usize, Arc<TextureImage>> = HashMap::new();
+        let mut largest: Option<usize> = None;
+        let mut reduce = |t: &mut TextureRef| {
+            let key = Arc::as_ptr(&t.image) as usize;
+            let image = done
+                .entry(key)
+                .or_insert_with(|| {
+                    t.image
+                        .reduced(max_side)
+                        .map_or_else(|| t.image.clone(), Arc::new)
+                })
+                .clone();
+            largest = Some(largest.unwrap_or(0).max(image.width().max(image.height())));
+            t.image = image;
+        };
+        let mut materials: Vec<Material> = mesh.materials.to_vec();
+        for m in &mut materials {
+            if let Some((t, _)) = &mut m.base_texture {
+                reduce(t);
+            }
+            if let Some(t) = &mut m.alpha_texture {
+                reduce(t);
+            }
+            if let Some(n) = &mut m.normal_map {
+                reduce(&mut n.texture);
+            }
+        }
+        mesh.materials = materials.into();
+        Ok((mesh, largest))
     }
 
     /// The kept triangles (normalised frame, input order) and their colours (empty when every

@@ -178,6 +178,20 @@ impl TextureImage {
         }
     }
 
+    /// The image reduced to at most `max_side` texels on a side: the first level of its mip
+    /// chain that fits (each texel the mean of its parents, in linear values), as an image of
+    /// its own with its own chain and no source file. `None` when the image already fits or
+    /// `max_side` is 0. Cost: a copy of that level's texels.
+    pub fn reduced(&self, max_side: usize) -> Option<TextureImage> {
+        if max_side == 0 || self.width.max(self.height) <= max_side {
+            return None;
+        }
+        (1..self.levels())
+            .map(|l| self.level(l))
+            .find(|(w, h, _)| (*w).max(*h) <= max_side)
+            .and_then(|(w, h, texels)| TextureImage::new(w, h, texels.to_vec()))
+    }
+
     /// Number of levels, the image included.
     pub fn levels(&self) -> usize {
         1 + self.mips.len()

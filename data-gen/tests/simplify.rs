@@ -355,3 +355,57 @@ fn levels_written_beside_their_shared_textures_read_back_from_the_folder() {
         }
     }
 }
+
+/// Textures reduced for a mesh drawn small: every image larger than the bound is replaced by
+/// the first level of its mip chain that fits, shared images stay shared, and a bound the
+/// images already fit changes nothing.
+#[test]
+fn textures_are_reduced_to_the_first_mip_level_that_fits() {
+    let mesh = load_glb(
+        &TestGltf::textured_rock(2, 3).to_glb().unwrap(),
+        &MeshLoadOptions::default(),
+    );
+    let side = |m: &Mesh| {
+        let t = &m.materials()[0].base_texture.as_ref().unwrap().0.image;
+        (t.width(), t.height())
+    };
+    assert_eq!(side(&mesh), (64, 64));
+    let (small, largest) = mesh.with_textures_at_most(20).unwrap();
+    assert_eq!(largest, Some(16));
+    assert_eq!(side(&small), (16, 16));
+    assert_eq!(small.triangle_count(), mesh.triangle_count());
+    // Level 2 of the chain: each texel the mean of a 4 × 4 block of the source's.
+    let (src, red) = (
+        &mesh.materials()[0].base_texture.as_ref().unwrap().0.image,
+        &small.materials()[0].base_texture.as_ref().unwrap().0.image,
+    );
+    let mut mean = glam::Vec4::ZERO;
+    for j in 0..4 {
+        for i in 0..4 {
+            mean += src.texel(4 + i, 8 + j) / 16.0;
+        }
+    }
+    assert_abs_diff_eq!(red.texel(1, 2).x, mean.x, epsilon = 1e-5);
+    assert!(
+        red.encoded().is_none(),
+        "a reduced image is no longer the source's file"
+    );
+    // Written and read back: a reduced image's texels are means, which 8 bits cannot hold, so
+    // the file is a 16-bit PNG; every texel comes back within its 16-bit step.
+    let back = load_glb(&small.to_glb().unwrap(), &MeshLoadOptions::default());
+    let tb = &back.materials()[0].base_texture.as_ref().unwrap().0.image;
+    assert_eq!((tb.width(), tb.height()), (16, 16));
+    let mut worst: f32 = 0.0;
+    for j in 0..16 {
+        for i in 0..16 {
+            worst = worst.max((red.texel(i, j) - tb.texel(i, j)).abs().max_element());
+        }
+    }
+    assert!(worst < 1e-4, "texels differ by up to {worst}");
+    let (same, largest) = mesh.with_textures_at_most(64).unwrap();
+    assert_eq!(largest, Some(64));
+    assert!(std::sync::Arc::ptr_eq(
+        &same.materials()[0].base_texture.as_ref().unwrap().0.image,
+        &mesh.materials()[0].base_texture.as_ref().unwrap().0.image
+    ));
+}

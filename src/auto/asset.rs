@@ -573,7 +573,7 @@ impl Representation for AutoRepr {
                         "triangles_max": v.chain.bands.iter().map(|b| b.triangles).max() })
             })
         };
-        let report = json!({
+        let mut report = json!({
             "target_db": decisions.target_db,
             "tops_px": tops,
             "coverage": coverage,
@@ -639,24 +639,41 @@ impl Representation for AutoRepr {
                         .filter(|b| b.member == Member::Mesh { level: i })
                         .map(|b| b.to_px)
                         .reduce(f64::max),
+                    texture_px: None,
                 },
                 mesh: s.mesh,
             })
             .collect();
-        let mesh = (!lod_levels.is_empty()).then(|| MeshLod {
+        let mut mesh = (!lod_levels.is_empty()).then(|| MeshLod {
             chain: mesh_bands(&bands),
             levels: lod_levels,
         });
-        Ok((
-            AutoChain {
-                chain: bands,
-                mesh,
-                impostors,
-                undrawn,
-                target_db: decisions.target_db,
-            },
-            report,
-        ))
+        // Each drawn level's textures reduced to the sizes it is drawn at, verified again.
+        let t3 = Instant::now();
+        if let Some(lod) = &mut mesh {
+            crate::mesh_lod::reduce_textures(&mut lod.levels, &lod.chain, needs, source)?;
+        }
+        let textures_s = secs(t3);
+        let chain = AutoChain {
+            chain: bands,
+            mesh,
+            impostors,
+            undrawn,
+            target_db: decisions.target_db,
+        };
+        // What the files weigh once the textures are reduced (the chains' `bytes` are those
+        // of the candidates as chosen, with the source's textures).
+        let mut sizing = AssetWriter::sizing();
+        Self::write(&chain, &mut sizing)?;
+        report["files_bytes"] = json!(sizing.sized()?);
+        report["textures_s"] = json!(textures_s);
+        report["texture_px"] = json!(chain.mesh.as_ref().map(|m| {
+            m.levels
+                .iter()
+                .map(|l| l.info.texture_px)
+                .collect::<Vec<_>>()
+        }));
+        Ok((chain, report))
     }
 
     fn write(data: &AutoChain, w: &mut AssetWriter) -> Result<serde_json::Value, PipelineError> {

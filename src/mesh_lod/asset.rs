@@ -295,6 +295,7 @@ impl Representation for MeshLodRepr {
                     triangles: s.mesh.triangle_count(),
                     error: s.error,
                     max_px: *max_px,
+                    texture_px: None,
                 },
                 mesh: s.mesh,
             })
@@ -313,12 +314,17 @@ impl Representation for MeshLodRepr {
         for band in &mut chain {
             band.level = band.level.and_then(|l| used.iter().position(|u| *u == l));
         }
-        let levels: Vec<Level> = levels
+        let mut levels: Vec<Level> = levels
             .into_iter()
             .enumerate()
             .filter(|(l, _)| used.contains(l))
             .map(|(_, level)| level)
             .collect();
+        let t3 = Instant::now();
+        let reducing = crate::profile::timer("reduce textures");
+        let reduced = super::reduce_textures(&mut levels, &chain, needs, source)?;
+        reducing.stop();
+        let textures_s = secs(t3);
         let report = json!({
             "source_triangles": mesh.triangle_count(),
             "levels": infos,
@@ -331,6 +337,9 @@ impl Representation for MeshLodRepr {
             "simplify_s": simplify_s,
             "preview_s": preview_s,
             "verify_s": verify_s,
+            "texture_px": levels.iter().map(|l| l.info.texture_px).collect::<Vec<_>>(),
+            "texture_sizes_tried": reduced,
+            "textures_s": textures_s,
         });
         Ok((MeshLod { levels, chain }, report))
     }

@@ -50,6 +50,10 @@ pub struct LevelInfo {
     /// quality target, lowered where the verification of the chain found the level missing it
     /// at a band edge; `None` when it failed at the smallest.
     pub max_px: Option<f64>,
+    /// The largest side (texels) of the textures the level keeps, where they were reduced for
+    /// the sizes it is drawn at ([`reduce_textures`]); `None`: the source's own.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub texture_px: Option<usize>,
 }
 
 /// A band of the chain: the level drawn for on-screen sizes from `from_px` to `to_px`.
@@ -278,6 +282,60 @@ pub fn verify(
         }
     }
     Ok(out)
+}
+
+/// Textures reduced to the sizes the chain draws: every level it draws gets the smallest
+/// textures (a power of two on a side, from the next power of two at or above the largest size
+/// any level is drawn at, doubling) with which every band still meets the target at both edges,
+/// measured as [`verify`] does; one size for all the levels, so they share one set of images and
+/// the files only shrink. Where no size below the source's passes, the levels keep the
+/// source's. The levels' `info.texture_px` say what they kept. Returns the sizes tried. Cost:
+/// one verification of the chain per size tried.
+pub fn reduce_textures(
+    levels: &mut [Level],
+    chain: &[Band],
+    needs: &Needs,
+    source: &Source,
+) -> Result<Vec<usize>, PipelineError> {
+    let drawn: Vec<usize> = (0..levels.len())
+        .filter(|l| chain.iter().any(|b| b.level == Some(*l)))
+        .collect();
+    let top = chain
+        .iter()
+        .filter(|b| b.level.is_some())
+        .map(|b| b.to_px.min(needs.screen_px[1]))
+        .reduce(f64::max);
+    let mut full = None;
+    for &l in &drawn {
+        if let (_, Some(side)) = levels[l].mesh.with_textures_at_most(usize::MAX)? {
+            full = Some(full.unwrap_or(0).max(side));
+        }
+    }
+    let (Some(top), Some(full)) = (top, full) else {
+        return Ok(Vec::new());
+    };
+    let mut tried = Vec::new();
+    let mut side = (top.max(1.0).ceil() as usize).next_power_of_two();
+    while side < full {
+        tried.push(side);
+        let mut reduced = Vec::with_capacity(levels.len());
+        for level in levels.iter() {
+            reduced.push(level.mesh.with_textures_at_most(side)?);
+        }
+        let meshes: Vec<&Mesh> = reduced.iter().map(|(m, _)| m).collect();
+        let ok = verify(&meshes, chain, needs, source)?
+            .iter()
+            .all(|(_, _, scores)| scores.iter().all(|s| s.psnr_db >= needs.quality_db));
+        if ok {
+            for (level, (mesh, kept)) in levels.iter_mut().zip(reduced) {
+                level.mesh = mesh;
+                level.info.texture_px = kept;
+            }
+            break;
+        }
+        side *= 2;
+    }
+    Ok(tried)
 }
 
 /// A chain that passed its verification ([`verified_chain`]).

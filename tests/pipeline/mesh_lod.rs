@@ -31,14 +31,6 @@ fn picture(shape: &dyn Shape, angle: f64, size: usize) -> RgbaImage {
     render_truth(shape, &TruthParams::square(angle, size, Supersample::of(3))).unwrap()
 }
 
-/// The mesh as a source, with its placement.
-fn placed<'a>(name: &'a str, mesh: &'a Mesh) -> Source<'a> {
-    Source {
-        placement: Some(*mesh.placement()),
-        ..source(name, mesh)
-    }
-}
-
 /// The rock of the bundled scene (coarser: 1,280 triangles, one texture) at a 24 dB target
 /// from 4 to 128 px. Every band's level is drawn at both its edges from three azimuths the
 /// preview (3 directions) and the verification (4) never used, against the source's truth:
@@ -83,6 +75,7 @@ fn the_chain_meets_the_target_at_both_edges_of_every_band_from_unseen_directions
         .map(|f| f.path.as_str())
         .collect();
     assert_eq!(glbs, back.levels.len());
+    // One texture file, the levels sharing it: the source's or one reduced for them all.
     assert_eq!(pngs, ["texture0.png"]);
     assert_eq!(glbs + pngs.len(), desc.files.len());
     // Finest first, coarser after; bands cover the needs from end to end, meeting.
@@ -254,4 +247,38 @@ fn a_chain_chosen_on_a_wrong_preview_is_repaired_by_its_verification() {
             "band {b} at {size} px: {worst:.2} dB"
         );
     }
+}
+
+/// A chain drawn no larger than 16 px needs no 64² texture: the levels share one reduced to
+/// the smallest power of two (from 16) with which every band still meets the target; the file
+/// holds that image, and the files read back still meet the target at every band edge.
+#[test]
+fn textures_are_reduced_to_the_sizes_the_chain_draws() {
+    let mesh = load(&TestGltf::textured_rock(3, 11), "rock.glb");
+    let src = placed("rock", &mesh);
+    let needs = Needs {
+        screen_px: [4.0, 16.0],
+        ..Needs::default()
+    };
+    let spec = MeshLodSpec::default();
+    let (_, decisions) = MeshLodRepr::plan(&spec, &needs, &src).unwrap();
+    let (lod, report) = MeshLodRepr::build(&spec, &needs, &decisions, &src).unwrap();
+    println!("{}", report["texture_sizes_tried"]);
+    let kept: Vec<Option<usize>> = lod.levels.iter().map(|l| l.info.texture_px).collect();
+    let side = kept[0].expect("textures reduced");
+    assert!((16..64).contains(&side), "{kept:?}");
+    assert!(kept.iter().all(|k| *k == Some(side)), "{kept:?}");
+    let dir = tempfile::tempdir().unwrap();
+    let (back, desc) = round_trip::<MeshLodRepr>(dir.path(), "rock", &lod);
+    let pngs: Vec<_> = desc
+        .files
+        .iter()
+        .filter(|f| f.path.ends_with(".png"))
+        .collect();
+    assert_eq!(pngs.len(), 1);
+    assert_eq!((pngs[0].width, pngs[0].height), (side, side));
+    let (m, _) =
+        MeshLodRepr::measure(&back, &needs, MeshLodRepr::measure_size(&decisions), &src).unwrap();
+    println!("{m:?}");
+    assert!(m.worst_psnr_db >= needs.quality_db, "{m:?}");
 }

@@ -37,6 +37,14 @@ fn source<'a>(name: &'a str, shape: &'a (dyn altrep_data_gen::Shape + Sync)) -> 
     }
 }
 
+/// A mesh as a source, with its placement.
+fn placed<'a>(name: &'a str, mesh: &'a altrep_data_gen::Mesh) -> Source<'a> {
+    Source {
+        placement: Some(*mesh.placement()),
+        ..source(name, mesh)
+    }
+}
+
 /// The run options every test starts from: defaults, output into `out`.
 fn options(out: &Path) -> RunOptions {
     RunOptions::new(out)

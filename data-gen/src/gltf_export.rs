@@ -617,3 +617,37 @@ impl Mesh {
         })
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Texels off the 8-bit grid go into a 16-bit PNG and come back within a 16-bit step,
+    /// through the sRGB curve for colour and straight for data.
+    #[test]
+    fn sixteen_bit_textures_come_back_within_a_step() {
+        let texels: Vec<Vec4> = (0..12)
+            .map(|k| {
+                let x = k as f32 / 11.0;
+                Vec4::new(
+                    x * 0.37 + 0.001,
+                    1.0 - x * 0.61,
+                    (x * 7.3).fract(),
+                    0.5 + x * 0.123,
+                )
+            })
+            .collect();
+        let img = TextureImage::new(4, 3, texels).unwrap();
+        for srgb in [true, false] {
+            let (png, sixteen) = encode(&img, srgb).unwrap();
+            assert!(sixteen);
+            let back = TextureImage::decode(&png, srgb).unwrap();
+            for j in 0..3 {
+                for i in 0..4 {
+                    let d = (img.texel(i, j) - back.texel(i, j)).abs().max_element();
+                    assert!(d < 1e-4, "srgb {srgb}, texel ({i}, {j}) off by {d}");
+                }
+            }
+        }
+    }
+}

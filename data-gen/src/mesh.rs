@@ -592,7 +592,8 @@ impl Mesh {
     }
 
     /// This mesh with every texture of its materials larger than `max_side` texels on a side
-    /// replaced by the first level of its mip chain that fits ([`TextureImage::reduced`]):
+    /// replaced by the first level of its mip chain that fits, snapped to 8-bit codes as the
+    /// texture is read (colour through the sRGB curve; [`TextureImage::reduced`]):
     /// textures for a mesh drawn no larger than a few hundred pixels. Images shared between
     /// materials stay shared. Returns the mesh and the largest side of any texture it keeps
     /// (`None` without textures). Cost: a copy of the triangles and of the reduced texels.
@@ -602,15 +603,15 @@ impl Mesh {
     ) -> Result<(Self, Option<usize>), DataGenError> {
         use std::collections::HashMap;
         let mut mesh = self.with_parts(self.input.clone(), self.input_colors.clone())?;
-        let mut done: HashMap<usize, Arc<TextureImage>> = HashMap::new();
+        let mut done: HashMap<(usize, bool), Arc<TextureImage>> = HashMap::new();
         let mut largest: Option<usize> = None;
-        let mut reduce = |t: &mut TextureRef| {
-            let key = Arc::as_ptr(&t.image) as usize;
+        let mut reduce = |t: &mut TextureRef, srgb: bool| {
+            let key = (Arc::as_ptr(&t.image) as usize, srgb);
             let image = done
                 .entry(key)
                 .or_insert_with(|| {
                     t.image
-                        .reduced(max_side)
+                        .reduced(max_side, srgb)
                         .map_or_else(|| t.image.clone(), Arc::new)
                 })
                 .clone();
@@ -620,13 +621,13 @@ impl Mesh {
         let mut materials: Vec<Material> = mesh.materials.to_vec();
         for m in &mut materials {
             if let Some((t, _)) = &mut m.base_texture {
-                reduce(t);
+                reduce(t, true);
             }
             if let Some(t) = &mut m.alpha_texture {
-                reduce(t);
+                reduce(t, false);
             }
             if let Some(n) = &mut m.normal_map {
-                reduce(&mut n.texture);
+                reduce(&mut n.texture, false);
             }
         }
         mesh.materials = materials.into();

@@ -179,17 +179,34 @@ impl TextureImage {
     }
 
     /// The image reduced to at most `max_side` texels on a side: the first level of its mip
-    /// chain that fits (each texel the mean of its parents, in linear values), as an image of
-    /// its own with its own chain and no source file. `None` when the image already fits or
-    /// `max_side` is 0. Cost: a copy of that level's texels.
-    pub fn reduced(&self, max_side: usize) -> Option<TextureImage> {
+    /// chain that fits (each texel the mean of its parents, in linear values), snapped to the
+    /// 8-bit codes a file holds (RGB through the sRGB curve when `srgb`, as colour textures
+    /// are read; alpha and linear data straight), as an image of its own with its own chain and
+    /// no source file. `None` when the image already fits or `max_side` is 0. Cost: a copy of
+    /// that level's texels.
+    pub fn reduced(&self, max_side: usize, srgb: bool) -> Option<TextureImage> {
         if max_side == 0 || self.width.max(self.height) <= max_side {
             return None;
         }
+        let snap = |c: f32, k: usize| {
+            let c = c.clamp(0.0, 1.0);
+            if srgb && k < 3 {
+                let code = (crate::image_io::linear_to_srgb(c) * 255.0).round() / 255.0;
+                crate::image_io::srgb_to_linear(code)
+            } else {
+                (c * 255.0).round() / 255.0
+            }
+        };
         (1..self.levels())
             .map(|l| self.level(l))
             .find(|(w, h, _)| (*w).max(*h) <= max_side)
-            .and_then(|(w, h, texels)| TextureImage::new(w, h, texels.to_vec()))
+            .and_then(|(w, h, texels)| {
+                let texels = texels
+                    .iter()
+                    .map(|t| Vec4::new(snap(t.x, 0), snap(t.y, 1), snap(t.z, 2), snap(t.w, 3)))
+                    .collect();
+                TextureImage::new(w, h, texels)
+            })
     }
 
     /// Number of levels, the image included.

@@ -374,7 +374,8 @@ fn textures_are_reduced_to_the_first_mip_level_that_fits() {
     assert_eq!(largest, Some(16));
     assert_eq!(side(&small), (16, 16));
     assert_eq!(small.triangle_count(), mesh.triangle_count());
-    // Level 2 of the chain: each texel the mean of a 4 × 4 block of the source's.
+    // Level 2 of the chain: each texel the mean of a 4 × 4 block of the source's, snapped to
+    // the 8-bit sRGB code a file holds (within half a code).
     let (src, red) = (
         &mesh.materials()[0].base_texture.as_ref().unwrap().0.image,
         &small.materials()[0].base_texture.as_ref().unwrap().0.image,
@@ -385,13 +386,12 @@ fn textures_are_reduced_to_the_first_mip_level_that_fits() {
             mean += src.texel(4 + i, 8 + j) / 16.0;
         }
     }
-    assert_abs_diff_eq!(red.texel(1, 2).x, mean.x, epsilon = 1e-5);
+    assert_abs_diff_eq!(red.texel(1, 2).x, mean.x, epsilon = 2.5e-3);
     assert!(
         red.encoded().is_none(),
         "a reduced image is no longer the source's file"
     );
-    // Written and read back: a reduced image's texels are means, which 8 bits cannot hold, so
-    // the file is a 16-bit PNG; every texel comes back within its 16-bit step.
+    // Written and read back: the snapped texels go into an 8-bit PNG and come back exactly.
     let back = load_glb(&small.to_glb().unwrap(), &MeshLoadOptions::default());
     let tb = &back.materials()[0].base_texture.as_ref().unwrap().0.image;
     assert_eq!((tb.width(), tb.height()), (16, 16));
@@ -401,7 +401,7 @@ fn textures_are_reduced_to_the_first_mip_level_that_fits() {
             worst = worst.max((red.texel(i, j) - tb.texel(i, j)).abs().max_element());
         }
     }
-    assert!(worst < 1e-4, "texels differ by up to {worst}");
+    assert_eq!(worst, 0.0, "texels differ by up to {worst}");
     let (same, largest) = mesh.with_textures_at_most(64).unwrap();
     assert_eq!(largest, Some(64));
     assert!(std::sync::Arc::ptr_eq(

@@ -287,9 +287,9 @@ pub fn verify(
 /// Textures reduced to the sizes the chain draws: every level it draws gets the smallest
 /// textures (a power of two on a side, from the next power of two at or above the largest size
 /// any level is drawn at, doubling) with which every band still meets the target at both edges,
-/// measured as [`verify`] does; one size for all the levels, so they share one set of images and
-/// the files only shrink. Where no size below the source's passes, the levels keep the
-/// source's. The levels' `info.texture_px` say what they kept. Returns the sizes tried. Cost:
+/// measured as [`verify`] does; one size for all the levels, so they share one set of images.
+/// Where no size below the source's passes, or the reduced files would not weigh less, the
+/// levels keep the source's. The levels' `info.texture_px` say what they kept. Returns the sizes tried. Cost:
 /// one verification of the chain per size tried.
 pub fn reduce_textures(
     levels: &mut [Level],
@@ -327,15 +327,36 @@ pub fn reduce_textures(
             .iter()
             .all(|(_, _, scores)| scores.iter().all(|s| s.psnr_db >= needs.quality_db));
         if ok {
-            for (level, (mesh, kept)) in levels.iter_mut().zip(reduced) {
-                level.mesh = mesh;
-                level.info.texture_px = kept;
+            // Kept only where the files shrink: a small source image stored compactly (a
+            // JPEG, a PNG of few colours) can weigh less than its reduction.
+            let now: Vec<&Mesh> = levels.iter().map(|l| &l.mesh).collect();
+            if files_bytes(&meshes)? < files_bytes(&now)? {
+                for (level, (mesh, kept)) in levels.iter_mut().zip(reduced) {
+                    level.mesh = mesh;
+                    level.info.texture_px = kept;
+                }
             }
             break;
         }
         side *= 2;
     }
     Ok(tried)
+}
+
+/// Bytes of `levels` written as `.glb` files sharing their textures beside them (what the
+/// files of a chain weigh). Cost: one export of each level, one encoding of each texture.
+pub fn files_bytes(levels: &[&Mesh]) -> Result<u64, PipelineError> {
+    let mut images = altrep_data_gen::ExternalImages::default();
+    let mut bytes = 0;
+    for mesh in levels {
+        bytes += mesh.to_glb_beside(&mut images)?.bytes.len() as u64;
+    }
+    Ok(bytes
+        + images
+            .files
+            .iter()
+            .map(|f| f.bytes.len() as u64)
+            .sum::<u64>())
 }
 
 /// A chain that passed its verification ([`verified_chain`]).

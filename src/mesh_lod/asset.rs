@@ -3,9 +3,11 @@
 //! Files: `level{k}.glb` for each level `k` the chain draws (finest first; the finest level
 //! alone, undrawn, when no level meets the target anywhere), a glTF 2.0 binary file of the level
 //! with the source's materials, in the object frame under a root node whose matrix is the
-//! placement's inverse; and `texture{i}.png` or `.jpg`, the source's textures (its own files where
-//! it had them), written once beside the levels, which reference them by file name. `metadata.levels` lists each level's ratio, triangles, the
-//! simplifier's error and the largest previewed size it met the target at; `metadata.chain`
+//! placement's inverse; and `texture{i}.png` or `.jpg`, the levels' textures (the source's own
+//! files where it had them, or PNGs reduced to the sizes the chain draws), written once beside
+//! the levels, which reference them by file name. `metadata.levels` lists each level's ratio,
+//! triangles, the simplifier's error, the largest previewed size it met the target at and the
+//! side of its reduced textures; `metadata.chain`
 //! the bands (`from_px`, `to_px`, `level`; `null` draws the source mesh); `metadata.to_object`
 //! the row-major 3 × 4 map from the files' world coordinates back to the object frame (the exact
 //! inverse of the `f32` root matrix).
@@ -345,7 +347,7 @@ impl Representation for MeshLodRepr {
     }
 
     fn write(lod: &MeshLod, w: &mut AssetWriter) -> Result<serde_json::Value, PipelineError> {
-        // The levels share the source's textures: each is written once, beside the files.
+        // The levels share their textures: each is written once, beside the files.
         let mut images = ExternalImages::default();
         images.uri_prefix = w.prefix().to_string();
         for (k, level) in lod.levels.iter().enumerate() {

@@ -132,16 +132,7 @@ fn the_automatic_chain_meets_the_target_at_every_band_edge_and_costs_no_more_tha
 /// parameters out of range are refused naming the key.
 #[test]
 fn the_automatic_chain_refuses_procedural_shapes_and_bad_parameters() {
-    let chair = scene_shape("chair").unwrap();
-    let (plan, _) = AutoRepr::plan(
-        &AutoSpec::default(),
-        &Needs::default(),
-        &source("chair", &chair),
-    )
-    .unwrap();
-    let why = plan.refused.expect("refused");
-    assert!(why.contains("mesh"), "{why}");
-    for (spec, key) in [
+    refuses_shapes_and_bad_keys::<AutoRepr>(&[
         (
             AutoSpec {
                 families: vec!["octree".into()],
@@ -180,10 +171,7 @@ fn the_automatic_chain_refuses_procedural_shapes_and_bad_parameters() {
             },
             "max_px",
         ),
-    ] {
-        let e = AutoRepr::validate(&spec).unwrap_err();
-        assert!(e.contains(key), "{e}");
-    }
+    ]);
 }
 
 /// A target no stand-in meets (60 dB on the rock from 4 to 16 px): the chain draws the source

@@ -127,16 +127,7 @@ fn the_chain_meets_the_target_at_both_edges_of_every_band_from_unseen_directions
 /// range are refused naming the key.
 #[test]
 fn simplified_meshes_refuse_procedural_shapes_and_bad_parameters() {
-    let chair = scene_shape("chair").unwrap();
-    let (plan, _) = MeshLodRepr::plan(
-        &MeshLodSpec::default(),
-        &Needs::default(),
-        &source("chair", &chair),
-    )
-    .unwrap();
-    let why = plan.refused.expect("refused");
-    assert!(why.contains("mesh"), "{why}");
-    for (spec, key) in [
+    refuses_shapes_and_bad_keys::<MeshLodRepr>(&[
         (
             MeshLodSpec {
                 ratios: vec![0.5, 0.6],
@@ -172,10 +163,7 @@ fn simplified_meshes_refuse_procedural_shapes_and_bad_parameters() {
             },
             "attribute_weight",
         ),
-    ] {
-        let e = MeshLodRepr::validate(&spec).unwrap_err();
-        assert!(e.contains(key), "{e}");
-    }
+    ]);
 }
 
 /// Leaf cards do not simplify: a collapse inside a card tears it. The shrub's levels all miss

@@ -45,6 +45,27 @@ fn placed<'a>(name: &'a str, mesh: &'a altrep_data_gen::Mesh) -> Source<'a> {
     }
 }
 
+/// Representation `R` refuses a procedural shape in its plan, naming the mesh it needs, and
+/// each spec of `bad` in its validation, naming the key given beside it.
+fn refuses_shapes_and_bad_keys<R: Representation>(bad: &[(R::Spec, &str)])
+where
+    R::Spec: Default,
+{
+    let chair = scene_shape("chair").unwrap();
+    let (plan, _) = R::plan(
+        &R::Spec::default(),
+        &Needs::default(),
+        &source("chair", &chair),
+    )
+    .unwrap();
+    let why = plan.refused.expect("refused");
+    assert!(why.contains("mesh"), "{why}");
+    for (spec, key) in bad {
+        let e = R::validate(spec).unwrap_err();
+        assert!(e.contains(key), "{e}");
+    }
+}
+
 /// The run options every test starts from: defaults, output into `out`.
 fn options(out: &Path) -> RunOptions {
     RunOptions::new(out)

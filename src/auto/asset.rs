@@ -499,7 +499,7 @@ impl Representation for AutoRepr {
                         <= least
             }) {
                 pruned.push(json!({ "size": s, "reason": format!(
-                    "{:?} meets the target at {s} px for {:.0} steps, no more than an impostor's least ({least:.0})",
+                    "{} meets the target at {s} px for {:.0} steps, no more than an impostor's least ({least:.0})",
                     c.member, spec.cost.draw_steps(c, p)) }));
                 continue;
             }
@@ -751,7 +751,7 @@ impl Representation for AutoRepr {
         if let Some(u) = undrawn.filter(|u| !holds(*u) || *u == Member::Source) {
             return Err(r
                 .content(format!(
-                    "metadata.undrawn names {u:?}, which the folder does not hold"
+                    "metadata.undrawn names {u}, which the folder does not hold"
                 ))
                 .into());
         }
@@ -762,7 +762,7 @@ impl Representation for AutoRepr {
             if !held || !ordered {
                 return Err(r
                     .content(format!(
-                        "metadata.chain[{b}] draws {:?} over [{}, {}] px, which the folder does not hold",
+                        "metadata.chain[{b}] draws {} over [{}, {}] px, which the folder does not hold",
                         band.member, band.from_px, band.to_px
                     ))
                     .into());
@@ -779,12 +779,7 @@ impl Representation for AutoRepr {
 
     fn details(build: &serde_json::Value) -> Option<String> {
         let member = |m: &serde_json::Value| -> String {
-            match serde_json::from_value::<Member>(m.clone()) {
-                Ok(Member::Source) => "source".into(),
-                Ok(Member::Mesh { level }) => format!("level {level}"),
-                Ok(Member::Impostor { size }) => format!("impostor {size}²"),
-                Err(_) => "?".into(),
-            }
+            serde_json::from_value::<Member>(m.clone()).map_or("?".into(), |m| m.to_string())
         };
         let mut md = format!(
             "Chains over the same candidates, verified at both edges of every band (target {} dB): \
@@ -931,7 +926,7 @@ impl Representation for AutoRepr {
             for s in sizes {
                 let (_, m) = worst_at(u, s, &meshes, &impostors, needs, source)?;
                 what.push(format!(
-                    "{u:?} (the chain draws the source at every size; kept undrawn) at {s} px"
+                    "{u} (the chain draws the source at every size; kept undrawn) at {s} px"
                 ));
                 parts.push((m, 0.0));
                 measured_sizes.push(s);
@@ -1004,9 +999,9 @@ impl Representation for AutoRepr {
             };
             images.push(image);
             drawn.push(if data.chain.iter().any(|b| b.member == band.member) {
-                format!("{:?} for {}–{} px", band.member, band.from_px, band.to_px)
+                format!("{} for {}–{} px", band.member, band.from_px, band.to_px)
             } else {
-                format!("{:?} (undrawn: the chain draws the source)", band.member)
+                format!("{} (undrawn: the chain draws the source)", band.member)
             });
         }
         let refs: Vec<&RgbaImage> = images.iter().collect();

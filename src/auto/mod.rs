@@ -50,6 +50,17 @@ pub enum Member {
     },
 }
 
+impl std::fmt::Display for Member {
+    /// `source`, `level k`, `impostor S²`: as the report names members.
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Member::Source => write!(f, "source"),
+            Member::Mesh { level } => write!(f, "level {level}"),
+            Member::Impostor { size } => write!(f, "impostor {size}²"),
+        }
+    }
+}
+
 /// The families a chain may be drawn from; the source belongs to all.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]

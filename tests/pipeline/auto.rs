@@ -119,6 +119,45 @@ fn the_automatic_chain_meets_the_target_at_every_band_edge_and_costs_no_more_tha
             }
         }
     }
+    // Impostor members too, drawn as the display draws them (their views minified below
+    // their own size) from the same unseen azimuths, against the truth in the same window.
+    for band in &back.chain {
+        let Member::Impostor { size: views } = band.member else {
+            continue;
+        };
+        let data = &back.impostors.iter().find(|(s, _)| *s == views).unwrap().1;
+        for size in [band.from_px.max(8.0), band.to_px] {
+            let size = size.round() as usize;
+            let window = altrep::representation::Window::for_needs(&needs, size);
+            for azimuth in [0.9, 2.6, 5.1] {
+                let view = altrep::representation::ViewDir {
+                    azimuth,
+                    elevation: 0.0,
+                };
+                let truth = window.truth(&src, view, Supersample::of(3)).unwrap();
+                let screen = altrep::parallax::RenderParams {
+                    width: size,
+                    height: size,
+                    supersample: Supersample::ONE,
+                    light: src.light,
+                    mip: size != views,
+                };
+                let img = altrep::parallax::render(
+                    &data.images,
+                    azimuth,
+                    altrep::parallax::WarpMethod::Inverse,
+                    &screen,
+                )
+                .unwrap();
+                let psnr = altrep::metrics::psnr(&window.place(&img), &truth).unwrap();
+                println!("impostor {views}² at {size} px, azimuth {azimuth}: {psnr:.2} dB");
+                assert!(
+                    psnr >= needs.quality_db - 1.0,
+                    "impostor {views}² at {size} px: {psnr:.2}"
+                );
+            }
+        }
+    }
     // The measurement of the read-back chain: every member at both edges of its band.
     let (m, pictures) =
         AutoRepr::measure(&back, &needs, AutoRepr::measure_size(&decisions), &src).unwrap();

@@ -591,6 +591,22 @@ impl Mesh {
         template.with_parts(triangles, colors)
     }
 
+    /// The largest side (texels) of any texture its materials read; `None` without textures.
+    pub fn largest_texture_side(&self) -> Option<usize> {
+        self.materials
+            .iter()
+            .flat_map(|m| {
+                [
+                    m.base_texture.as_ref().map(|(t, _)| t),
+                    m.alpha_texture.as_ref(),
+                    m.normal_map.as_ref().map(|n| &n.texture),
+                ]
+            })
+            .flatten()
+            .map(|t| t.image.width().max(t.image.height()))
+            .max()
+    }
+
     /// This mesh with every texture of its materials larger than `max_side` texels on a side
     /// replaced by the first level of its mip chain that fits, snapped to 8-bit codes as the
     /// texture is read (colour through the sRGB curve; [`TextureImage::reduced`]):

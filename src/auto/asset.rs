@@ -19,7 +19,10 @@ use super::{
 };
 use crate::asset::{AssetReader, AssetWriter};
 use crate::mesh_lod::asset::{MeshLodDecisions, MeshLodRepr, MeshLodSpec, simplify_levels};
-use crate::mesh_lod::{Band, Level, LevelInfo, MeshLod, draw, preview_sizes, reach, score_levels};
+use crate::mesh_lod::{
+    Band, Level, LevelInfo, MeshLod, band_edges, draw, lowered_reach, preview_sizes, reach,
+    score_levels,
+};
 use crate::parallax::asset::{Parallax, ParallaxData, ParallaxDecisions, ParallaxSpec};
 use crate::parallax::{RenderParams, WarpMethod, render};
 use crate::representation::{
@@ -124,18 +127,21 @@ fn impostor_spec(spec: &AutoSpec, size: usize) -> ParallaxSpec {
     }
 }
 
-/// Worst PSNR of a member at `size` pixels over the 4 measured directions (3 × 3 rays per
-/// pixel), as every representation is measured; the source is the truth (infinite).
-fn worst_at(
+/// A member's figures at `size` pixels over the 4 measured directions (3 × 3 rays per pixel),
+/// as every representation is measured; the source is the truth (worst PSNR infinite).
+fn measured_at(
     member: Member,
     size: usize,
     levels: &[&Mesh],
     impostors: &[(usize, &ParallaxData)],
     needs: &Needs,
     source: &Source,
-) -> Result<(f64, Measurement), PipelineError> {
+) -> Result<Measurement, PipelineError> {
     match member {
-        Member::Source => Ok((f64::INFINITY, Measurement::default())),
+        Member::Source => Ok(Measurement {
+            worst_psnr_db: f64::INFINITY,
+            ..Measurement::default()
+        }),
         Member::Mesh { level } => {
             let scores = score_levels(
                 source,
@@ -146,8 +152,11 @@ fn worst_at(
                 Supersample::of(3),
             )?
             .remove(0);
-            let m = crate::representation::fold(String::new(), &scores, Some(1.0));
-            Ok((m.worst_psnr_db, m))
+            Ok(crate::representation::fold(
+                String::new(),
+                &scores,
+                Some(1.0),
+            ))
         }
         Member::Impostor { size: s } => {
             let data = impostors
@@ -155,21 +164,9 @@ fn worst_at(
                 .find(|(k, _)| *k == s)
                 .map(|(_, d)| *d)
                 .ok_or_else(|| PipelineError::Spec(format!("no impostor of {s}² views")))?;
-            let (m, _) = Parallax::measure(data, needs, size, source)?;
-            Ok((m.worst_psnr_db, m))
+            Ok(Parallax::measure(data, needs, size, source)?.0)
         }
     }
-}
-
-/// The edges at which a band is measured: both ends within the needs, raised to the smallest
-/// measured size.
-fn edges(band: &AutoBand, needs: &Needs) -> Vec<usize> {
-    let [s0, s1] = needs.screen_px;
-    let (from, to) = (band.from_px.max(s0), band.to_px.min(s1));
-    let min = crate::mesh_lod::MIN_MEASURED_PX;
-    let mut sizes = vec![from.max(min).round() as usize, to.max(min).round() as usize];
-    sizes.dedup();
-    sizes
 }
 
 /// A chain verified at both edges of every band, with what it measured.
@@ -181,7 +178,7 @@ struct VerifiedChain {
 }
 
 /// The cheapest chain of `family`, verified: every band's member measured at both its edges
-/// (results cached in `seen`, shared by the families), a member that misses the target at a
+/// by `measure` (which the caller caches, shared by the families), a member that misses the target at a
 /// size has its reach lowered below that size and the chain is chosen again. Ends: every
 /// repair lowers a reach.
 #[allow(clippy::too_many_arguments)]
@@ -212,7 +209,7 @@ fn verified(
             if band.member == Member::Source {
                 continue;
             }
-            for size in edges(band, needs) {
+            for size in band_edges(band.from_px, band.to_px, needs) {
                 let worst = measure(band.member, size)?;
                 measured.push((b, size, worst));
                 if worst >= needs.quality_db {
@@ -231,11 +228,7 @@ fn verified(
                     }
                     continue;
                 }
-                let below = tops.iter().rev().copied().find(|&t| t < size as f64);
-                let lowered = match (c.reach, below) {
-                    (Some(r), Some(b)) if b < r => Some(b),
-                    _ => None,
-                };
+                let lowered = lowered_reach(c.reach, tops.iter().copied(), size);
                 if lowered != c.reach {
                     c.reach = lowered;
                     changed = true;
@@ -538,7 +531,8 @@ impl Representation for AutoRepr {
             if let Some(&w) = measured.get(&(member, size)) {
                 return Ok(w);
             }
-            let (w, _) = worst_at(member, size, &meshes, &impostor_refs, needs, source)?;
+            let w =
+                measured_at(member, size, &meshes, &impostor_refs, needs, source)?.worst_psnr_db;
             measured.insert((member, size), w);
             Ok(w)
         };
@@ -898,8 +892,8 @@ impl Representation for AutoRepr {
             if band.member == Member::Source {
                 continue;
             }
-            for size in edges(band, needs) {
-                let (_, m) = worst_at(band.member, size, &meshes, &impostors, needs, source)?;
+            for size in band_edges(band.from_px, band.to_px, needs) {
+                let m = measured_at(band.member, size, &meshes, &impostors, needs, source)?;
                 what.push(format!("band {b} at {size} px"));
                 parts.push((m, band.steps_per_pixel));
                 measured_sizes.push(size);
@@ -924,7 +918,7 @@ impl Representation for AutoRepr {
             ];
             sizes.dedup();
             for s in sizes {
-                let (_, m) = worst_at(u, s, &meshes, &impostors, needs, source)?;
+                let m = measured_at(u, s, &meshes, &impostors, needs, source)?;
                 what.push(format!(
                     "{u} (the chain draws the source at every size; kept undrawn) at {s} px"
                 ));

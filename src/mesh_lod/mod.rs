@@ -242,6 +242,37 @@ pub fn choose_chain(reach: &[Option<f64>], needs: &Needs) -> Vec<Band> {
     bands
 }
 
+/// The sizes (pixels) at which a band from `from_px` to `to_px` is measured: both its edges
+/// within the needs' sizes, raised to [`MIN_MEASURED_PX`], once each; none when the band lies
+/// outside the needs (a chain built for wider needs is measured where these needs look).
+pub fn band_edges(from_px: f64, to_px: f64, needs: &Needs) -> Vec<usize> {
+    let [s0, s1] = needs.screen_px;
+    let (from, to) = (from_px.max(s0), to_px.min(s1));
+    if from > to {
+        return Vec::new();
+    }
+    let mut sizes = vec![
+        from.max(MIN_MEASURED_PX).round() as usize,
+        to.max(MIN_MEASURED_PX).round() as usize,
+    ];
+    sizes.dedup();
+    sizes
+}
+
+/// The reach of a member that missed the target at `missed_at` pixels: the largest of `sizes`
+/// (ascending) below that size when it lies below the present `reach`, else none.
+pub fn lowered_reach(
+    reach: Option<f64>,
+    sizes: impl DoubleEndedIterator<Item = f64>,
+    missed_at: usize,
+) -> Option<f64> {
+    let below = sizes.rev().find(|&s| s < missed_at as f64);
+    match (reach, below) {
+        (Some(r), Some(b)) if b < r => Some(b),
+        _ => None,
+    }
+}
+
 /// Scores of the bands of `chain` at both edges of each, within the needs' sizes (raised to
 /// [`MIN_MEASURED_PX`]), at the 4 needed directions every representation is measured at,
 /// 3 × 3 rays per pixel: the verification of the switch sizes. Bands that draw the source are
@@ -255,21 +286,9 @@ pub fn verify(
 ) -> Result<Vec<(usize, usize, Vec<Score>)>, PipelineError> {
     let views = measure_views(needs, 4);
     let mut out = Vec::new();
-    let [s0, s1] = needs.screen_px;
     for (b, band) in chain.iter().enumerate() {
         let Some(l) = band.level else { continue };
-        // The band within the needed sizes (a chain built for wider needs is measured where
-        // these needs look).
-        let (from, to) = (band.from_px.max(s0), band.to_px.min(s1));
-        if from > to {
-            continue;
-        }
-        let mut sizes = vec![
-            from.max(MIN_MEASURED_PX).round() as usize,
-            to.max(MIN_MEASURED_PX).round() as usize,
-        ];
-        sizes.dedup();
-        for size in sizes {
+        for size in band_edges(band.from_px, band.to_px, needs) {
             let scores = score_levels(
                 source,
                 &[levels[l]],
@@ -305,12 +324,10 @@ pub fn reduce_textures(
         .filter(|b| b.level.is_some())
         .map(|b| b.to_px.min(needs.screen_px[1]))
         .reduce(f64::max);
-    let mut full = None;
-    for &l in &drawn {
-        if let (_, Some(side)) = levels[l].mesh.with_textures_at_most(usize::MAX)? {
-            full = Some(full.unwrap_or(0).max(side));
-        }
-    }
+    let full = drawn
+        .iter()
+        .filter_map(|&l| levels[l].mesh.largest_texture_side())
+        .max();
     let (Some(top), Some(full)) = (top, full) else {
         return Ok(Vec::new());
     };
@@ -396,16 +413,7 @@ pub fn verified_chain(
             if worst >= needs.quality_db {
                 continue;
             }
-            let below = sizes
-                .iter()
-                .rev()
-                .map(|&s| s as f64)
-                .find(|&s| s < size as f64);
-            let lowered = match (reach[l], below) {
-                (Some(r), Some(b)) if b < r => Some(b),
-                (Some(_), Some(_)) => None,
-                _ => None,
-            };
+            let lowered = lowered_reach(reach[l], sizes.iter().map(|&s| s as f64), size);
             if lowered != reach[l] {
                 reach[l] = lowered;
                 changed = true;

@@ -160,6 +160,17 @@ impl AssetWriter {
         Ok(self.files.iter().map(|f| f.bytes).sum())
     }
 
+    /// As [`Self::sized`], file by file: each file's role (with its prefix) and bytes, in the
+    /// order added.
+    pub fn sized_files(&mut self) -> Result<Vec<(String, u64)>, AssetError> {
+        self.flush()?;
+        Ok(self
+            .files
+            .iter()
+            .map(|f| (f.role.clone(), f.bytes))
+            .collect())
+    }
+
     /// The folder the asset will have once committed.
     pub fn target(&self) -> &Path {
         &self.target

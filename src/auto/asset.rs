@@ -3,7 +3,8 @@
 //! Files: the members the chain draws, each written by its own representation under a prefix
 //! in this one folder: `mesh-level{k}.glb` and `mesh-texture{i}.png|.jpg` (simplified meshes,
 //! as [`crate::mesh_lod`] writes them), `impostor{S}-…` (images with parallax of `S²` views,
-//! as [`crate::parallax`] writes them). `metadata.chain` lists the bands (`from_px`, `to_px`,
+//! as [`crate::parallax`] writes them), `frames{S}-…` (frames over the sphere of `S²` texels,
+//! as [`crate::sphere`] writes them). `metadata.chain` lists the bands (`from_px`, `to_px`,
 //! `member`, triangles, steps per pixel, draw cost); `metadata.members` each member's prefix,
 //! representation and the metadata its writer returned; `metadata.target_db` the target.
 
@@ -29,6 +30,8 @@ use crate::representation::{
     Estimate, InputSize, Measurement, Needs, Picture, PipelineError, Plan, Representation, Source,
     Window, elevation_note, measure_views, secs,
 };
+use crate::sphere::asset::{SphereDecisions, SphereRepr, SphereSpec};
+use crate::sphere::{SphereImages, SphereRenderParams, azimuth_elevation};
 
 /// Manifest parameters of the automatic chain (`[asset.auto]`).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -37,8 +40,9 @@ pub struct AutoSpec {
     /// Quality target (PSNR dB against the truth) every band must meet at both its edges
     /// (default: the asset's `quality_db`).
     pub target_db: Option<f64>,
-    /// Families of candidates: `mesh_lod` (simplified meshes, mesh assets only) and
-    /// `parallax` (impostors: images with parallax) (default both).
+    /// Families of candidates: `mesh_lod` (simplified meshes, mesh assets only), `parallax`
+    /// (impostors: images with parallax) and `sphere` (frames over the sphere, with the engines'
+    /// octahedral impostor of the same frames as the baseline chain) (default all three).
     pub families: Vec<String>,
     /// Largest screen size (pixels, 8–2048; default 512) at which candidates are previewed and
     /// verified: above it the chain draws the source.
@@ -48,6 +52,9 @@ pub struct AutoSpec {
     /// The impostors' parameters (`[asset.auto.parallax]`): one candidate per preview size up
     /// to its `size` (default 256 here), with its views, depth and bounds.
     pub parallax: ParallaxSpec,
+    /// The frames' parameters (`[asset.auto.sphere]`): one candidate per preview size up to
+    /// its `size` (default 64), with its grid and surface model.
+    pub sphere: SphereSpec,
     /// The combination of costs the chain minimises ([`CostModel`]).
     pub cost: CostModel,
 }
@@ -56,13 +63,14 @@ impl Default for AutoSpec {
     fn default() -> Self {
         Self {
             target_db: None,
-            families: vec!["mesh_lod".into(), "parallax".into()],
+            families: FAMILIES.iter().map(|f| f.to_string()).collect(),
             max_px: 512.0,
             mesh_lod: MeshLodSpec::default(),
             parallax: ParallaxSpec {
                 size: 256,
                 ..ParallaxSpec::default()
             },
+            sphere: SphereSpec::default(),
             cost: CostModel::default(),
         }
     }
@@ -79,6 +87,9 @@ pub struct AutoDecisions {
     pub mesh: Option<MeshLodDecisions>,
     /// `(view size, plan)` of each impostor candidate.
     pub impostors: Vec<(usize, ParallaxDecisions)>,
+    /// `(frame size, plan)` of each candidate of frames over the sphere.
+    #[serde(default)]
+    pub frames: Vec<(usize, SphereDecisions)>,
 }
 
 /// The chain as built or loaded: its bands and the members they draw.
@@ -89,8 +100,11 @@ pub struct AutoChain {
     pub mesh: Option<MeshLod>,
     /// `(view size, data)` of each impostor the chain draws.
     pub impostors: Vec<(usize, ParallaxData)>,
+    /// `(frame size, data)` of each set of frames over the sphere the chain draws.
+    pub frames: Vec<(usize, SphereImages)>,
     /// Where the chain draws the source at every size: the candidate kept, undrawn, that came
-    /// closest to the target (the finest level, else the largest impostor), which the
+    /// closest to the target (the finest level, else the largest impostor, else the largest
+    /// frames), which the
     /// measurement reports below the target. `None` otherwise.
     pub undrawn: Option<Member>,
     /// The quality target (dB) the chain was verified for.
@@ -99,6 +113,9 @@ pub struct AutoChain {
 
 /// Prefix of the simplified levels' files in the folder.
 const MESH_PREFIX: &str = "mesh-";
+
+/// The candidate families `families` may name.
+const FAMILIES: [&str; 3] = ["mesh_lod", "parallax", "sphere"];
 
 /// The automatic chain for the pipeline.
 pub struct AutoRepr;
@@ -127,13 +144,79 @@ fn impostor_spec(spec: &AutoSpec, size: usize) -> ParallaxSpec {
     }
 }
 
+/// The bounding sphere's radius in units of the bounding cylinder's (whose window `2R` a screen
+/// size spans): frames over the sphere frame that sphere, `radius` times wider.
+fn sphere_radius(source: &Source) -> Result<f64, PipelineError> {
+    Ok(altrep_data_gen::OrthoFrame::bounding_sphere(source.shape()?).1)
+}
+
+/// Pixels (or frame texels) across the bounding sphere when the cylinder's window spans `p`.
+fn sphere_px(p: usize, radius: f64) -> usize {
+    ((p as f64 * radius).ceil() as usize).clamp(4, 1024)
+}
+
+fn frames_spec(spec: &AutoSpec, size: usize) -> SphereSpec {
+    SphereSpec {
+        size,
+        ..spec.sphere.clone()
+    }
+}
+
+/// The candidates' data a measurement draws from.
+struct Members<'a> {
+    levels: &'a [&'a Mesh],
+    impostors: &'a [(usize, &'a ParallaxData)],
+    frames: &'a [(usize, &'a SphereImages)],
+}
+
+impl Members<'_> {
+    fn frames_of(&self, s: usize) -> Result<&SphereImages, PipelineError> {
+        self.frames
+            .iter()
+            .find(|(k, _)| *k == s)
+            .map(|(_, d)| *d)
+            .ok_or_else(|| PipelineError::Spec(format!("no frames of {s}²")))
+    }
+}
+
+/// The frames of `data` and the engines' octahedral impostor of the same frames drawn at the
+/// scale of screen size `size` ([`crate::sphere::asset::measured`] over the bounding sphere's
+/// [`sphere_px`]: 8 needed directions, 3 × 3): the frames' measurement and the engine's worst
+/// PSNR (dB).
+fn frames_measured(
+    data: &SphereImages,
+    size: usize,
+    needs: &Needs,
+    source: &Source,
+) -> Result<(Measurement, f64, crate::sphere::SphereMeasurement), PipelineError> {
+    let px = sphere_px(size, sphere_radius(source)?);
+    let (m, _, _) = crate::sphere::asset::measured(data, needs, px, source)?;
+    let ours = Measurement {
+        method: String::new(),
+        psnr_db: m.ours.psnr_mean,
+        worst_psnr_db: m.ours.psnr_min,
+        iou: m.ours.iou_mean,
+        coverage_error: Some(m.ours.coverage_error_mean),
+        mean_steps: Some(m.ours.steps_mean),
+        steps_split: Vec::new(),
+        size,
+        exact_psnr_db: None,
+    };
+    Ok((ours, m.baseline.psnr_min, m))
+}
+
+/// The engine's steps per pixel (its depth reads; [`super`] docs): one per enclosing frame of
+/// the one-step offset, whose `4·(1 + 3)` texel reads per frame the measurement counts.
+fn engine_steps(m: &crate::sphere::SphereMeasurement) -> f64 {
+    m.baseline.reads_mean / 16.0
+}
+
 /// A member's figures at `size` pixels over the 4 measured directions (3 × 3 rays per pixel),
 /// as every representation is measured; the source is the truth (worst PSNR infinite).
 fn measured_at(
     member: Member,
     size: usize,
-    levels: &[&Mesh],
-    impostors: &[(usize, &ParallaxData)],
+    members: &Members,
     needs: &Needs,
     source: &Source,
 ) -> Result<Measurement, PipelineError> {
@@ -145,7 +228,7 @@ fn measured_at(
         Member::Mesh { level } => {
             let scores = score_levels(
                 source,
-                &[levels[level]],
+                &[members.levels[level]],
                 needs,
                 size,
                 &measure_views(needs, 4),
@@ -159,12 +242,23 @@ fn measured_at(
             ))
         }
         Member::Impostor { size: s } => {
-            let data = impostors
+            let data = members
+                .impostors
                 .iter()
                 .find(|(k, _)| *k == s)
                 .map(|(_, d)| *d)
                 .ok_or_else(|| PipelineError::Spec(format!("no impostor of {s}² views")))?;
             Ok(Parallax::measure(data, needs, size, source)?.0)
+        }
+        Member::Frames { size: s } => {
+            Ok(frames_measured(members.frames_of(s)?, size, needs, source)?.0)
+        }
+        Member::Engine { size: s } => {
+            let (_, engine, _) = frames_measured(members.frames_of(s)?, size, needs, source)?;
+            Ok(Measurement {
+                worst_psnr_db: engine,
+                ..Measurement::default()
+            })
         }
     }
 }
@@ -262,12 +356,16 @@ impl Representation for AutoRepr {
             ));
         }
         if spec.families.is_empty() {
-            return Err("auto.families must list at least one of mesh_lod, parallax".into());
+            return Err(format!(
+                "auto.families must list at least one of {}",
+                FAMILIES.join(", ")
+            ));
         }
         for f in &spec.families {
-            if !["mesh_lod", "parallax"].contains(&f.as_str()) {
+            if !FAMILIES.contains(&f.as_str()) {
                 return Err(format!(
-                    "auto.families: unknown family '{f}' (mesh_lod, parallax)"
+                    "auto.families: unknown family '{f}' ({})",
+                    FAMILIES.join(", ")
                 ));
             }
         }
@@ -279,6 +377,7 @@ impl Representation for AutoRepr {
         }
         MeshLodRepr::validate(&spec.mesh_lod).map_err(|e| format!("auto.{e}"))?;
         Parallax::validate(&spec.parallax).map_err(|e| format!("auto.{e}"))?;
+        SphereRepr::validate(&spec.sphere).map_err(|e| format!("auto.{e}"))?;
         spec.cost.validate()
     }
 
@@ -309,6 +408,19 @@ impl Representation for AutoRepr {
                 }
             }
         }
+        if spec.families.iter().any(|f| f == "sphere") {
+            for s in preview_sizes(needs, spec.max_px) {
+                if s <= spec.sphere.size {
+                    // The bounding sphere is at most √3 times the cylinder's radius.
+                    let f = sphere_px(s, 3f64.sqrt());
+                    add(SphereRepr::estimate(
+                        &frames_spec(spec, f),
+                        &impostor_needs(needs, f),
+                        input,
+                    ));
+                }
+            }
+        }
         e
     }
 
@@ -332,6 +444,7 @@ impl Representation for AutoRepr {
                     sizes,
                     mesh: None,
                     impostors: Vec::new(),
+                    frames: Vec::new(),
                 },
             ));
         }
@@ -380,7 +493,39 @@ impl Representation for AutoRepr {
                 }
             }
         }
-        if mesh.is_none() && impostors.is_empty() {
+        let mut frames = Vec::new();
+        if spec.families.iter().any(|f| f == "sphere") {
+            let radius = sphere_radius(source)?;
+            for &s in &sizes {
+                if s > spec.sphere.size {
+                    plan.skip(
+                        format!("frames of {s}² over the sphere"),
+                        format!("above auto.sphere.size = {}", spec.sphere.size),
+                    );
+                    continue;
+                }
+                // Frame texels as fine as the pixels across the bounding sphere at this size.
+                let f = sphere_px(s, radius);
+                let (p, d) =
+                    SphereRepr::plan(&frames_spec(spec, f), &impostor_needs(&needs, f), source)?;
+                match p.refused {
+                    Some(reason) => plan.skip(format!("frames of {s}² over the sphere"), reason),
+                    None => {
+                        plan.build(format!(
+                            "frames candidate: {g}×{g} frames of {}² over the {}, and the engines' octahedral impostor of the same frames (the baseline chain)",
+                            d.size,
+                            match d.coverage {
+                                crate::sphere::Coverage::Hemisphere => "upper hemisphere",
+                                crate::sphere::Coverage::Sphere => "sphere",
+                            },
+                            g = d.grid
+                        ));
+                        frames.push((s, d));
+                    }
+                }
+            }
+        }
+        if mesh.is_none() && impostors.is_empty() && frames.is_empty() {
             plan.refuse(format!(
                 "no candidate family applies (families {:?}): nothing but the source to draw",
                 spec.families
@@ -397,6 +542,7 @@ impl Representation for AutoRepr {
                 sizes,
                 mesh,
                 impostors,
+                frames,
             },
         ))
     }
@@ -521,23 +667,103 @@ impl Representation for AutoRepr {
             impostors.push((*s, data));
         }
         let impostor_s = secs(t1);
+        // Frames over the sphere: built, measured at their own size (8 directions, 3 × 3) with
+        // the engines' octahedral impostor of the same frames, files sized. Not pruned: the
+        // engine-only chain is the baseline, and it is given every size.
+        let t_frames = Instant::now();
+        let mut frames: Vec<(usize, SphereImages)> = Vec::new();
+        // Their quad spans the bounding sphere's window: radius² times the cylinder's pixels.
+        let quad_share = sphere_radius(source)?.powi(2);
+        for (s, d) in &decisions.frames {
+            let f = d.size;
+            let (data, _) =
+                SphereRepr::build(&frames_spec(spec, f), &impostor_needs(needs, f), d, source)?;
+            let (ours, engine, m) = frames_measured(&data, *s, needs, source)?;
+            let mut w = AssetWriter::sizing();
+            SphereRepr::write(&data, &mut w)?;
+            let files = w.sized_files()?;
+            let all: u64 = files.iter().map(|(_, b)| b).sum();
+            // An engine ships the albedo, normal and depth atlases, not the cone bounds.
+            let bounds: u64 = files
+                .iter()
+                .filter(|(role, _)| role == "bounds")
+                .map(|(_, b)| b)
+                .sum();
+            let p = *s as f64;
+            let (fm, em) = (Member::Frames { size: *s }, Member::Engine { size: *s });
+            measured.insert((fm, *s), ours.worst_psnr_db);
+            measured.insert((em, *s), engine);
+            candidates.push(Candidate {
+                member: fm,
+                triangles: 0,
+                bytes: all,
+                shares_textures: false,
+                steps_per_pixel: ours.mean_steps.unwrap_or(1.0),
+                pixel_share: quad_share,
+                reach: (ours.worst_psnr_db >= needs.quality_db).then_some(p),
+                floor_px: None,
+            });
+            candidates.push(Candidate {
+                member: em,
+                triangles: 0,
+                bytes: all - bounds,
+                shares_textures: false,
+                steps_per_pixel: engine_steps(&m),
+                pixel_share: quad_share,
+                reach: (engine >= needs.quality_db).then_some(p),
+                floor_px: None,
+            });
+            frames.push((*s, data));
+        }
+        let frames_s = secs(t_frames);
         let previewed = candidates.clone();
         // The chains: automatic, then the single-family ones for comparison, each verified.
         let t2 = Instant::now();
         let meshes: Vec<&Mesh> = levels.iter().map(|(_, s)| &s.mesh).collect();
         let impostor_refs: Vec<(usize, &ParallaxData)> =
             impostors.iter().map(|(s, d)| (*s, d)).collect();
+        let frame_refs: Vec<(usize, &SphereImages)> = frames.iter().map(|(s, d)| (*s, d)).collect();
+        let members = Members {
+            levels: &meshes,
+            impostors: &impostor_refs,
+            frames: &frame_refs,
+        };
         let mut measure = |member: Member, size: usize| -> Result<f64, PipelineError> {
             if let Some(&w) = measured.get(&(member, size)) {
                 return Ok(w);
             }
-            let w =
-                measured_at(member, size, &meshes, &impostor_refs, needs, source)?.worst_psnr_db;
-            measured.insert((member, size), w);
-            Ok(w)
+            match member {
+                // One measurement draws both the frames and the engine's blend of them.
+                Member::Frames { size: s } | Member::Engine { size: s } => {
+                    let (ours, engine, _) =
+                        frames_measured(members.frames_of(s)?, size, needs, source)?;
+                    measured.insert((Member::Frames { size: s }, size), ours.worst_psnr_db);
+                    measured.insert((Member::Engine { size: s }, size), engine);
+                }
+                _ => {
+                    let w = measured_at(member, size, &members, needs, source)?.worst_psnr_db;
+                    measured.insert((member, size), w);
+                }
+            }
+            Ok(measured[&(member, size)])
         };
         let mut chains = Vec::new();
-        for family in [Family::All, Family::Meshes, Family::Impostors] {
+        for family in [
+            Family::All,
+            Family::Meshes,
+            Family::Impostors,
+            Family::Frames,
+            Family::Engine,
+        ] {
+            if family != Family::All
+                && !candidates
+                    .iter()
+                    .any(|c| c.member != Member::Source && family.admits(c.member))
+            {
+                // A family not asked for (or refused by the plan): no chain to compare.
+                chains.push((family, None));
+                continue;
+            }
             let mut c = candidates.clone();
             let v = verified(
                 &mut c,
@@ -576,11 +802,14 @@ impl Representation for AutoRepr {
             "auto": chain_report(&chains[0].1),
             "meshes_only": chain_report(&chains[1].1),
             "impostors_only": chain_report(&chains[2].1),
+            "frames_only": chain_report(&chains[3].1),
+            "engine_only": chain_report(&chains[4].1),
             "pareto": fronts,
             "mesh_lod": lod_report,
             "impostors_pruned": pruned,
             "mesh_s": mesh_s,
             "impostor_s": impostor_s,
+            "frames_s": frames_s,
             "verify_s": verify_s,
         });
         // Keep what the automatic chain draws, renumbered. A chain that draws the source at
@@ -595,6 +824,12 @@ impl Representation for AutoRepr {
                     .iter()
                     .map(|(s, _)| Member::Impostor { size: *s })
                     .next_back()
+                    .or_else(|| {
+                        frames
+                            .iter()
+                            .map(|(s, _)| Member::Frames { size: *s })
+                            .next_back()
+                    })
             } else {
                 Some(Member::Mesh { level: 0 })
             };
@@ -612,6 +847,10 @@ impl Representation for AutoRepr {
         let impostors: Vec<(usize, ParallaxData)> = impostors
             .into_iter()
             .filter(|(s, _)| keeps(Member::Impostor { size: *s }))
+            .collect();
+        let frames: Vec<(usize, SphereImages)> = frames
+            .into_iter()
+            .filter(|(s, _)| keeps(Member::Frames { size: *s }))
             .collect();
         let undrawn = undrawn.map(renumber);
         for b in &mut bands {
@@ -652,6 +891,7 @@ impl Representation for AutoRepr {
             chain: bands,
             mesh,
             impostors,
+            frames,
             undrawn,
             target_db: decisions.target_db,
         };
@@ -684,6 +924,14 @@ impl Representation for AutoRepr {
             members.push(json!({ "prefix": prefix, "representation": Parallax::NAME,
                                  "size": s, "metadata": m }));
         }
+        for (s, d) in &data.frames {
+            let prefix = format!("frames{s}-");
+            let m = w.member(&prefix, |w| SphereRepr::write(d, w))?;
+            members.push(
+                json!({ "prefix": prefix, "representation": SphereRepr::NAME,
+                                 "size": s, "metadata": m }),
+            );
+        }
         Ok(
             json!({ "chain": data.chain, "members": members, "undrawn": data.undrawn,
                    "target_db": data.target_db }),
@@ -701,7 +949,7 @@ impl Representation for AutoRepr {
         let members = m["members"]
             .as_array()
             .ok_or_else(|| r.content("metadata.members is not a list".into()))?;
-        let (mut mesh, mut impostors) = (None, Vec::new());
+        let (mut mesh, mut impostors, mut frames) = (None, Vec::new(), Vec::new());
         for (i, member) in members.iter().enumerate() {
             let prefix = member["prefix"]
                 .as_str()
@@ -725,10 +973,16 @@ impl Representation for AutoRepr {
                         .into());
                 }
                 impostors.push((size, data));
+            } else if repr == SphereRepr::NAME {
+                let size = member["size"]
+                    .as_u64()
+                    .ok_or_else(|| r.content(format!("metadata.members[{i}].size")))?
+                    as usize;
+                frames.push((size, SphereRepr::read(&inner)?));
             } else {
                 return Err(r
                     .content(format!(
-                        "metadata.members[{i}]: representation '{repr}' (mesh_lod once, parallax)"
+                        "metadata.members[{i}]: representation '{repr}' (mesh_lod once, parallax, sphere)"
                     ))
                     .into());
             }
@@ -741,6 +995,9 @@ impl Representation for AutoRepr {
             Member::Source => true,
             Member::Mesh { level } => level < levels,
             Member::Impostor { size } => impostors.iter().any(|(s, _)| *s == size),
+            Member::Frames { size } => frames.iter().any(|(s, _)| *s == size),
+            // The baseline is measured, never drawn by a written chain.
+            Member::Engine { .. } => false,
         };
         if let Some(u) = undrawn.filter(|u| !holds(*u) || *u == Member::Source) {
             return Err(r
@@ -766,6 +1023,7 @@ impl Representation for AutoRepr {
             chain,
             mesh,
             impostors,
+            frames,
             undrawn,
             target_db,
         })
@@ -777,8 +1035,9 @@ impl Representation for AutoRepr {
         };
         let mut md = format!(
             "Chains over the same candidates, verified at both edges of every band (target {} dB): \
-             the automatic one, meshes and the source only, impostors and the source only. Cost: \
-             shader steps (docs/design.md §10c).\n\n\
+             the automatic one, then each family with the source alone: simplified meshes, images \
+             with parallax, frames over the sphere, and the engines' octahedral impostor of the \
+             same frames (the baseline). Cost: shader steps (docs/design.md §10c).\n\n\
              | chain | bands: sizes (px) → member, triangles, worst dB at the edges | bytes | cost | repairs |\n\
              |---|---|---|---|---|\n",
             build.get("target_db")?.as_f64()?
@@ -786,11 +1045,13 @@ impl Representation for AutoRepr {
         for (key, name) in [
             ("auto", "automatic"),
             ("meshes_only", "meshes only"),
-            ("impostors_only", "impostors only"),
+            ("impostors_only", "images with parallax only"),
+            ("frames_only", "frames over the sphere only"),
+            ("engine_only", "engine octahedral impostor only"),
         ] {
             let c = &build[key];
             let Some(bands) = c["bands"].as_array() else {
-                md += &format!("| {name} | none: some band had no candidate | – | – | – |\n");
+                md += &format!("| {name} | not built: no candidate of the family | – | – | – |\n");
                 continue;
             };
             let edges = c["edges_worst_db"].as_array().cloned().unwrap_or_default();
@@ -885,6 +1146,13 @@ impl Representation for AutoRepr {
             .unwrap_or_default();
         let impostors: Vec<(usize, &ParallaxData)> =
             data.impostors.iter().map(|(s, d)| (*s, d)).collect();
+        let frames: Vec<(usize, &SphereImages)> =
+            data.frames.iter().map(|(s, d)| (*s, d)).collect();
+        let members = Members {
+            levels: &meshes,
+            impostors: &impostors,
+            frames: &frames,
+        };
         let mut parts = Vec::new();
         let mut what = Vec::new();
         let mut measured_sizes = Vec::new();
@@ -893,7 +1161,7 @@ impl Representation for AutoRepr {
                 continue;
             }
             for size in band_edges(band.from_px, band.to_px, needs) {
-                let m = measured_at(band.member, size, &meshes, &impostors, needs, source)?;
+                let m = measured_at(band.member, size, &members, needs, source)?;
                 what.push(format!("band {b} at {size} px"));
                 parts.push((m, band.steps_per_pixel));
                 measured_sizes.push(size);
@@ -909,7 +1177,7 @@ impl Representation for AutoRepr {
             };
             let min = crate::mesh_lod::MIN_MEASURED_PX;
             let top = match u {
-                Member::Impostor { size: s } => size.min(s),
+                Member::Impostor { size: s } | Member::Frames { size: s } => size.min(s),
                 _ => size,
             };
             let mut sizes = vec![
@@ -918,7 +1186,7 @@ impl Representation for AutoRepr {
             ];
             sizes.dedup();
             for s in sizes {
-                let m = measured_at(u, s, &meshes, &impostors, needs, source)?;
+                let m = measured_at(u, s, &members, needs, source)?;
                 what.push(format!(
                     "{u} (the chain draws the source at every size; kept undrawn) at {s} px"
                 ));
@@ -931,7 +1199,7 @@ impl Representation for AutoRepr {
         let n = parts.len() as f64;
         let mut m = Measurement {
             method: format!(
-                "each band's member at both its edges ({}), 4 needed directions each, vs truth 3×3 supersampled{}",
+                "each band's member at both its edges ({}), 4 needed directions each (frames over the sphere: 8, over the bounding sphere's window), vs truth 3×3 supersampled{}",
                 what.join(", "),
                 elevation_note(needs, window)
             ),
@@ -990,6 +1258,20 @@ impl Representation for AutoRepr {
                         &screen,
                     )?)
                 }
+                // Over the bounding sphere's window, at the same scale.
+                Member::Frames { size } => {
+                    let params = SphereRenderParams {
+                        size: sphere_px(biggest, sphere_radius(source)?),
+                        supersample: Supersample::ONE,
+                        light: source.light,
+                        ..SphereRenderParams::default()
+                    };
+                    let dir = azimuth_elevation(view.azimuth, view.elevation);
+                    crate::sphere::render(members.frames_of(size)?, dir, &params)
+                        .map_err(|e| PipelineError::Spec(e.to_string()))?
+                        .image
+                }
+                Member::Engine { .. } => continue,
             };
             images.push(image);
             drawn.push(if data.chain.iter().any(|b| b.member == band.member) {

@@ -2,7 +2,10 @@
 //!
 //! For each screen-size band of an asset's needs, the chain names the representation to draw:
 //! a simplified mesh level ([`crate::mesh_lod`]), an impostor (images with parallax,
-//! [`crate::parallax`], at a view size), or the source mesh itself. The candidates are built
+//! [`crate::parallax`], at a view size), frames over the sphere ([`crate::sphere`], at a frame
+//! size), or the source mesh itself. The engines' octahedral impostor blending the same frames
+//! is measured beside them as the baseline chain ([`Family::Engine`]), never drawn by the
+//! automatic chain. The candidates are built
 //! small and previewed against the ray-cast truth at the needed screen sizes; the chain takes at
 //! each size the candidate that meets the quality target there at the least **cost**
 //! ([`CostModel`]); then every band is measured at both its edges and the chain is chosen again
@@ -21,9 +24,13 @@
 //!   truth).
 //! * **Cost** of drawing a member at `p` pixels ([`CostModel::draw_steps`]):
 //!   `triangles · triangle_steps + steps_per_pixel · pixel_share · p²` shader steps, where an
-//!   impostor's `steps_per_pixel` is its march's measured mean over its quad (`pixel_share` 1)
-//!   and a mesh shades each covered pixel once (`steps_per_pixel` 1, `pixel_share` the object's
-//!   measured coverage). A chain's cost is the sum over the bands of the draw cost at each
+//!   impostor's `steps_per_pixel` is its march's measured mean over its quad (`pixel_share` 1;
+//!   for the frames over the sphere, the exact warp's march steps over every enclosing frame,
+//!   on a quad over the bounding sphere: `pixel_share` its radius², in cylinder radii),
+//!   the engine's octahedral impostor takes one depth read per enclosing frame (its one-step
+//!   offset; the colour reads, which every impostor makes, are not steps), and a mesh shades
+//!   each covered pixel once (`steps_per_pixel` 1, `pixel_share` the object's measured
+//!   coverage). A chain's cost is the sum over the bands of the draw cost at each
 //!   band's top, plus `byte_steps` per byte of the distinct members' files (the textures the
 //!   source and its levels share counted once; the source's own geometry counted where it is
 //!   drawn, though the chain's files do not hold it).
@@ -48,15 +55,33 @@ pub enum Member {
         /// The views' side (texels).
         size: usize,
     },
+    /// Images with parallax from any direction ([`crate::sphere`]): frames over the sphere
+    /// drawn by the exact warp, built for screen size `size`: as many texels across as the
+    /// bounding sphere spans pixels there.
+    Frames {
+        /// The screen size (pixels across the cylinder's window) the frames were built for.
+        size: usize,
+    },
+    /// The engines' octahedral impostor ([`crate::sphere::render_engine_baseline`]) blending
+    /// the frames built for screen size `size`: the baseline the other chains are compared
+    /// with. It is a member of the engine-only chain only; altrep does not draw it in the
+    /// automatic chain (its display draws the exact warp).
+    Engine {
+        /// The screen size (pixels) its frames were built for.
+        size: usize,
+    },
 }
 
 impl std::fmt::Display for Member {
-    /// `source`, `level k`, `impostor S²`: as the report names members.
+    /// `source`, `level k`, `impostor S²`, `frames S²`, `engine S²`: as the report names
+    /// members.
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         match self {
             Member::Source => write!(f, "source"),
             Member::Mesh { level } => write!(f, "level {level}"),
             Member::Impostor { size } => write!(f, "impostor {size}²"),
+            Member::Frames { size } => write!(f, "frames {size}²"),
+            Member::Engine { size } => write!(f, "engine {size}²"),
         }
     }
 }
@@ -67,9 +92,13 @@ impl std::fmt::Display for Member {
 pub enum Family {
     /// Simplified meshes and the source (a meshoptimizer-only chain).
     Meshes,
-    /// Impostors and the source (an impostor-only chain).
+    /// Images with parallax and the source (an impostor-only chain).
     Impostors,
-    /// Every candidate (the automatic chain).
+    /// Frames over the sphere and the source.
+    Frames,
+    /// The engines' octahedral impostor and the source (the baseline chain).
+    Engine,
+    /// Every candidate but the engine baseline (the automatic chain).
     All,
 }
 
@@ -79,9 +108,14 @@ impl Family {
         matches!(
             (self, member),
             (_, Member::Source)
-                | (Family::All, _)
+                | (
+                    Family::All,
+                    Member::Mesh { .. } | Member::Impostor { .. } | Member::Frames { .. }
+                )
                 | (Family::Meshes, Member::Mesh { .. })
                 | (Family::Impostors, Member::Impostor { .. })
+                | (Family::Frames, Member::Frames { .. })
+                | (Family::Engine, Member::Engine { .. })
         )
     }
 }
@@ -102,8 +136,10 @@ pub struct Candidate {
     pub shares_textures: bool,
     /// Mean shader steps per pixel it runs on.
     pub steps_per_pixel: f64,
-    /// Share of the picture's pixels its shader runs on (the object's coverage for a mesh, 1
-    /// for an impostor's quad).
+    /// Share of the picture's `p²` pixels its shader runs on: the object's coverage for a
+    /// mesh, 1 for an impostor's quad over the cylinder's window, the bounding sphere's radius
+    /// squared (in the cylinder's radii) for the frames over the sphere, whose quad spans that
+    /// sphere.
     pub pixel_share: f64,
     /// Largest screen size (pixels) at which it met the target; `None` where it met it at no
     /// size it was measured at. Ignored for the source.
@@ -585,7 +621,7 @@ mod tests {
         #[test]
         fn the_chain_is_admissible_and_no_single_member_beats_it(
             cands in proptest::collection::vec(
-                (0usize..3, 0usize..5000, 0u64..100_000, 0.0f64..50.0, proptest::option::of(0usize..7), proptest::option::of(0usize..7)),
+                (0usize..4, 0usize..5000, 0u64..100_000, 0.0f64..50.0, proptest::option::of(0usize..7), proptest::option::of(0usize..7)),
                 0..8),
             triangle_steps in 0.0f64..64.0,
             byte_steps in 0.0f64..1.0,
@@ -599,7 +635,9 @@ mod tests {
             for (i, &(kind, tris, bytes, steps, reach, floor)) in cands.iter().enumerate() {
                 let member = match kind {
                     0 => Member::Mesh { level: i },
-                    _ => Member::Impostor { size: 1000 + i },
+                    1 => Member::Impostor { size: 1000 + i },
+                    2 => Member::Frames { size: 1000 + i },
+                    _ => Member::Engine { size: 1000 + i },
                 };
                 c.push(Candidate {
                     member,
@@ -627,7 +665,7 @@ mod tests {
             let recomputed = objective(&c, &auto, &tops, &model, tex);
             approx::assert_relative_eq!(auto.cost, recomputed, max_relative = 1e-9, epsilon = 1e-6);
             // Any single admissible member over every band costs at least as much.
-            for one in &c {
+            for one in c.iter().filter(|x| Family::All.admits(x.member)) {
                 if (0..tops.len()).all(|i| one.admits_band(if i == 0 { s0 } else { tops[i - 1] }, tops[i])) {
                     let single = Chain { bands: vec![AutoBand {
                         from_px: s0.min(tops[0]), to_px: 200.0, member: one.member, triangles: one.triangles,
@@ -636,10 +674,15 @@ mod tests {
                     proptest::prop_assert!(auto.cost <= cost * (1.0 + 1e-12) + 1e-9, "{} > {}", auto.cost, cost);
                 }
             }
-            for family in [Family::Meshes, Family::Impostors] {
+            let engine_drawn = auto.bands.iter().any(|b| matches!(b.member, Member::Engine { .. }));
+            proptest::prop_assert!(!engine_drawn, "the automatic chain draws the baseline");
+            for family in [Family::Meshes, Family::Impostors, Family::Frames] {
                 let one = cheapest_chain(&c, family, &tops, s0, &model, tex).unwrap();
                 proptest::prop_assert!(auto.cost <= one.cost * (1.0 + 1e-12) + 1e-9);
             }
+            let engine = cheapest_chain(&c, Family::Engine, &tops, s0, &model, tex).unwrap();
+            let engine_only = engine.bands.iter().all(|b| matches!(b.member, Member::Engine { .. } | Member::Source));
+            proptest::prop_assert!(engine_only, "the baseline chain draws another family");
         }
     }
 }

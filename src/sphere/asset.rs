@@ -23,9 +23,9 @@ use crate::representation::{
     linear_bytes,
 };
 use crate::sphere::{
-    ConeBounds, Coverage, FrameCodes, SphereError, SphereImages, SphereMeasureParams, SphereParams,
-    SphereRenderParams, SurfaceModel, ViewSet, azimuth_elevation, fibonacci_directions, measure,
-    render, render_engine_baseline, truth_images,
+    ConeBounds, Coverage, FrameCodes, SphereError, SphereImages, SphereMeasureParams,
+    SphereMeasurement, SphereParams, SphereRenderParams, SurfaceModel, ViewSet, azimuth_elevation,
+    fibonacci_directions, measure, render, render_engine_baseline, truth_images,
 };
 
 /// Manifest parameters of images with parallax from any direction (`[asset.sphere]`).
@@ -432,33 +432,11 @@ impl Representation for SphereRepr {
         size: usize,
         source: &Source,
     ) -> Result<(Measurement, Vec<Picture>), PipelineError> {
-        let shape = source.shape()?;
-        let dirs = measure_directions(needs, data.params.set.coverage, 8);
         let size = size.clamp(1, 4096);
-        let params = SphereMeasureParams {
-            directions: dirs.len(),
-            render: SphereRenderParams {
-                size,
-                supersample: Supersample::ONE,
-                light: source.light,
-                ..SphereRenderParams::default()
-            },
-            truth_supersample: Supersample::of(3),
-        };
-        let truths = truth_images(shape, &dirs, size, Supersample::of(3), &source.light)
-            .map_err(sphere_err)?;
-        if let Some(k) = truths
-            .iter()
-            .position(|t| t.pixels.iter().all(|p| p[3] <= 0.0))
-        {
-            return Err(PipelineError::Invisible {
-                asset: source.name.into(),
-                what: format!("the ground truth along {:?}", dirs[k]),
-            });
-        }
-        let m = measure(data, &dirs, &truths, &params).map_err(sphere_err)?;
-        let ours = render(data, dirs[0], &params.render).map_err(sphere_err)?;
-        let base = render_engine_baseline(data, dirs[0], &params.render).map_err(sphere_err)?;
+        let (m, dirs, truths) = measured(data, needs, size, source)?;
+        let params = render_params(size, source);
+        let ours = render(data, dirs[0], &params).map_err(sphere_err)?;
+        let base = render_engine_baseline(data, dirs[0], &params).map_err(sphere_err)?;
         let e = dirs[0].y.clamp(-1.0, 1.0).asin().to_degrees();
         let pictures = vec![Picture {
             file: format!("{}-sphere.png", source.name),
@@ -496,4 +474,48 @@ impl Representation for SphereRepr {
             pictures,
         ))
     }
+}
+
+/// How the frames are drawn when measured at `size²` pixels: one ray per pixel, the source's
+/// light.
+fn render_params(size: usize, source: &Source) -> SphereRenderParams {
+    SphereRenderParams {
+        size,
+        supersample: Supersample::ONE,
+        light: source.light,
+        ..SphereRenderParams::default()
+    }
+}
+
+/// The frames (exact warp) and the engines' octahedral impostor built from them (the baseline,
+/// one-step and two-step), drawn at `size²` pixels (1 ray per pixel) along 8 directions in the
+/// needed ranges against the truth (3 × 3 rays per pixel), with those directions and truths.
+/// Errors: nothing of the object visible along some direction (typed, named). Cost: 8 truths of
+/// `9·size²` rays and 24 drawings of `size²` rays.
+pub(crate) fn measured(
+    data: &SphereImages,
+    needs: &Needs,
+    size: usize,
+    source: &Source,
+) -> Result<(SphereMeasurement, Vec<DVec3>, Vec<RgbaImage>), PipelineError> {
+    let shape = source.shape()?;
+    let dirs = measure_directions(needs, data.params.set.coverage, 8);
+    let params = SphereMeasureParams {
+        directions: dirs.len(),
+        render: render_params(size, source),
+        truth_supersample: Supersample::of(3),
+    };
+    let truths =
+        truth_images(shape, &dirs, size, Supersample::of(3), &source.light).map_err(sphere_err)?;
+    if let Some(k) = truths
+        .iter()
+        .position(|t| t.pixels.iter().all(|p| p[3] <= 0.0))
+    {
+        return Err(PipelineError::Invisible {
+            asset: source.name.into(),
+            what: format!("the ground truth along {:?}", dirs[k]),
+        });
+    }
+    let m = measure(data, &dirs, &truths, &params).map_err(sphere_err)?;
+    Ok((m, dirs, truths))
 }

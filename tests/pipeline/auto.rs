@@ -26,16 +26,10 @@ fn picture(shape: &dyn altrep_data_gen::Shape, angle: f64, size: usize) -> RgbaI
 
 /// The rock of the bundled scene (1,280 triangles, one texture) at 22 dB from 4 to 128 px,
 /// triangles priced high (64 steps each) so that impostors take the small sizes and both
-/// kinds of member go through the files. Measured 2026-12-07: see the figures printed.
+/// kinds of member go through the files: with every family, frames over the sphere take them;
+/// without that family, images with parallax do. Measured 2026-12-07: see the figures printed.
 #[test]
 fn the_automatic_chain_meets_the_target_at_every_band_edge_and_costs_no_more_than_one_family() {
-    let mesh = rock();
-    let src = placed("rock", &mesh);
-    let needs = Needs {
-        screen_px: [4.0, 128.0],
-        quality_db: 22.0,
-        ..Needs::default()
-    };
     let spec = AutoSpec {
         cost: CostModel {
             triangle_steps: 64.0,
@@ -43,6 +37,26 @@ fn the_automatic_chain_meets_the_target_at_every_band_edge_and_costs_no_more_tha
         },
         ..AutoSpec::default()
     };
+    chain_meets_its_target(&spec, |m| matches!(m, Member::Frames { .. }));
+    let parallax = AutoSpec {
+        families: vec!["mesh_lod".into(), "parallax".into()],
+        ..spec
+    };
+    chain_meets_its_target(&parallax, |m| matches!(m, Member::Impostor { .. }));
+}
+
+/// Builds the rock's chain with `spec`, requires a band drawing `impostor` and one drawing a
+/// mesh level, and checks the chain: its cost against the single families', its files read
+/// back, every member from unseen azimuths within 1 dB of the target, its measurement.
+fn chain_meets_its_target(spec: &AutoSpec, impostor: fn(&Member) -> bool) {
+    let mesh = rock();
+    let src = placed("rock", &mesh);
+    let needs = Needs {
+        screen_px: [4.0, 128.0],
+        quality_db: 22.0,
+        ..Needs::default()
+    };
+    let spec = spec.clone();
     let (plan, decisions) = AutoRepr::plan(&spec, &needs, &src).unwrap();
     assert!(plan.refused.is_none(), "{plan:?}");
     let (chain, report) = AutoRepr::build(&spec, &needs, &decisions, &src).unwrap();
@@ -50,13 +64,21 @@ fn the_automatic_chain_meets_the_target_at_every_band_edge_and_costs_no_more_tha
         let v = &report[k];
         (v["cost"].as_f64(), v["bytes"].as_u64(), v["bands"].clone())
     };
-    for k in ["auto", "meshes_only", "impostors_only"] {
+    let families = [
+        "auto",
+        "meshes_only",
+        "impostors_only",
+        "frames_only",
+        "engine_only",
+    ];
+    for k in families {
         println!("{k}: {:?}", summary(k));
     }
-    // Chosen from the same verified candidates, the automatic chain costs no more than either
-    // single family's.
+    // Chosen from the same verified candidates, the automatic chain costs no more than any
+    // single family's it may draw from (the engine baseline is not among them: measured here,
+    // on the rock it costs more).
     let auto = summary("auto").0.unwrap();
-    for k in ["meshes_only", "impostors_only"] {
+    for k in &families[1..] {
         if let Some(cost) = summary(k).0 {
             assert!(auto <= cost * (1.0 + 1e-12), "{k}: {cost} < auto {auto}");
         }
@@ -65,6 +87,7 @@ fn the_automatic_chain_meets_the_target_at_every_band_edge_and_costs_no_more_tha
     let (back, desc) = round_trip::<AutoRepr>(dir.path(), "rock", &chain);
     assert_eq!(back.chain, chain.chain);
     assert_eq!(back.impostors.len(), chain.impostors.len());
+    assert_eq!(back.frames.len(), chain.frames.len());
     // The bytes the build reports are the bytes of its files; the chain's, as chosen (the
     // levels with the source's textures), are no fewer.
     let files: u64 = desc.files.iter().map(|f| f.bytes).sum();
@@ -81,11 +104,7 @@ fn the_automatic_chain_meets_the_target_at_every_band_edge_and_costs_no_more_tha
     );
     // Both kinds of member, from the needs' smallest size to their largest, bands meeting.
     let kinds = |pred: fn(&Member) -> bool| back.chain.iter().filter(|b| pred(&b.member)).count();
-    assert!(
-        kinds(|m| matches!(m, Member::Impostor { .. })) >= 1,
-        "{:?}",
-        back.chain
-    );
+    assert!(kinds(impostor) >= 1, "{:?}", back.chain);
     assert!(
         kinds(|m| matches!(m, Member::Mesh { .. })) >= 1,
         "{:?}",
@@ -154,6 +173,45 @@ fn the_automatic_chain_meets_the_target_at_every_band_edge_and_costs_no_more_tha
                 assert!(
                     psnr >= needs.quality_db - 1.0,
                     "impostor {views}² at {size} px: {psnr:.2}"
+                );
+            }
+        }
+    }
+    // Frames over the sphere likewise, drawn at the scale of the band's sizes (over the
+    // bounding sphere's window) against the truth in that window.
+    let radius = altrep_data_gen::OrthoFrame::bounding_sphere(&mesh).1;
+    for band in &back.chain {
+        let Member::Frames { size: built } = band.member else {
+            continue;
+        };
+        let data = &back.frames.iter().find(|(s, _)| *s == built).unwrap().1;
+        for size in [band.from_px.max(8.0), band.to_px] {
+            let px = (size * radius).ceil() as usize;
+            for azimuth in [0.9f64, 2.6, 5.1] {
+                let dir = altrep::sphere::azimuth_elevation(azimuth, 0.0);
+                let truth = altrep::sphere::truth_images(
+                    src.shape().unwrap(),
+                    &[dir],
+                    px,
+                    Supersample::of(3),
+                    &src.light,
+                )
+                .unwrap()
+                .remove(0);
+                let params = altrep::sphere::SphereRenderParams {
+                    size: px,
+                    supersample: Supersample::ONE,
+                    light: src.light,
+                    ..altrep::sphere::SphereRenderParams::default()
+                };
+                let img = altrep::sphere::render(data, dir, &params).unwrap().image;
+                let psnr = altrep::metrics::psnr(&img, &truth).unwrap();
+                println!(
+                    "frames {built} at {size} px ({px} across the sphere), azimuth {azimuth}: {psnr:.2} dB"
+                );
+                assert!(
+                    psnr >= needs.quality_db - 1.0,
+                    "frames {built} at {size} px: {psnr:.2}"
                 );
             }
         }

@@ -1086,6 +1086,7 @@ impl Representation for AutoRepr {
                 c["repairs"]
             );
         }
+        md += &error_against_size(build);
         md += "\nCandidates (as previewed; reach: the largest size where every preview view met the target):\n\n\
                | candidate | triangles | bytes | steps per pixel | reach (px) |\n|---|---|---|---|---|\n";
         for c in build["candidates"].as_array()? {
@@ -1293,6 +1294,77 @@ impl Representation for AutoRepr {
         };
         Ok((m, vec![picture]))
     }
+}
+
+/// The report's table of error against screen size: for each chain of a build report, the
+/// worst PSNR (dB) its verification measured at each band edge (the lower of the two members
+/// meeting at a switch), `source` where the band draws the truth itself, `–` where the chain
+/// was not built. Columns: every size any chain was measured at, ascending.
+fn error_against_size(build: &serde_json::Value) -> String {
+    let chains = [
+        ("auto", "automatic"),
+        ("meshes_only", "meshes only"),
+        ("impostors_only", "images with parallax only"),
+        ("frames_only", "frames over the sphere only"),
+        ("engine_only", "engine octahedral impostor only"),
+    ];
+    let edges = |c: &serde_json::Value| -> Vec<(u64, u64, f64)> {
+        c["edges_worst_db"]
+            .as_array()
+            .map(|a| {
+                a.iter()
+                    .filter_map(|e| Some((e[0].as_u64()?, e[1].as_u64()?, e[2].as_f64()?)))
+                    .collect()
+            })
+            .unwrap_or_default()
+    };
+    let mut sizes: Vec<u64> = chains
+        .iter()
+        .flat_map(|(k, _)| edges(&build[*k]).into_iter().map(|e| e.1))
+        .collect();
+    sizes.sort_unstable();
+    sizes.dedup();
+    if sizes.is_empty() {
+        return String::new();
+    }
+    let mut md = format!(
+        "\nError against screen size: the worst PSNR (dB) over the measured directions at each size a chain was verified at (`source`: the band draws the source itself; blank: inside a band, measured at its edges).\n\n| chain | {} |\n|---|{}\n",
+        sizes
+            .iter()
+            .map(|s| format!("{s} px"))
+            .collect::<Vec<_>>()
+            .join(" | "),
+        "---|".repeat(sizes.len())
+    );
+    for (key, name) in chains {
+        let c = &build[key];
+        let Some(bands) = c["bands"].as_array() else {
+            continue;
+        };
+        let e = edges(c);
+        let cells: Vec<String> = sizes
+            .iter()
+            .map(|&s| {
+                let worst = e
+                    .iter()
+                    .filter(|x| x.1 == s)
+                    .map(|x| x.2)
+                    .fold(f64::INFINITY, f64::min);
+                if worst.is_finite() {
+                    return format!("{worst:.2}");
+                }
+                let p = s as f64;
+                let source = bands.iter().any(|b| {
+                    b["member"]["kind"] == "source"
+                        && b["from_px"].as_f64().is_some_and(|f| f <= p)
+                        && b["to_px"].as_f64().is_some_and(|t| p <= t)
+                });
+                if source { "source".into() } else { "".into() }
+            })
+            .collect();
+        md += &format!("| {name} | {} |\n", cells.join(" | "));
+    }
+    md
 }
 
 /// The bands of `bands` that draw a mesh level, as the simplified meshes' own chain.

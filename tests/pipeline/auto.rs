@@ -77,6 +77,18 @@ fn chain_meets_its_target(spec: &AutoSpec, impostor: fn(&Member) -> bool) {
     // Chosen from the same verified candidates, the automatic chain costs no more than any
     // single family's it may draw from (the engine baseline is not among them: measured here,
     // on the rock it costs more).
+    // The report's section: every chain built has its row of error against screen size.
+    let md = AutoRepr::details(&report).expect("a report section");
+    let table = &md[md.find("Error against screen size").expect("the table")..];
+    for (k, row) in families.iter().zip([
+        "| automatic |",
+        "| meshes only |",
+        "| images with parallax only |",
+        "| frames over the sphere only |",
+        "| engine octahedral impostor only |",
+    ]) {
+        assert_eq!(table.contains(row), !report[k].is_null(), "{k}: {table}");
+    }
     let auto = summary("auto").0.unwrap();
     for k in &families[1..] {
         if let Some(cost) = summary(k).0 {

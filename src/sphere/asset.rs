@@ -438,7 +438,7 @@ impl Representation for SphereRepr {
         let ours = render(data, dirs[0], &params).map_err(sphere_err)?;
         let base = render_engine_baseline(data, dirs[0], &params).map_err(sphere_err)?;
         let e = dirs[0].y.clamp(-1.0, 1.0).asin().to_degrees();
-        let pictures = vec![Picture {
+        let mut pictures = vec![Picture {
             file: format!("{}-sphere.png", source.name),
             caption: format!(
                 "{}: ground truth | exact warp ({:.1} dB) | engine impostor blend ({:.1} dB), elevation {e:.0}°",
@@ -446,6 +446,25 @@ impl Representation for SphereRepr {
             ),
             image: RgbaImage::side_by_side(&[&truths[0], &ours.image, &base.image]),
         }];
+        // The per-fragment cost: every texel read of each pixel, both on one scale.
+        let max = ours
+            .pixel_reads
+            .iter()
+            .chain(&base.pixel_reads)
+            .copied()
+            .max()
+            .unwrap_or(0);
+        pictures.push(Picture {
+            file: format!("{}-sphere-reads.png", source.name),
+            caption: format!(
+                "{}: texel reads per pixel, exact warp (mean {:.1} per ray, {:.1} over rays that hit) | engine impostor blend (mean {:.1}), on a logarithmic scale from black (0) through red and yellow to white ({max}), elevation {e:.0}°",
+                source.name,
+                ours.mean_reads(),
+                ours.mean_reads_over_hits(),
+                base.mean_reads(),
+            ),
+            image: RgbaImage::side_by_side(&[&ours.cost_picture(max), &base.cost_picture(max)]),
+        });
         let method = format!(
             "exact warp of {g}×{g} frames of {f}² at {n} directions in the needed ranges, {size}² with 1 ray per pixel, vs truth 3×3; engine impostor blend of the same frames {b:.2} dB (IoU {bi:.3}); texel reads per ray {r:.1} ({rh:.1} over rays that hit, at most {rm}) against the blend's {br:.1} ({what})",
             g = data.params.set.grid,

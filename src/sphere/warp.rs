@@ -157,6 +157,9 @@ pub struct RenderOutput {
     pub reads: Vec<u32>,
     /// Whether each of those rays found a surface (coloured the pixel).
     pub hit: Vec<bool>,
+    /// Per pixel, row-major: the texel reads of all its rays (as [`Self::reads`]), 0 outside
+    /// the disc: the per-fragment cost picture's data ([`Self::cost_picture`]).
+    pub pixel_reads: Vec<u32>,
     /// Rays still unresolved after [`MAX_CARVE_ROUNDS`] rounds.
     pub unresolved: usize,
     /// Rays whose surface point no frame asked sees (coloured by the nearest frame surface
@@ -169,6 +172,23 @@ pub struct RenderOutput {
 }
 
 impl RenderOutput {
+    /// The per-fragment cost as a picture: each pixel's texel reads ([`Self::pixel_reads`])
+    /// on a logarithmic ramp, `ln(1 + reads) / ln(1 + max)`, from black (0) through red and
+    /// yellow to white (`max` reads or more), opaque everywhere; `max` 0 is taken as 1 (the
+    /// reads of a few long rays would leave a linear ramp dark). Cost: one pass over the pixels.
+    pub fn cost_picture(&self, max: u32) -> RgbaImage {
+        let w = self.image.width;
+        let mut out = RgbaImage::new(w, self.image.height);
+        let top = f64::from(max.max(1)).ln_1p();
+        for (p, &r) in out.pixels.iter_mut().zip(&self.pixel_reads) {
+            let t = (f64::from(r).ln_1p() / top).min(1.0) as f32;
+            // Black → red (t = 1/3) → yellow (2/3) → white (1).
+            let ramp = |a: f32| (3.0 * t - a).clamp(0.0, 1.0);
+            *p = [ramp(0.0), ramp(1.0), ramp(2.0), 1.0];
+        }
+        out
+    }
+
     /// Mean texel fetches per ray (0 when no ray was cast).
     pub fn mean_steps(&self) -> f64 {
         self.steps.iter().map(|&s| f64::from(s)).sum::<f64>() / self.steps.len().max(1) as f64
@@ -476,12 +496,17 @@ pub(crate) fn draw(
 ) -> RenderOutput {
     let (w, s) = (params.size, params.supersample.get());
     let inv = 1.0 / (s * s) as f32;
-    // Per row: pixels, depths, and every ray traced.
-    type Row = (Vec<[f32; 4]>, Vec<Option<f64>>, Vec<RaySample>);
+    // Per row: pixels, depths, texel reads per pixel, and every ray traced.
+    type Row = (Vec<[f32; 4]>, Vec<Option<f64>>, Vec<u32>, Vec<RaySample>);
     let rows: Vec<Row> = (0..w)
         .into_par_iter()
         .map(|j| {
-            let (mut row, mut depth, mut rays) = (vec![[0.0f32; 4]; w], vec![None; w], Vec::new());
+            let (mut row, mut depth, mut reads, mut rays) = (
+                vec![[0.0f32; 4]; w],
+                vec![None; w],
+                vec![0u32; w],
+                Vec::new(),
+            );
             for i in 0..w {
                 let mut acc = [0.0f32; 4];
                 for a in 0..s {
@@ -497,6 +522,7 @@ pub(crate) fn draw(
                             continue;
                         }
                         let ray = trace(x, y, r2);
+                        reads[i] += ray.steps + ray.other_reads;
                         if let Some(c) = ray.colour {
                             acc = [acc[0] + c.x, acc[1] + c.y, acc[2] + c.z, acc[3] + 1.0];
                             if a == 0 && b == 0 {
@@ -508,7 +534,7 @@ pub(crate) fn draw(
                 }
                 row[i] = acc.map(|v| v * inv);
             }
-            (row, depth, rays)
+            (row, depth, reads, rays)
         })
         .collect();
     let mut out = RenderOutput {
@@ -516,13 +542,15 @@ pub(crate) fn draw(
         steps: Vec::new(),
         reads: Vec::new(),
         hit: Vec::new(),
+        pixel_reads: Vec::with_capacity(w * w),
         unresolved: 0,
         holes: 0,
         depth: Vec::with_capacity(w * w),
     };
-    for (j, (row, depth, rays)) in rows.into_iter().enumerate() {
+    for (j, (row, depth, reads, rays)) in rows.into_iter().enumerate() {
         out.image.pixels[j * w..(j + 1) * w].copy_from_slice(&row);
         out.depth.extend(depth);
+        out.pixel_reads.extend(reads);
         for r in rays {
             out.steps.push(r.steps);
             out.reads.push(r.steps + r.other_reads);
@@ -717,4 +745,43 @@ fn trace(
     }
     ray.depth = Some(z_c);
     ray
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::sphere::{SphereImages, SphereParams, azimuth_elevation, render_engine_baseline};
+    use altrep_data_gen::scene_shape;
+
+    /// Each pixel's reads are the reads of its rays: they sum to the rays' reads, are 0
+    /// outside the disc, and the cost picture runs from black (no read) to white (the most).
+    #[test]
+    fn the_cost_picture_holds_every_read_of_its_pixels() {
+        let shape = scene_shape("chair").unwrap();
+        let img = SphereImages::capture(&shape, &SphereParams::hemisphere(3, 24).unwrap()).unwrap();
+        let dir = azimuth_elevation(0.7, 0.4);
+        for supersample in [1, 2] {
+            let params = SphereRenderParams {
+                size: 20,
+                supersample: altrep_data_gen::Supersample::of(supersample),
+                ..SphereRenderParams::default()
+            };
+            for out in [
+                render(&img, dir, &params).unwrap(),
+                render_engine_baseline(&img, dir, &params).unwrap(),
+            ] {
+                assert_eq!(out.pixel_reads.len(), 20 * 20);
+                let total: u64 = out.pixel_reads.iter().map(|&r| u64::from(r)).sum();
+                assert_eq!(total, out.reads.iter().map(|&r| u64::from(r)).sum::<u64>());
+                // The corner pixel lies outside the disc: no ray, no read, black.
+                assert_eq!(out.pixel_reads[0], 0);
+                let max = *out.pixel_reads.iter().max().unwrap();
+                assert!(max > 0);
+                let pic = out.cost_picture(max);
+                assert_eq!(pic.pixels[0], [0.0, 0.0, 0.0, 1.0]);
+                let k = out.pixel_reads.iter().position(|&r| r == max).unwrap();
+                assert_eq!(pic.pixels[k], [1.0, 1.0, 1.0, 1.0]);
+            }
+        }
+    }
 }

@@ -87,7 +87,38 @@ impl ConeBounds {
                 }
             }
         }
+        // The same over sub-tiles of SUB² cells, tested inside a tile that passed.
+        const SUB: i64 = 2;
+        let ns = (fi + SUB - 1) / SUB;
+        let mut subs = vec![(f64::NEG_INFINITY, f64::INFINITY, 0.0f64); (ns * ns) as usize];
+        for j in 0..fi {
+            for i in 0..fi {
+                let k = (j * fi + i) as usize;
+                if frame.defined[k] {
+                    let t = &mut subs[((j / SUB) * ns + i / SUB) as usize];
+                    t.0 = t.0.max(hi[k]);
+                    t.1 = t.1.min(lo_ext[k]);
+                    t.2 = t.2.max(hi[k].abs().max(lo_ext[k].abs()));
+                }
+            }
+        }
         let reach = (tan / pitch).ceil() as i64 + 1;
+        // `need` of every cell gap within the frame, as the gather computes it.
+        let span = f;
+        let needs: Vec<f64> = (0..span * span)
+            .map(|g| {
+                let (gx, gy) = ((g % span) as f64, (g / span) as f64);
+                pitch * (gx * gx + gy * gy).sqrt() / tan
+            })
+            .collect();
+        // The tiles within reach, nearest first: near cells widen the interval most (their
+        // `need` is smallest), so the far tiles that follow are mostly skipped as unable to
+        // widen it further. The order changes which tiles are skipped, not the result.
+        let rt = reach / TILE + 1;
+        let mut offsets: Vec<(i64, i64)> = (-rt..=rt)
+            .flat_map(|dj| (-rt..=rt).map(move |di| (dj, di)))
+            .collect();
+        offsets.sort_by_key(|&(dj, di)| (dj * dj + di * di, dj, di));
         let rows: Vec<(Vec<u8>, Vec<u8>)> = (0..fi)
             .into_par_iter()
             .map(|jq| {
@@ -99,42 +130,71 @@ impl ConeBounds {
                     let (mut zmin, mut zmax) = (f64::INFINITY, f64::NEG_INFINITY);
                     let (tj0, tj1) = ((jq - reach).max(0) / TILE, (jq + reach).min(fi - 1) / TILE);
                     let (ti0, ti1) = ((iq - reach).max(0) / TILE, (iq + reach).min(fi - 1) / TILE);
-                    for tj in tj0..=tj1 {
-                        for ti in ti0..=ti1 {
-                            let (thi, tlo, tabs) = tiles[(tj * nt + ti) as usize];
-                            if thi < tlo {
-                                continue; // no defined cell
-                            }
+                    let (tq, tp) = (jq / TILE, iq / TILE);
+                    for &(dj, di) in &offsets {
+                        let (tj, ti) = (tq + dj, tp + di);
+                        if tj < tj0 || tj > tj1 || ti < ti0 || ti > ti1 {
+                            continue;
+                        }
+                        {
+                            // Whether a block of cells `[i0, i1] × [j0, j1]` with these
+                            // extremes can widen the interval. The least `need` of its cells
+                            // bounds what they can give: zmax at most `thi` where some cell
+                            // may reach `need`, else at most `-need`; zmin likewise at least
+                            // `tlo` or `need`.
+                            let widens = |(thi, tlo, tabs): (f64, f64, f64),
+                                          (i0, i1, j0, j1): (i64, i64, i64, i64),
+                                          zmin: f64,
+                                          zmax: f64| {
+                                if thi < tlo {
+                                    return false; // no defined cell
+                                }
+                                let (gx, gy) = (gap(iq, i0, i1), gap(jq, j0, j1));
+                                let need = pitch * (gx * gx + gy * gy).sqrt() / tan;
+                                if tabs < need {
+                                    return false; // out of reach
+                                }
+                                let most = if thi >= need { thi } else { -need };
+                                let least = if tlo <= -need { tlo } else { need };
+                                most > zmax || least < zmin
+                            };
                             let (j0, i0) = (tj * TILE, ti * TILE);
                             let (j1, i1) =
                                 ((j0 + TILE - 1).min(fi - 1), (i0 + TILE - 1).min(fi - 1));
-                            let (gx, gy) = (gap(iq, i0, i1), gap(jq, j0, j1));
-                            if pitch * (gx * gx + gy * gy).sqrt() > tabs * tan {
-                                continue; // out of reach
+                            if !widens(tiles[(tj * nt + ti) as usize], (i0, i1, j0, j1), zmin, zmax)
+                            {
+                                continue;
                             }
-                            if thi <= zmax && tlo >= zmin {
-                                continue; // cannot widen the interval
-                            }
-                            for j in j0..=j1 {
-                                let gy = ((j - jq).abs() - 1).max(0) as f64;
-                                for i in i0..=i1 {
-                                    let k = (j * fi + i) as usize;
-                                    if !frame.defined[k] {
+                            for sj in (j0..=j1).step_by(SUB as usize) {
+                                for si in (i0..=i1).step_by(SUB as usize) {
+                                    let (sj1, si1) =
+                                        ((sj + SUB - 1).min(fi - 1), (si + SUB - 1).min(fi - 1));
+                                    let sub = subs[((sj / SUB) * ns + si / SUB) as usize];
+                                    if !widens(sub, (si, si1, sj, sj1), zmin, zmax) {
                                         continue;
                                     }
-                                    let gx = ((i - iq).abs() - 1).max(0) as f64;
-                                    let need = pitch * (gx * gx + gy * gy).sqrt() / tan;
-                                    let (l, h) = (lo_ext[k], hi[k]);
-                                    // Largest and smallest Z in [l, h] with |Z| ≥ need.
-                                    if h >= need {
-                                        zmax = zmax.max(h);
-                                    } else if l <= -need {
-                                        zmax = zmax.max(h.min(-need));
-                                    }
-                                    if l <= -need {
-                                        zmin = zmin.min(l);
-                                    } else if h >= need {
-                                        zmin = zmin.min(l.max(need));
+                                    for j in sj..=sj1 {
+                                        let gy = ((j - jq).abs() - 1).max(0) as usize;
+                                        for i in si..=si1 {
+                                            let k = (j * fi + i) as usize;
+                                            // An undefined cell holds (+∞, −∞): it gives
+                                            // nothing.
+                                            let (l, h) = (lo_ext[k], hi[k]);
+                                            let gx = ((i - iq).abs() - 1).max(0) as usize;
+                                            let need = needs[gy * span + gx];
+                                            // Largest and smallest Z in [l, h] with
+                                            // |Z| ≥ need.
+                                            if h >= need {
+                                                zmax = zmax.max(h);
+                                            } else if l <= -need {
+                                                zmax = zmax.max(h.min(-need));
+                                            }
+                                            if l <= -need {
+                                                zmin = zmin.min(l);
+                                            } else if h >= need {
+                                                zmin = zmin.min(l.max(need));
+                                            }
+                                        }
                                     }
                                 }
                             }
@@ -335,12 +395,21 @@ mod tests {
 
     #[test]
     fn the_pruned_build_equals_the_full_gather() {
-        let shape = scene_shape("chair").unwrap();
-        let img = SphereImages::capture(&shape, &SphereParams::hemisphere(3, 24).unwrap()).unwrap();
-        for k in [0, 4, 7] {
-            let (zmin, zmax) = brute(&img.frames[k], img.cones[k]);
-            assert_eq!(img.bounds[k].zmin, zmin, "frame {k}");
-            assert_eq!(img.bounds[k].zmax, zmax, "frame {k}");
+        // Small frames, and frames of several tiles whose cones reach across tiles (the
+        // pruning by each tile's least `need` and the nearest-first order at work).
+        for (name, grid, size, frames) in [
+            ("chair", 3, 24, &[0usize, 4, 7][..]),
+            ("tree", 3, 64, &[0, 5][..]),
+            ("truck", 2, 72, &[1][..]),
+        ] {
+            let shape = scene_shape(name).unwrap();
+            let img = SphereImages::capture(&shape, &SphereParams::hemisphere(grid, size).unwrap())
+                .unwrap();
+            for &k in frames {
+                let (zmin, zmax) = brute(&img.frames[k], img.cones[k]);
+                assert_eq!(img.bounds[k].zmin, zmin, "{name}, frame {k}");
+                assert_eq!(img.bounds[k].zmax, zmax, "{name}, frame {k}");
+            }
         }
     }
 }

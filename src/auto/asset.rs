@@ -191,17 +191,7 @@ fn frames_measured(
 ) -> Result<(Measurement, f64, crate::sphere::SphereMeasurement), PipelineError> {
     let px = sphere_px(size, sphere_radius(source)?);
     let (m, _, _) = crate::sphere::asset::measured(data, needs, px, source)?;
-    let ours = Measurement {
-        method: String::new(),
-        psnr_db: m.ours.psnr_mean,
-        worst_psnr_db: m.ours.psnr_min,
-        iou: m.ours.iou_mean,
-        coverage_error: Some(m.ours.coverage_error_mean),
-        mean_steps: Some(m.ours.steps_mean),
-        steps_split: Vec::new(),
-        size,
-        exact_psnr_db: None,
-    };
+    let ours = crate::sphere::asset::exact_warp_measurement(&m, String::new(), size);
     Ok((ours, m.baseline.psnr_min, m))
 }
 

@@ -478,20 +478,27 @@ impl Representation for SphereRepr {
             br = m.baseline.reads_mean,
             what = super::warp::TEXEL_READS,
         );
-        Ok((
-            Measurement {
-                method,
-                psnr_db: m.ours.psnr_mean,
-                worst_psnr_db: m.ours.psnr_min,
-                iou: m.ours.iou_mean,
-                coverage_error: Some(m.ours.coverage_error_mean),
-                mean_steps: Some(m.ours.steps_mean),
-                steps_split: Vec::new(),
-                size,
-                exact_psnr_db: None,
-            },
-            pictures,
-        ))
+        Ok((exact_warp_measurement(&m, method, size), pictures))
+    }
+}
+
+/// The exact warp's figures of `m` as the pipeline reports a representation's, measured at
+/// `size` pixels, described by `method`.
+pub(crate) fn exact_warp_measurement(
+    m: &SphereMeasurement,
+    method: String,
+    size: usize,
+) -> Measurement {
+    Measurement {
+        method,
+        psnr_db: m.ours.psnr_mean,
+        worst_psnr_db: m.ours.psnr_min,
+        iou: m.ours.iou_mean,
+        coverage_error: Some(m.ours.coverage_error_mean),
+        mean_steps: Some(m.ours.steps_mean),
+        steps_split: Vec::new(),
+        size,
+        exact_psnr_db: None,
     }
 }
 

@@ -71,37 +71,30 @@ impl ConeBounds {
             }
         }
         // Tiles of TILE² cells with their extreme values prune the gather exactly: a tile is
-        // skipped when none of its cells is within reach of Q, or when none can raise zmax or
-        // lower zmin further.
+        // skipped when none of its cells can raise zmax or lower zmin further (out of reach,
+        // or nothing to add at the `need` of its nearest cell); the same over sub-tiles of
+        // SUB² cells inside a tile that passed.
         const TILE: i64 = 8;
-        let nt = (fi + TILE - 1) / TILE;
-        let mut tiles = vec![(f64::NEG_INFINITY, f64::INFINITY, 0.0f64); (nt * nt) as usize];
-        for j in 0..fi {
-            for i in 0..fi {
-                let k = (j * fi + i) as usize;
-                if frame.defined[k] {
-                    let t = &mut tiles[((j / TILE) * nt + i / TILE) as usize];
-                    t.0 = t.0.max(hi[k]);
-                    t.1 = t.1.min(lo_ext[k]);
-                    t.2 = t.2.max(hi[k].abs().max(lo_ext[k].abs()));
-                }
-            }
-        }
-        // The same over sub-tiles of SUB² cells, tested inside a tile that passed.
         const SUB: i64 = 2;
-        let ns = (fi + SUB - 1) / SUB;
-        let mut subs = vec![(f64::NEG_INFINITY, f64::INFINITY, 0.0f64); (ns * ns) as usize];
-        for j in 0..fi {
-            for i in 0..fi {
-                let k = (j * fi + i) as usize;
-                if frame.defined[k] {
-                    let t = &mut subs[((j / SUB) * ns + i / SUB) as usize];
-                    t.0 = t.0.max(hi[k]);
-                    t.1 = t.1.min(lo_ext[k]);
-                    t.2 = t.2.max(hi[k].abs().max(lo_ext[k].abs()));
+        // Per block of `b²` cells, `(max hi, min lo_ext, max |Z|)` over its defined cells, and
+        // the blocks per side.
+        let blocks = |b: i64| {
+            let n = (fi + b - 1) / b;
+            let mut out = vec![(f64::NEG_INFINITY, f64::INFINITY, 0.0f64); (n * n) as usize];
+            for j in 0..fi {
+                for i in 0..fi {
+                    let k = (j * fi + i) as usize;
+                    if frame.defined[k] {
+                        let t = &mut out[((j / b) * n + i / b) as usize];
+                        t.0 = t.0.max(hi[k]);
+                        t.1 = t.1.min(lo_ext[k]);
+                        t.2 = t.2.max(hi[k].abs().max(lo_ext[k].abs()));
+                    }
                 }
             }
-        }
+            (out, n)
+        };
+        let ((tiles, nt), (subs, ns)) = (blocks(TILE), blocks(SUB));
         let reach = (tan / pitch).ceil() as i64 + 1;
         // `need` of every cell gap within the frame, as the gather computes it.
         let span = f;

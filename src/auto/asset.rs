@@ -3,8 +3,8 @@
 //! Files: the members the chain draws, each written by its own representation under a prefix
 //! in this one folder: `mesh-level{k}.glb` and `mesh-texture{i}.png|.jpg` (simplified meshes,
 //! as [`crate::mesh_lod`] writes them), `impostor{S}-…` (images with parallax of `S²` views,
-//! as [`crate::parallax`] writes them), `frames{S}-…` (frames over the sphere of `S²` texels,
-//! as [`crate::sphere`] writes them). `metadata.chain` lists the bands (`from_px`, `to_px`,
+//! as [`crate::parallax`] writes them), `frames{S}-…` (frames over the sphere built for screen
+//! size `S`, as [`crate::sphere`] writes them). `metadata.chain` lists the bands (`from_px`, `to_px`,
 //! `member`, triangles, steps per pixel, draw cost); `metadata.members` each member's prefix,
 //! representation and the metadata its writer returned; `metadata.target_db` the target.
 
@@ -87,7 +87,7 @@ pub struct AutoDecisions {
     pub mesh: Option<MeshLodDecisions>,
     /// `(view size, plan)` of each impostor candidate.
     pub impostors: Vec<(usize, ParallaxDecisions)>,
-    /// `(frame size, plan)` of each candidate of frames over the sphere.
+    /// `(screen size built for, plan)` of each candidate of frames over the sphere.
     #[serde(default)]
     pub frames: Vec<(usize, SphereDecisions)>,
 }
@@ -100,12 +100,11 @@ pub struct AutoChain {
     pub mesh: Option<MeshLod>,
     /// `(view size, data)` of each impostor the chain draws.
     pub impostors: Vec<(usize, ParallaxData)>,
-    /// `(frame size, data)` of each set of frames over the sphere the chain draws.
+    /// `(screen size built for, data)` of each set of frames over the sphere the chain draws.
     pub frames: Vec<(usize, SphereImages)>,
     /// Where the chain draws the source at every size: the candidate kept, undrawn, that came
     /// closest to the target (the finest level, else the largest impostor, else the largest
-    /// frames), which the
-    /// measurement reports below the target. `None` otherwise.
+    /// frames), which the measurement reports below the target. `None` otherwise.
     pub undrawn: Option<Member>,
     /// The quality target (dB) the chain was verified for.
     pub target_db: f64,
@@ -202,7 +201,9 @@ fn engine_steps(m: &crate::sphere::SphereMeasurement) -> f64 {
 }
 
 /// A member's figures at `size` pixels over the 4 measured directions (3 × 3 rays per pixel),
-/// as every representation is measured; the source is the truth (worst PSNR infinite).
+/// as every representation is measured (frames over the sphere and the engine's impostor: 8,
+/// [`frames_measured`]; the engine's worst PSNR alone); the source is the truth (worst PSNR
+/// infinite).
 fn measured_at(
     member: Member,
     size: usize,
@@ -489,7 +490,7 @@ impl Representation for AutoRepr {
             for &s in &sizes {
                 if s > spec.sphere.size {
                     plan.skip(
-                        format!("frames of {s}² over the sphere"),
+                        format!("frames over the sphere for {s} px"),
                         format!("above auto.sphere.size = {}", spec.sphere.size),
                     );
                     continue;
@@ -499,7 +500,7 @@ impl Representation for AutoRepr {
                 let (p, d) =
                     SphereRepr::plan(&frames_spec(spec, f), &impostor_needs(&needs, f), source)?;
                 match p.refused {
-                    Some(reason) => plan.skip(format!("frames of {s}² over the sphere"), reason),
+                    Some(reason) => plan.skip(format!("frames over the sphere for {s} px"), reason),
                     None => {
                         plan.build(format!(
                             "frames candidate: {g}×{g} frames of {}² over the {}, and the engines' octahedral impostor of the same frames (the baseline chain)",

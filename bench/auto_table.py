@@ -47,13 +47,19 @@ def main(out):
                 row += ["–", "–"]
                 continue
             row += [f"{c['bytes']:,}", f"{c['cost']:,.0f}"]
-            if k != "auto":
+            # A chain of the source alone is no family's stand-in: not compared.
+            if k != "auto" and any(b["member"]["kind"] != "source" for b in c["bands"]):
                 singles.append((c["cost"], c["bytes"], k))
-        cheapest = min(singles)
+        if singles:
+            cheapest = min(singles)
+            row += [
+                cheapest[2].replace("_only", ""),
+                f"{auto['cost'] / cheapest[0]:.3f}",
+                f"{auto['bytes'] / max(cheapest[1], 1):.3f}",
+            ]
+        else:
+            row += ["none draws a stand-in", "–", "–"]
         row += [
-            cheapest[2].replace("_only", ""),
-            f"{auto['cost'] / cheapest[0]:.3f}",
-            f"{auto['bytes'] / max(cheapest[1], 1):.3f}",
             f"{r['mesh_s'] + r['impostor_s'] + r.get('frames_s', 0):.2f}",
             f"{r['verify_s']:.2f}",
         ]

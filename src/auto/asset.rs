@@ -31,7 +31,9 @@ use crate::representation::{
     Window, elevation_note, measure_views, secs,
 };
 use crate::sphere::asset::{SphereDecisions, SphereRepr, SphereSpec};
-use crate::sphere::{SphereImages, SphereRenderParams, azimuth_elevation};
+use crate::sphere::{
+    MethodStats, SphereImages, SphereRenderParams, azimuth_elevation, measure_one_step,
+};
 
 /// Manifest parameters of the automatic chain (`[asset.auto]`).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -180,24 +182,25 @@ impl Members<'_> {
 
 /// The frames of `data` and the engines' octahedral impostor of the same frames drawn at the
 /// scale of screen size `size` ([`crate::sphere::asset::measured`] over the bounding sphere's
-/// [`sphere_px`]: 8 needed directions, 3 × 3): the frames' measurement and the engine's worst
-/// PSNR (dB).
+/// [`sphere_px`]: 8 needed directions, 3 × 3; the two-step baseline is not drawn): the frames'
+/// measurement, the engine's worst PSNR (dB) and the engine's figures.
 fn frames_measured(
     data: &SphereImages,
     size: usize,
     needs: &Needs,
     source: &Source,
-) -> Result<(Measurement, f64, crate::sphere::SphereMeasurement), PipelineError> {
+) -> Result<(Measurement, f64, MethodStats), PipelineError> {
     let px = sphere_px(size, sphere_radius(source)?);
-    let (m, _, _) = crate::sphere::asset::measured(data, needs, px, source)?;
-    let ours = crate::sphere::asset::exact_warp_measurement(&m, String::new(), size);
-    Ok((ours, m.baseline.psnr_min, m))
+    let ((ours, engine), _, _) =
+        crate::sphere::asset::measured(data, needs, px, source, measure_one_step)?;
+    let m = crate::sphere::asset::exact_warp_measurement(&ours, String::new(), size);
+    Ok((m, engine.psnr_min, engine))
 }
 
 /// The engine's steps per pixel (its depth reads; [`super`] docs): one per enclosing frame of
 /// the one-step offset, whose `4·(1 + 3)` texel reads per frame the measurement counts.
-fn engine_steps(m: &crate::sphere::SphereMeasurement) -> f64 {
-    m.baseline.reads_mean / 16.0
+fn engine_steps(engine: &MethodStats) -> f64 {
+    engine.reads_mean / 16.0
 }
 
 /// A member's figures at `size` pixels over the 4 measured directions (3 × 3 rays per pixel),

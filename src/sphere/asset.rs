@@ -23,8 +23,8 @@ use crate::representation::{
     linear_bytes,
 };
 use crate::sphere::{
-    ConeBounds, Coverage, FrameCodes, SphereError, SphereImages, SphereMeasureParams,
-    SphereMeasurement, SphereParams, SphereRenderParams, SurfaceModel, ViewSet, azimuth_elevation,
+    ConeBounds, Coverage, FrameCodes, MethodStats, SphereError, SphereImages, SphereMeasureParams,
+    SphereParams, SphereRenderParams, SurfaceModel, ViewSet, azimuth_elevation,
     fibonacci_directions, measure, render, render_engine_baseline, truth_images,
 };
 
@@ -433,7 +433,7 @@ impl Representation for SphereRepr {
         source: &Source,
     ) -> Result<(Measurement, Vec<Picture>), PipelineError> {
         let size = size.clamp(1, 4096);
-        let (m, dirs, truths) = measured(data, needs, size, source)?;
+        let (m, dirs, truths) = measured(data, needs, size, source, measure)?;
         let params = render_params(size, source);
         let ours = render(data, dirs[0], &params).map_err(sphere_err)?;
         let base = render_engine_baseline(data, dirs[0], &params).map_err(sphere_err)?;
@@ -478,24 +478,24 @@ impl Representation for SphereRepr {
             br = m.baseline.reads_mean,
             what = super::warp::TEXEL_READS,
         );
-        Ok((exact_warp_measurement(&m, method, size), pictures))
+        Ok((exact_warp_measurement(&m.ours, method, size), pictures))
     }
 }
 
-/// The exact warp's figures of `m` as the pipeline reports a representation's, measured at
+/// The exact warp's figures `ours` as the pipeline reports a representation's, measured at
 /// `size` pixels, described by `method`.
 pub(crate) fn exact_warp_measurement(
-    m: &SphereMeasurement,
+    ours: &MethodStats,
     method: String,
     size: usize,
 ) -> Measurement {
     Measurement {
         method,
-        psnr_db: m.ours.psnr_mean,
-        worst_psnr_db: m.ours.psnr_min,
-        iou: m.ours.iou_mean,
-        coverage_error: Some(m.ours.coverage_error_mean),
-        mean_steps: Some(m.ours.steps_mean),
+        psnr_db: ours.psnr_mean,
+        worst_psnr_db: ours.psnr_min,
+        iou: ours.iou_mean,
+        coverage_error: Some(ours.coverage_error_mean),
+        mean_steps: Some(ours.steps_mean),
         steps_split: Vec::new(),
         size,
         exact_psnr_db: None,
@@ -513,17 +513,24 @@ fn render_params(size: usize, source: &Source) -> SphereRenderParams {
     }
 }
 
-/// The frames (exact warp) and the engines' octahedral impostor built from them (the baseline,
-/// one-step and two-step), drawn at `size²` pixels (1 ray per pixel) along 8 directions in the
-/// needed ranges against the truth (3 × 3 rays per pixel), with those directions and truths.
-/// Errors: nothing of the object visible along some direction (typed, named). Cost: 8 truths of
-/// `9·size²` rays and 24 drawings of `size²` rays.
-pub(crate) fn measured(
+/// The frames measured by `measure` ([`measure`], or [`crate::sphere::measure_one_step`]:
+/// the exact warp and the engines' octahedral impostor built from the same frames), drawn at
+/// `size²` pixels (1 ray per pixel) along 8 directions in the needed ranges against the truth
+/// (3 × 3 rays per pixel), with those directions and truths. Errors: nothing of the object
+/// visible along some direction (typed, named). Cost: 8 truths of `9·size²` rays, and
+/// `measure`'s drawings of `size²` rays (2 or 3 per direction).
+pub(crate) fn measured<T>(
     data: &SphereImages,
     needs: &Needs,
     size: usize,
     source: &Source,
-) -> Result<(SphereMeasurement, Vec<DVec3>, Vec<RgbaImage>), PipelineError> {
+    measure: impl FnOnce(
+        &SphereImages,
+        &[DVec3],
+        &[RgbaImage],
+        &SphereMeasureParams,
+    ) -> Result<T, SphereError>,
+) -> Result<(T, Vec<DVec3>, Vec<RgbaImage>), PipelineError> {
     let shape = source.shape()?;
     let dirs = measure_directions(needs, data.params.set.coverage, 8);
     let params = SphereMeasureParams {

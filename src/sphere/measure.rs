@@ -193,6 +193,43 @@ fn stats(outs: &[(RenderOutput, f64)], truths: &[RgbaImage]) -> Result<MethodSta
     Ok(s)
 }
 
+/// Each direction's drawing by `draw`, with its time (ms).
+fn timed(
+    directions: &[DVec3],
+    draw: &dyn Fn(DVec3) -> Result<RenderOutput, SphereError>,
+) -> Result<Vec<(RenderOutput, f64)>, SphereError> {
+    directions
+        .iter()
+        .map(|&d| {
+            let t = Instant::now();
+            let out = draw(d)?;
+            Ok((out, t.elapsed().as_secs_f64() * 1e3))
+        })
+        .collect()
+}
+
+/// The exact warp's and the one-step engine baseline's figures of [`measure`], without the
+/// two-step baseline: what a caller choosing between them needs. Same arguments, errors and
+/// figures; two drawings per direction instead of three.
+pub fn measure_one_step(
+    images: &SphereImages,
+    directions: &[DVec3],
+    truths: &[RgbaImage],
+    params: &SphereMeasureParams,
+) -> Result<(MethodStats, MethodStats), SphereError> {
+    check(
+        directions.len() == truths.len() && !directions.is_empty(),
+        "truth images",
+        truths.len(),
+        "need one per direction, and at least one direction",
+    )?;
+    let ours = timed(directions, &|d| render(images, d, &params.render))?;
+    let base = timed(directions, &|d| {
+        render_engine(images, d, &params.render, EngineSteps::One)
+    })?;
+    Ok((stats(&ours, truths)?, stats(&base, truths)?))
+}
+
 /// Measures `images` (exact warp) and the engine baseline built from the same frames along
 /// `directions`, against `truths` (from [`truth_images`] at `params.render.size`).
 ///
@@ -204,25 +241,10 @@ pub fn measure(
     truths: &[RgbaImage],
     params: &SphereMeasureParams,
 ) -> Result<SphereMeasurement, SphereError> {
-    check(
-        directions.len() == truths.len() && !directions.is_empty(),
-        "truth images",
-        truths.len(),
-        "need one per direction, and at least one direction",
-    )?;
-    let timed = |f: &dyn Fn(DVec3) -> Result<RenderOutput, SphereError>| {
-        directions
-            .iter()
-            .map(|&d| {
-                let t = Instant::now();
-                let out = f(d)?;
-                Ok((out, t.elapsed().as_secs_f64() * 1e3))
-            })
-            .collect::<Result<Vec<_>, SphereError>>()
-    };
-    let ours = timed(&|d| render(images, d, &params.render))?;
-    let base = timed(&|d| render_engine(images, d, &params.render, EngineSteps::One))?;
-    let base2 = timed(&|d| render_engine(images, d, &params.render, EngineSteps::Two))?;
+    let (ours, baseline) = measure_one_step(images, directions, truths, params)?;
+    let base2 = timed(directions, &|d| {
+        render_engine(images, d, &params.render, EngineSteps::Two)
+    })?;
     let p = &images.params;
     let (interval, _) = images
         .bounds
@@ -237,8 +259,8 @@ pub fn measure(
         capture_s: images.capture_time.as_secs_f64(),
         bounds_s: images.bounds_time.as_secs_f64(),
         bound_interval: interval / images.bounds.len().max(1) as f64,
-        ours: stats(&ours, truths)?,
-        baseline: stats(&base, truths)?,
+        ours,
+        baseline,
         baseline_two_step: stats(&base2, truths)?,
         directions: directions.iter().map(|d| d.to_array()).collect(),
     })

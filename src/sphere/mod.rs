@@ -120,7 +120,7 @@ pub use bounds::{BoundsCheck, ConeBounds, check_bounds};
 pub use frames::{Frame, FrameCodes, SphereImages, SphereParams, SurfaceModel};
 pub use measure::{
     BudgetRow, MethodStats, SphereMeasureParams, SphereMeasurement, budget_table,
-    fibonacci_directions, measure, truth_images,
+    fibonacci_directions, measure, measure_one_step, truth_images,
 };
 pub use viewset::{Coverage, ViewSet, azimuth_elevation};
 pub use warp::{

@@ -163,6 +163,35 @@ fn frames_spec(spec: &AutoSpec, size: usize) -> SphereSpec {
     }
 }
 
+/// One candidate per preview size up to `cap` (the manifest's `auto.{key}.size`): each planned
+/// by `plan_one`, added to `plan` as built (described by `describe`) or skipped with its reason
+/// where refused or above the cap, named by `what`.
+fn plan_per_size<D>(
+    plan: &mut Plan,
+    sizes: &[usize],
+    (key, cap): (&str, usize),
+    what: impl Fn(usize) -> String,
+    mut plan_one: impl FnMut(usize) -> Result<(Plan, D), PipelineError>,
+    describe: impl Fn(usize, &D) -> String,
+) -> Result<Vec<(usize, D)>, PipelineError> {
+    let mut out = Vec::new();
+    for &s in sizes {
+        if s > cap {
+            plan.skip(what(s), format!("above auto.{key}.size = {cap}"));
+            continue;
+        }
+        let (p, d) = plan_one(s)?;
+        match p.refused {
+            Some(reason) => plan.skip(what(s), reason),
+            None => {
+                plan.build(describe(s, &d));
+                out.push((s, d));
+            }
+        }
+    }
+    Ok(out)
+}
+
 /// The candidates' data a measurement draws from.
 struct Members<'a> {
     levels: &'a [&'a Mesh],
@@ -171,6 +200,14 @@ struct Members<'a> {
 }
 
 impl Members<'_> {
+    fn impostor_of(&self, s: usize) -> Result<&ParallaxData, PipelineError> {
+        self.impostors
+            .iter()
+            .find(|(k, _)| *k == s)
+            .map(|(_, d)| *d)
+            .ok_or_else(|| PipelineError::Spec(format!("no impostor of {s}² views")))
+    }
+
     fn frames_of(&self, s: usize) -> Result<&SphereImages, PipelineError> {
         self.frames
             .iter()
@@ -236,13 +273,7 @@ fn measured_at(
             ))
         }
         Member::Impostor { size: s } => {
-            let data = members
-                .impostors
-                .iter()
-                .find(|(k, _)| *k == s)
-                .map(|(_, d)| *d)
-                .ok_or_else(|| PipelineError::Spec(format!("no impostor of {s}² views")))?;
-            Ok(Parallax::measure(data, needs, size, source)?.0)
+            Ok(Parallax::measure(members.impostor_of(s)?, needs, size, source)?.0)
         }
         Member::Frames { size: s } => {
             Ok(frames_measured(members.frames_of(s)?, size, needs, source)?.0)
@@ -442,8 +473,9 @@ impl Representation for AutoRepr {
                 },
             ));
         }
+        let asks = |family: &str| spec.families.iter().any(|f| f == family);
         let mut mesh = None;
-        if spec.families.iter().any(|f| f == "mesh_lod") {
+        if asks("mesh_lod") {
             let lod_spec = MeshLodSpec {
                 max_px: spec.max_px,
                 ..spec.mesh_lod.clone()
@@ -463,61 +495,47 @@ impl Representation for AutoRepr {
             }
         }
         let mut impostors = Vec::new();
-        if spec.families.iter().any(|f| f == "parallax") {
-            for &s in &sizes {
-                if s > spec.parallax.size {
-                    plan.skip(
-                        format!("impostor of {s}² views"),
-                        format!("above auto.parallax.size = {}", spec.parallax.size),
-                    );
-                    continue;
-                }
-                let (p, d) =
-                    Parallax::plan(&impostor_spec(spec, s), &impostor_needs(&needs, s), source)?;
-                match p.refused {
-                    Some(reason) => plan.skip(format!("impostor of {s}² views"), reason),
-                    None => {
-                        plan.build(format!(
-                            "impostor candidate: {} of {} views of {s}²",
-                            d.views.len(),
-                            spec.parallax.views
-                        ));
-                        impostors.push((s, d));
-                    }
-                }
-            }
+        if asks("parallax") {
+            impostors = plan_per_size(
+                &mut plan,
+                &sizes,
+                ("parallax", spec.parallax.size),
+                |s| format!("impostor of {s}² views"),
+                |s| Parallax::plan(&impostor_spec(spec, s), &impostor_needs(&needs, s), source),
+                |s, d| {
+                    format!(
+                        "impostor candidate: {} of {} views of {s}²",
+                        d.views.len(),
+                        spec.parallax.views
+                    )
+                },
+            )?;
         }
         let mut frames = Vec::new();
-        if spec.families.iter().any(|f| f == "sphere") {
+        if asks("sphere") {
             let radius = sphere_radius(source)?;
-            for &s in &sizes {
-                if s > spec.sphere.size {
-                    plan.skip(
-                        format!("frames over the sphere for {s} px"),
-                        format!("above auto.sphere.size = {}", spec.sphere.size),
-                    );
-                    continue;
-                }
+            frames = plan_per_size(
+                &mut plan,
+                &sizes,
+                ("sphere", spec.sphere.size),
+                |s| format!("frames over the sphere for {s} px"),
                 // Frame texels as fine as the pixels across the bounding sphere at this size.
-                let f = sphere_px(s, radius);
-                let (p, d) =
-                    SphereRepr::plan(&frames_spec(spec, f), &impostor_needs(&needs, f), source)?;
-                match p.refused {
-                    Some(reason) => plan.skip(format!("frames over the sphere for {s} px"), reason),
-                    None => {
-                        plan.build(format!(
-                            "frames candidate: {g}×{g} frames of {}² over the {}, and the engines' octahedral impostor of the same frames (the baseline chain)",
-                            d.size,
-                            match d.coverage {
-                                crate::sphere::Coverage::Hemisphere => "upper hemisphere",
-                                crate::sphere::Coverage::Sphere => "sphere",
-                            },
-                            g = d.grid
-                        ));
-                        frames.push((s, d));
-                    }
-                }
-            }
+                |s| {
+                    let f = sphere_px(s, radius);
+                    SphereRepr::plan(&frames_spec(spec, f), &impostor_needs(&needs, f), source)
+                },
+                |_, d| {
+                    format!(
+                        "frames candidate: {g}×{g} frames of {}² over the {}, and the engines' octahedral impostor of the same frames (the baseline chain)",
+                        d.size,
+                        match d.coverage {
+                            crate::sphere::Coverage::Hemisphere => "upper hemisphere",
+                            crate::sphere::Coverage::Sphere => "sphere",
+                        },
+                        g = d.grid
+                    )
+                },
+            )?;
         }
         if mesh.is_none() && impostors.is_empty() && frames.is_empty() {
             plan.refuse(format!(
@@ -890,10 +908,27 @@ impl Representation for AutoRepr {
             target_db: decisions.target_db,
         };
         // What the files weigh once the textures are reduced (the chains' `bytes` are those
-        // of the candidates as chosen, with the source's textures).
+        // of the candidates as chosen, with the source's textures): the levels sized again,
+        // the impostors and frames as they were sized when built (the same files).
         let mut sizing = AssetWriter::sizing();
-        Self::write(&chain, &mut sizing)?;
-        report["files_bytes"] = json!(sizing.sized()?);
+        if let Some(lod) = &chain.mesh {
+            sizing.member(MESH_PREFIX, |w| MeshLodRepr::write(lod, w))?;
+        }
+        let kept = chain
+            .impostors
+            .iter()
+            .map(|(s, _)| Member::Impostor { size: *s })
+            .chain(
+                chain
+                    .frames
+                    .iter()
+                    .map(|(s, _)| Member::Frames { size: *s }),
+            );
+        let image_bytes: u64 = kept
+            .filter_map(|m| candidates.iter().find(|c| c.member == m))
+            .map(|c| c.bytes)
+            .sum();
+        report["files_bytes"] = json!(sizing.sized()? + image_bytes);
         report["textures_s"] = json!(textures_s);
         report["texture_px"] = json!(chain.mesh.as_ref().map(|m| {
             m.levels
@@ -1234,11 +1269,7 @@ impl Representation for AutoRepr {
                 Member::Source => continue,
                 Member::Mesh { level } => draw(source, meshes[level], window, view, k)?,
                 Member::Impostor { size } => {
-                    let d = impostors
-                        .iter()
-                        .find(|(s, _)| *s == size)
-                        .map(|(_, d)| *d)
-                        .ok_or_else(|| PipelineError::Spec(format!("no impostor {size}²")))?;
+                    let d = members.impostor_of(size)?;
                     let screen = RenderParams {
                         width: biggest,
                         height: biggest * d.images.params.height / d.images.params.width,

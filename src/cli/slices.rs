@@ -109,6 +109,16 @@ impl From<TileArg> for TestTile {
     }
 }
 
+/// A figure in dB for the printed tables, or `—` where it has no views to average (the sweep
+/// held none at the angles it is taken over): never `NaN`.
+fn db(x: f64, signed: bool) -> String {
+    match (x.is_finite(), signed) {
+        (false, _) => "—".to_string(),
+        (true, true) => format!("{x:+.2}"),
+        (true, false) => format!("{x:.2}"),
+    }
+}
+
 fn print_report(r: &MeasureReport, all_rows: bool) {
     let rules: Vec<&str> = MergeRule::ALL.iter().map(|m| m.name()).collect();
     let def = r.default_rule.name();
@@ -199,8 +209,11 @@ fn print_report(r: &MeasureReport, all_rows: bool) {
     println!("|---|---|---|---|");
     for s in &r.rules {
         println!(
-            "| {} | {:.2} | {:.2} | {} |",
-            s.rule, s.above_db, s.below_db, s.views
+            "| {} | {} | {} | {} |",
+            s.rule,
+            db(s.above_db, false),
+            db(s.below_db, false),
+            s.views
         );
     }
     println!(
@@ -212,12 +225,12 @@ fn print_report(r: &MeasureReport, all_rows: bool) {
     println!("|---|---|---|---|---|---|---|---|---|---|---|");
     for t in &r.tiles {
         println!(
-            "| {} | {:+.2} | {:+.2} | {:+.2} | {:+.2} | {:.1} | {:.2} / {:.2} | {} | {} | {:.3} | {:.3} |",
+            "| {} | {} | {} | {} | {} | {:.1} | {:.2} / {:.2} | {} | {} | {:.3} | {:.3} |",
             t.tile.name(),
-            t.merge_gain_db,
-            t.merge_gain_merged_views_db,
-            t.three_gain_grazing_db,
-            t.three_gain_grazing_all_db,
+            db(t.merge_gain_db, true),
+            db(t.merge_gain_merged_views_db, true),
+            db(t.three_gain_grazing_db, true),
+            db(t.three_gain_grazing_all_db, true),
             t.slices_drawn_mean,
             t.direction_shortfall_max_db,
             t.direction_shortfall_mean_db,
@@ -307,8 +320,8 @@ fn write_images(dir: &std::path::Path, params: &SliceMeasureParams) -> CliResult
                 ..SliceRenderParams::default()
             };
             let truth_params = VolumeTruthParams {
+                steps_per_voxel: params.truth_steps,
                 filter: params.filter,
-                ..VolumeTruthParams::default()
             };
             for polar in [0.0, 60.0, 85.0] {
                 let view = StackView::degrees(polar, params.azimuth_deg);
@@ -333,6 +346,7 @@ fn write_images(dir: &std::path::Path, params: &SliceMeasureParams) -> CliResult
             let cp = CurvedParams {
                 tilt_deg: 30.0,
                 width: 192,
+                truth_steps: params.truth_steps,
                 ..CurvedParams::default()
             };
             let all = render_curved_slices(&data, 0, &cp)?;

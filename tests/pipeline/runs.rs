@@ -426,17 +426,9 @@ fn json_output_path_is_checked_before_any_work() {
 /// wrote anything (tried up to eight times, then a failure; an interrupt handler takes a few
 /// milliseconds to stop the writers, and one write in three finishes within them). A SIGINT
 /// ends with status 130 and says what was finished and how to resume. Then the rerun completes
-/// and equals a clean run's files.
-fn kill_mid_run(signal: &str) {
+/// and equals the clean run's files in `clean`.
+fn kill_mid_run(signal: &str, scene: &Path, clean: &Path) {
     let dir = tempfile::tempdir().unwrap();
-    let scene = dir.path().join("scene.toml");
-    // Enough work for a kill to land mid-run.
-    let big = SCENE
-        .replace("size = 32", "size = 64")
-        .replace("screen_px = [8, 32]", "screen_px = [8, 64]")
-        .replace("resolution = 32", "resolution = 128")
-        .replace("screen_px = [4, 16]", "screen_px = [4, 128]");
-    std::fs::write(&scene, &big).unwrap();
     let out = dir.path().join("out");
     let staging = out.join(".staging");
     // Files of an asset being written: in a folder of `.staging` (ASSET.REPR.PID.N), or in an
@@ -540,6 +532,27 @@ fn kill_mid_run(signal: &str) {
         String::from_utf8_lossy(&rerun.stderr)
     );
     assert!(!staging.read_dir().is_ok_and(|mut d| d.next().is_some()));
+    for asset in ["pear/parallax", "chair/octree"] {
+        let a = AssetReader::open(&out.join(asset)).unwrap();
+        let b = AssetReader::open(&clean.join(asset)).unwrap();
+        assert_eq!(a.description().files, b.description().files, "{asset}");
+        assert_eq!(a.description().cache_key, b.description().cache_key);
+    }
+}
+
+/// SIGINT, then SIGKILL, each landing mid-run ([`kill_mid_run`]); both resumed runs are
+/// compared with one clean run.
+#[test]
+fn a_signal_mid_run_leaves_no_half_written_asset() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = dir.path().join("scene.toml");
+    // Enough work for a kill to land mid-run.
+    let big = SCENE
+        .replace("size = 32", "size = 64")
+        .replace("screen_px = [8, 32]", "screen_px = [8, 64]")
+        .replace("resolution = 32", "resolution = 128")
+        .replace("screen_px = [4, 16]", "screen_px = [4, 128]");
+    std::fs::write(&scene, &big).unwrap();
     let clean = dir.path().join("clean");
     let o = Command::new(BIN)
         .arg("precompute")
@@ -549,22 +562,9 @@ fn kill_mid_run(signal: &str) {
         .output()
         .unwrap();
     assert!(o.status.success());
-    for asset in ["pear/parallax", "chair/octree"] {
-        let a = AssetReader::open(&out.join(asset)).unwrap();
-        let b = AssetReader::open(&clean.join(asset)).unwrap();
-        assert_eq!(a.description().files, b.description().files, "{asset}");
-        assert_eq!(a.description().cache_key, b.description().cache_key);
+    for signal in ["INT", "KILL"] {
+        kill_mid_run(signal, &scene, &clean);
     }
-}
-
-#[test]
-fn sigkill_mid_run_leaves_no_half_written_asset() {
-    kill_mid_run("KILL");
-}
-
-#[test]
-fn sigint_mid_run_leaves_no_half_written_asset() {
-    kill_mid_run("INT");
 }
 
 const VALID: &str = "[scene]\nambient = 0.3\n[[asset]]\nname = \"a\"\nshape = \"pear\"\n[asset.needs]\nazimuth_deg = [0, 90]\nscreen_px = [4, 32]\nlighting = \"baked\"\n[asset.parallax]\nviews = 8\nbounds = [\"best_c\"]\n[asset.octree]\nresolution = 16\n";

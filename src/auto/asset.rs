@@ -8,7 +8,7 @@
 //! `member`, triangles, steps per pixel, draw cost); `metadata.members` each member's prefix,
 //! representation and the metadata its writer returned; `metadata.target_db` the target.
 
-use std::collections::HashMap;
+use std::collections::{BTreeMap, HashMap};
 use std::time::Instant;
 
 use altrep_data_gen::{ExternalImages, Mesh, RgbaImage, Supersample};
@@ -1071,13 +1071,7 @@ impl Representation for AutoRepr {
              |---|---|---|---|---|\n",
             build.get("target_db")?.as_f64()?
         );
-        for (key, name) in [
-            ("auto", "automatic"),
-            ("meshes_only", "meshes only"),
-            ("impostors_only", "images with parallax only"),
-            ("frames_only", "frames over the sphere only"),
-            ("engine_only", "engine octahedral impostor only"),
-        ] {
+        for (key, name) in CHAINS {
             let c = &build[key];
             let Some(bands) = c["bands"].as_array() else {
                 md += &format!("| {name} | not built: no candidate of the family | – | – | – |\n");
@@ -1156,6 +1150,31 @@ impl Representation for AutoRepr {
             md += &format!("- {} px: {}\n", entry[0], front.join(", "));
         }
         Some(md)
+    }
+
+    /// The error against screen size of every chain built, as a plot
+    /// (`ASSET-auto-error-against-size.png`): the table of [`Self::details`] drawn.
+    fn plots(build: &serde_json::Value, asset: &str) -> Result<Vec<Picture>, PipelineError> {
+        let lines = size_lines(build);
+        if lines.iter().all(|l| l.points.is_empty()) {
+            return Ok(Vec::new());
+        }
+        let target = build["target_db"].as_f64().unwrap_or(f64::NAN);
+        let title = format!("{asset}: error against screen size");
+        let rgb = crate::report::plot::error_against_size(&title, &lines, target)?;
+        let (w, h) = crate::report::plot::SIZE_PLOT;
+        let mut image = RgbaImage::new(w as usize, h as usize);
+        for (px, c) in image.pixels.iter_mut().zip(rgb.chunks_exact(3)) {
+            let l = |k: usize| altrep_data_gen::srgb_to_linear(f32::from(c[k]) / 255.0);
+            *px = [l(0), l(1), l(2), 1.0];
+        }
+        Ok(vec![Picture {
+            file: format!("{asset}-auto-error-against-size.png"),
+            caption: format!(
+                "{asset}: worst PSNR over the measured directions at each size every chain was verified at (target {target} dB, dashed; sizes where a chain draws the source are not points)"
+            ),
+            image,
+        }])
     }
 
     fn measure_size(d: &AutoDecisions) -> usize {
@@ -1321,29 +1340,54 @@ impl Representation for AutoRepr {
     }
 }
 
+/// The chains the build report compares, by key, with their names in the report.
+const CHAINS: [(&str, &str); 5] = [
+    ("auto", "automatic"),
+    ("meshes_only", "meshes only"),
+    ("impostors_only", "images with parallax only"),
+    ("frames_only", "frames over the sphere only"),
+    ("engine_only", "engine octahedral impostor only"),
+];
+
+/// A chain's verified edges in the build report: `(band, size in px, worst dB)`.
+fn edges(chain: &serde_json::Value) -> Vec<(u64, u64, f64)> {
+    chain["edges_worst_db"]
+        .as_array()
+        .map(|a| {
+            a.iter()
+                .filter_map(|e| Some((e[0].as_u64()?, e[1].as_u64()?, e[2].as_f64()?)))
+                .collect()
+        })
+        .unwrap_or_default()
+}
+
+/// Each chain built, as a line of [`crate::report::plot::error_against_size`]: the worst PSNR
+/// at each size it was verified at (the lower of the two members meeting at a switch), as
+/// [`error_against_size`]'s table. Sizes where a chain draws the source are not points.
+fn size_lines(build: &serde_json::Value) -> Vec<crate::report::plot::SizeLine> {
+    CHAINS
+        .iter()
+        .filter(|(key, _)| build[*key]["bands"].is_array())
+        .map(|(key, name)| {
+            let mut worst: BTreeMap<u64, f64> = BTreeMap::new();
+            for (_, size, db) in edges(&build[*key]) {
+                let w = worst.entry(size).or_insert(f64::INFINITY);
+                *w = w.min(db);
+            }
+            crate::report::plot::SizeLine {
+                name: (*name).to_string(),
+                points: worst.into_iter().map(|(s, db)| (s as f64, db)).collect(),
+            }
+        })
+        .collect()
+}
+
 /// The report's table of error against screen size: for each chain of a build report, the
 /// worst PSNR (dB) its verification measured at each band edge (the lower of the two members
 /// meeting at a switch), `source` where the band draws the truth itself, `–` where the chain
 /// was not built. Columns: every size any chain was measured at, ascending.
 fn error_against_size(build: &serde_json::Value) -> String {
-    let chains = [
-        ("auto", "automatic"),
-        ("meshes_only", "meshes only"),
-        ("impostors_only", "images with parallax only"),
-        ("frames_only", "frames over the sphere only"),
-        ("engine_only", "engine octahedral impostor only"),
-    ];
-    let edges = |c: &serde_json::Value| -> Vec<(u64, u64, f64)> {
-        c["edges_worst_db"]
-            .as_array()
-            .map(|a| {
-                a.iter()
-                    .filter_map(|e| Some((e[0].as_u64()?, e[1].as_u64()?, e[2].as_f64()?)))
-                    .collect()
-            })
-            .unwrap_or_default()
-    };
-    let mut sizes: Vec<u64> = chains
+    let mut sizes: Vec<u64> = CHAINS
         .iter()
         .flat_map(|(k, _)| edges(&build[*k]).into_iter().map(|e| e.1))
         .collect();
@@ -1361,7 +1405,7 @@ fn error_against_size(build: &serde_json::Value) -> String {
             .join(" | "),
         "---|".repeat(sizes.len())
     );
-    for (key, name) in chains {
+    for (key, name) in CHAINS {
         let c = &build[key];
         let Some(bands) = c["bands"].as_array() else {
             continue;

@@ -747,9 +747,10 @@ fn build_one<'a, R: Representation>(
         // Measure what a renderer would load: the files just written.
         let measuring = crate::profile::timer("measure");
         let loaded = R::read(&AssetReader::open(&dir)?)?;
-        let (measurement, pictures) = R::measure(&loaded, measured, measure_size, source)?;
+        let (measurement, mut pictures) = R::measure(&loaded, measured, measure_size, source)?;
         measuring.stop();
         let _reporting = crate::profile::timer("report");
+        pictures.extend(R::plots(&desc.report["build"], source.name)?);
         let mut written = Vec::new();
         for p in pictures {
             let rel = format!("pictures/{}", p.file);

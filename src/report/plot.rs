@@ -81,6 +81,163 @@ pub fn png(r: &RepresentationReport) -> Result<Vec<u8>, ReportError> {
     Ok(out.into_inner())
 }
 
+/// One line of [`error_against_size`]: a chain's name and its `(screen size in pixels, PSNR in
+/// dB)` points.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SizeLine {
+    /// Name in the legend.
+    pub name: String,
+    /// `(screen size, PSNR)` points; non-finite ones are left out.
+    pub points: Vec<(f64, f64)>,
+}
+
+/// Width and height of [`error_against_size`]'s picture, pixels: the plot, and the legend on
+/// its right.
+pub const SIZE_PLOT: (u32, u32) = (760, 400);
+
+/// Width of the legend of [`error_against_size`], pixels.
+const SIZE_LEGEND: u32 = 230;
+
+/// A plot of error against screen size: screen size across (pixels, log₂ scale, ticks at the
+/// powers of two), PSNR up (dB), one colour per line (points joined in order of size, drawn
+/// filled), the first line drawn first and wide, so that it shows around any line drawn over it
+/// with the same values, the quality target `target_db` as a dashed horizontal line, the legend
+/// on the right. Returns the picture as sRGB8 RGB pixels, rows top first, [`SIZE_PLOT`] in
+/// size. Cost: one raster of that size.
+///
+/// Errors: the embedded font does not load, or the drawing fails (`ReportError::Plot`).
+pub fn error_against_size(
+    title: &str,
+    lines: &[SizeLine],
+    target_db: f64,
+) -> Result<Vec<u8>, ReportError> {
+    register_font().map_err(plot_err(title))?;
+    let (w, h) = SIZE_PLOT;
+    let mut buf = vec![0u8; (w * h * 3) as usize];
+    {
+        let root = BitMapBackend::with_buffer(&mut buf, (w, h)).into_drawing_area();
+        draw_sizes(&root, title, lines, target_db).map_err(plot_err(title))?;
+        root.present().map_err(|e| plot_err(title)(e.to_string()))?;
+    }
+    Ok(buf)
+}
+
+fn draw_sizes<DB: DrawingBackend>(
+    root: &DrawingArea<DB, Shift>,
+    title: &str,
+    lines: &[SizeLine],
+    target_db: f64,
+) -> Result<(), String> {
+    let e = |x: DrawingAreaErrorKind<DB::ErrorType>| x.to_string();
+    root.fill(&WHITE).map_err(e)?;
+    let (plot, legend) = root.split_horizontally(SIZE_PLOT.0 - SIZE_LEGEND);
+    // Points with a positive finite size and a finite PSNR, in order of size, size as log₂.
+    let finite = |l: &SizeLine| -> Vec<(f64, f64)> {
+        let mut p: Vec<(f64, f64)> = l
+            .points
+            .iter()
+            .filter(|(x, y)| *x > 0.0 && x.is_finite() && y.is_finite())
+            .map(|&(x, y)| (x.log2(), y))
+            .collect();
+        p.sort_by(|a, b| a.0.total_cmp(&b.0));
+        p
+    };
+    let all: Vec<(f64, f64)> = lines.iter().flat_map(finite).collect();
+    let (mut x0, mut x1) = all
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), p| {
+            (a.min(p.0), b.max(p.0))
+        });
+    if !x0.is_finite() {
+        (x0, x1) = (0.0, 1.0);
+    }
+    let (x0, x1) = (x0.floor() - 0.25, x1.ceil() + 0.25);
+    let mut ys: Vec<f64> = all.iter().map(|p| p.1).collect();
+    if target_db.is_finite() {
+        ys.push(target_db);
+    }
+    let ay = Axis::fit(&ys, false);
+    let mut chart = ChartBuilder::on(&plot)
+        .caption(title, (FONT, 18))
+        .margin(12)
+        .x_label_area_size(42)
+        .y_label_area_size(56)
+        .build_cartesian_2d(x0..x1, ay.lo..ay.hi)
+        .map_err(e)?;
+    // Ticks at the powers of two (labelled with the size), none between them.
+    let xl = |v: &f64| {
+        if (v - v.round()).abs() < 1e-9 {
+            format!("{}", v.round().exp2())
+        } else {
+            String::new()
+        }
+    };
+    let yl = |v: &f64| ay.label(*v);
+    chart
+        .configure_mesh()
+        .x_desc("screen size (px, log scale)")
+        .y_desc("worst PSNR (dB)")
+        .x_labels(((x1 - x0).round() as usize + 1) * 4)
+        .x_label_formatter(&xl)
+        .y_label_formatter(&yl)
+        .axis_desc_style((FONT, 14))
+        .label_style((FONT, 11))
+        .light_line_style(WHITE.mix(0.0))
+        .draw()
+        .map_err(e)?;
+    let mut entries: Vec<(String, RGBAColor, u32, bool)> = Vec::new();
+    if target_db.is_finite() {
+        let grey = BLACK.mix(0.6);
+        chart
+            .draw_series(DashedLineSeries::new(
+                vec![(x0, target_db), (x1, target_db)],
+                6,
+                4,
+                grey.stroke_width(1),
+            ))
+            .map_err(e)?;
+        entries.push((format!("target {target_db} dB"), grey, 1, true));
+    }
+    for (i, line) in lines.iter().enumerate() {
+        let color = Palette99::pick(i).to_rgba();
+        let width = if i == 0 { 6 } else { 2 };
+        let pts = finite(line);
+        chart
+            .draw_series(LineSeries::new(pts.clone(), color.stroke_width(width)))
+            .map_err(e)?;
+        chart
+            .draw_series(
+                pts.iter()
+                    .map(|&p| Circle::new(p, width.max(3) + 1, color.filled())),
+            )
+            .map_err(e)?;
+        entries.push((line.name.clone(), color, width, false));
+    }
+    for (k, (name, color, width, dashed)) in entries.into_iter().enumerate() {
+        let y = 48 + 20 * k as i32;
+        let style = color.stroke_width(width);
+        // A dashed line as two dashes.
+        let dashes: &[(i32, i32)] = if dashed {
+            &[(8, 15), (21, 28)]
+        } else {
+            &[(8, 28)]
+        };
+        for &(a, b) in dashes {
+            legend
+                .draw(&PathElement::new(vec![(a, y), (b, y)], style))
+                .map_err(e)?;
+        }
+        legend
+            .draw(&Text::new(
+                name,
+                (36, y - 7),
+                (FONT, 12).into_font().color(&BLACK),
+            ))
+            .map_err(e)?;
+    }
+    Ok(())
+}
+
 /// One axis: value → drawn coordinate (log10 or identity) and back for tick labels.
 #[derive(Clone, Copy)]
 struct Axis {
@@ -339,7 +496,49 @@ fn front(pts: &mut [(f64, f64)], higher_is_better: bool) -> Vec<(f64, f64)> {
 
 #[cfg(test)]
 mod tests {
-    use super::{Axis, front};
+    use super::{Axis, SIZE_PLOT, SizeLine, error_against_size, front};
+    use plotters::style::{Color, Palette, Palette99};
+
+    /// The error-against-size plot draws each line's points in its colour (filled circles of
+    /// radius 4 or more, about 50 pixels each, plus the joining line), a line without finite points in
+    /// its legend entry only, and leaves NaN and infinite points out without failing.
+    #[test]
+    fn the_size_plot_draws_every_line_in_its_colour() {
+        let lines = [
+            SizeLine {
+                name: "automatic".into(),
+                points: vec![(4.0, 24.0), (16.0, 22.5), (32.0, 23.0), (128.0, 30.0)],
+            },
+            SizeLine {
+                name: "meshes only".into(),
+                points: vec![(4.0, 21.0), (f64::NAN, 20.0), (128.0, f64::INFINITY)],
+            },
+            SizeLine {
+                name: "none".into(),
+                points: vec![(f64::NAN, f64::NAN)],
+            },
+        ];
+        let rgb = error_against_size("rock", &lines, 22.0).unwrap();
+        let (w, h) = SIZE_PLOT;
+        assert_eq!(rgb.len(), (w * h * 3) as usize);
+        let count = |i: usize| {
+            let c = Palette99::pick(i).to_rgba().rgb();
+            rgb.chunks_exact(3)
+                .filter(|p| (p[0], p[1], p[2]) == c)
+                .count()
+        };
+        let (a, b, none) = (count(0), count(1), count(2));
+        assert!(a > 4 * 25 + 100, "{a}");
+        assert!(b > 25 && b < a, "{b}");
+        // Its legend entry only: a line 21 pixels long, 3 thick.
+        assert!(none > 0 && none <= 3 * 21, "{none}");
+        // Not a blank picture: the axes, labels and target line are drawn.
+        let dark = rgb
+            .chunks_exact(3)
+            .filter(|p| p.iter().all(|&c| c < 128))
+            .count();
+        assert!(dark > 1000, "{dark}");
+    }
 
     #[test]
     fn the_front_keeps_the_points_no_cheaper_point_beats() {

@@ -106,6 +106,9 @@ pub enum PipelineError {
     /// An image comparison failed.
     #[error(transparent)]
     Metrics(#[from] crate::metrics::MetricsError),
+    /// A plot of the report could not be drawn.
+    #[error(transparent)]
+    Report(#[from] crate::report::ReportError),
     /// A pyramid could not be built or loaded.
     #[error(transparent)]
     Pyramid(#[from] crate::pyramid::MipError),
@@ -410,6 +413,16 @@ pub trait Representation {
     fn details(build: &serde_json::Value) -> Option<String> {
         let _ = build;
         None
+    }
+
+    /// Plots for the run's report, drawn from the build report `build` (as
+    /// [`Representation::details`]) for the asset named `asset`, and written beside the pictures
+    /// of [`Representation::measure`] when the run measures. Default: none.
+    ///
+    /// Errors: a plot that cannot be drawn ([`PipelineError::Report`]).
+    fn plots(build: &serde_json::Value, asset: &str) -> Result<Vec<Picture>, PipelineError> {
+        let _ = (build, asset);
+        Ok(Vec::new())
     }
 
     /// Measures the (loaded) data against the ray-cast ground truth at the directions `needs`

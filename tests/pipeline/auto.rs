@@ -86,6 +86,18 @@ fn chain_meets_its_target(spec: &AutoSpec, impostor: fn(&Member) -> bool) {
     ]) {
         assert_eq!(table.contains(row), !report[k].is_null(), "{k}: {table}");
     }
+    // The same figures drawn: one plot, named after the asset, not blank.
+    let plots = AutoRepr::plots(&report, "rock").unwrap();
+    assert_eq!(plots.len(), 1);
+    assert_eq!(plots[0].file, "rock-auto-error-against-size.png");
+    let image = &plots[0].image;
+    assert_eq!((image.width, image.height), (760, 400));
+    let coloured = image
+        .pixels
+        .iter()
+        .filter(|p| p[0].max(p[1]).max(p[2]) - p[0].min(p[1]).min(p[2]) > 0.2)
+        .count();
+    assert!(coloured > 500, "{coloured}");
     // Chosen from the same verified candidates, the automatic chain costs no more than any
     // single family's it may draw from; the engine baseline is not among them, and on the
     // rock it is measured to cost more.

@@ -451,7 +451,7 @@ fn kill_mid_run(signal: &str, scene: &Path, clean: &Path) {
         let _ = std::fs::remove_dir_all(&out);
         let mut child = Command::new(BIN)
             .arg("precompute")
-            .arg(&scene)
+            .arg(scene)
             .arg("--out")
             .arg(&out)
             .stdout(std::process::Stdio::null())
@@ -521,7 +521,7 @@ fn kill_mid_run(signal: &str, scene: &Path, clean: &Path) {
     );
     let rerun = Command::new(BIN)
         .arg("precompute")
-        .arg(&scene)
+        .arg(scene)
         .arg("--out")
         .arg(&out)
         .output()

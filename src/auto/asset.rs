@@ -1363,7 +1363,8 @@ fn edges(chain: &serde_json::Value) -> Vec<(u64, u64, f64)> {
 
 /// Each chain built, as a line of [`crate::report::plot::error_against_size`]: the worst PSNR
 /// at each size it was verified at (the lower of the two members meeting at a switch), as
-/// [`error_against_size`]'s table. Sizes where a chain draws the source are not points.
+/// [`error_against_size`]'s table. Sizes where a chain draws the source are not points; a chain
+/// that draws it at every size is named so in the legend.
 fn size_lines(build: &serde_json::Value) -> Vec<crate::report::plot::SizeLine> {
     CHAINS
         .iter()
@@ -1375,7 +1376,12 @@ fn size_lines(build: &serde_json::Value) -> Vec<crate::report::plot::SizeLine> {
                 *w = w.min(db);
             }
             crate::report::plot::SizeLine {
-                name: (*name).to_string(),
+                // A chain verified nowhere draws the source at every size: its legend says so.
+                name: if worst.is_empty() {
+                    format!("{name} (the source throughout)")
+                } else {
+                    (*name).to_string()
+                },
                 points: worst.into_iter().map(|(s, db)| (s as f64, db)).collect(),
             }
         })
@@ -1449,4 +1455,34 @@ fn mesh_bands(bands: &[AutoBand]) -> Vec<Band> {
             _ => None,
         })
         .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::size_lines;
+    use serde_json::json;
+
+    /// The plot's lines are the table's figures: one per chain built, the worst of the edges
+    /// meeting at each size, none for a family not asked for, and a chain drawing the source
+    /// at every size named so.
+    #[test]
+    fn size_lines_take_the_worst_edge_at_each_size() {
+        let build = json!({
+            "auto": {
+                "bands": [{}, {}],
+                "edges_worst_db": [[0, 8, 21.5], [0, 32, 24.0], [1, 32, 22.75], [1, 128, 25.0]],
+            },
+            "meshes_only": null,
+            "impostors_only": { "bands": [{}], "edges_worst_db": [] },
+        });
+        let lines = size_lines(&build);
+        assert_eq!(lines.len(), 2);
+        assert_eq!(lines[0].name, "automatic");
+        assert_eq!(lines[0].points, [(8.0, 21.5), (32.0, 22.75), (128.0, 25.0)]);
+        assert_eq!(
+            lines[1].name,
+            "images with parallax only (the source throughout)"
+        );
+        assert!(lines[1].points.is_empty());
+    }
 }

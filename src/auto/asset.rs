@@ -31,9 +31,7 @@ use crate::representation::{
     Window, elevation_note, measure_views, secs,
 };
 use crate::sphere::asset::{SphereDecisions, SphereRepr, SphereSpec};
-use crate::sphere::{
-    MethodStats, SphereImages, SphereRenderParams, azimuth_elevation, measure_one_step,
-};
+use crate::sphere::{MethodStats, SphereImages, azimuth_elevation, measure_one_step};
 
 /// Manifest parameters of the automatic chain (`[asset.auto]`).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -201,20 +199,18 @@ struct Members<'a> {
 
 impl Members<'_> {
     fn impostor_of(&self, s: usize) -> Result<&ParallaxData, PipelineError> {
-        self.impostors
-            .iter()
-            .find(|(k, _)| *k == s)
-            .map(|(_, d)| *d)
+        of_size(self.impostors, s)
             .ok_or_else(|| PipelineError::Spec(format!("no impostor of {s}² views")))
     }
 
     fn frames_of(&self, s: usize) -> Result<&SphereImages, PipelineError> {
-        self.frames
-            .iter()
-            .find(|(k, _)| *k == s)
-            .map(|(_, d)| *d)
-            .ok_or_else(|| PipelineError::Spec(format!("no frames of {s}²")))
+        of_size(self.frames, s).ok_or_else(|| PipelineError::Spec(format!("no frames of {s}²")))
     }
+}
+
+/// The data of size `s` in a list of `(size, data)`.
+fn of_size<'a, T>(list: &[(usize, &'a T)], s: usize) -> Option<&'a T> {
+    list.iter().find(|(k, _)| *k == s).map(|(_, d)| *d)
 }
 
 /// The frames of `data` and the engines' octahedral impostor of the same frames drawn at the
@@ -1305,15 +1301,13 @@ impl Representation for AutoRepr {
                 }
                 // Over the bounding sphere's window, at the same scale.
                 Member::Frames { size } => {
-                    let params = SphereRenderParams {
-                        size: sphere_px(biggest, sphere_radius(source)?),
-                        supersample: Supersample::ONE,
-                        light: source.light,
-                        ..SphereRenderParams::default()
-                    };
+                    let params = crate::sphere::asset::render_params(
+                        sphere_px(biggest, sphere_radius(source)?),
+                        source,
+                    );
                     let dir = azimuth_elevation(view.azimuth, view.elevation);
                     crate::sphere::render(members.frames_of(size)?, dir, &params)
-                        .map_err(|e| PipelineError::Spec(e.to_string()))?
+                        .map_err(crate::sphere::asset::sphere_err)?
                         .image
                 }
                 Member::Engine { .. } => continue,
@@ -1361,6 +1355,17 @@ fn edges(chain: &serde_json::Value) -> Vec<(u64, u64, f64)> {
         .unwrap_or_default()
 }
 
+/// A chain's worst PSNR (dB) at each size it was verified at, the lower of the two members
+/// meeting at a switch: size (px) → dB.
+fn worst_by_size(chain: &serde_json::Value) -> BTreeMap<u64, f64> {
+    let mut worst: BTreeMap<u64, f64> = BTreeMap::new();
+    for (_, size, db) in edges(chain) {
+        let w = worst.entry(size).or_insert(f64::INFINITY);
+        *w = w.min(db);
+    }
+    worst
+}
+
 /// Each chain built, as a line of [`crate::report::plot::error_against_size`]: the worst PSNR
 /// at each size it was verified at (the lower of the two members meeting at a switch), as
 /// [`error_against_size`]'s table. Sizes where a chain draws the source are not points; a chain
@@ -1370,11 +1375,7 @@ fn size_lines(build: &serde_json::Value) -> Vec<crate::report::plot::SizeLine> {
         .iter()
         .filter(|(key, _)| build[*key]["bands"].is_array())
         .map(|(key, name)| {
-            let mut worst: BTreeMap<u64, f64> = BTreeMap::new();
-            for (_, size, db) in edges(&build[*key]) {
-                let w = worst.entry(size).or_insert(f64::INFINITY);
-                *w = w.min(db);
-            }
+            let worst = worst_by_size(&build[*key]);
             crate::report::plot::SizeLine {
                 // A chain verified nowhere draws the source at every size: its legend says so.
                 name: if worst.is_empty() {
@@ -1416,17 +1417,12 @@ fn error_against_size(build: &serde_json::Value) -> String {
         let Some(bands) = c["bands"].as_array() else {
             continue;
         };
-        let e = edges(c);
+        let worst = worst_by_size(c);
         let cells: Vec<String> = sizes
             .iter()
             .map(|&s| {
-                let worst = e
-                    .iter()
-                    .filter(|x| x.1 == s)
-                    .map(|x| x.2)
-                    .fold(f64::INFINITY, f64::min);
-                if worst.is_finite() {
-                    return format!("{worst:.2}");
+                if let Some(w) = worst.get(&s).filter(|w| w.is_finite()) {
+                    return format!("{w:.2}");
                 }
                 let p = s as f64;
                 let source = bands.iter().any(|b| {

@@ -148,7 +148,8 @@ fn atlas_index(k: usize, grid: usize, size: usize, x: usize, y: usize) -> usize 
     (tj * size + y) * grid * size + ti * size + x
 }
 
-fn sphere_err(e: SphereError) -> PipelineError {
+/// A failure of the frames' code as the pipeline reports it.
+pub(crate) fn sphere_err(e: SphereError) -> PipelineError {
     PipelineError::Spec(e.to_string())
 }
 
@@ -504,7 +505,7 @@ pub(crate) fn exact_warp_measurement(
 
 /// How the frames are drawn when measured at `size²` pixels: one ray per pixel, the source's
 /// light.
-fn render_params(size: usize, source: &Source) -> SphereRenderParams {
+pub(crate) fn render_params(size: usize, source: &Source) -> SphereRenderParams {
     SphereRenderParams {
         size,
         supersample: Supersample::ONE,

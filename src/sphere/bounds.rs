@@ -124,69 +124,62 @@ impl ConeBounds {
                     let (tj0, tj1) = ((jq - reach).max(0) / TILE, (jq + reach).min(fi - 1) / TILE);
                     let (ti0, ti1) = ((iq - reach).max(0) / TILE, (iq + reach).min(fi - 1) / TILE);
                     let (tq, tp) = (jq / TILE, iq / TILE);
+                    // Whether a block of cells `[i0, i1] × [j0, j1]` with these extremes can
+                    // widen the interval. The least `need` of its cells bounds what they can
+                    // give: zmax at most `thi` where some cell may reach `need`, else at most
+                    // `-need`; zmin likewise at least `tlo` or `need`.
+                    let widens = |(thi, tlo, tabs): (f64, f64, f64),
+                                  (i0, i1, j0, j1): (i64, i64, i64, i64),
+                                  zmin: f64,
+                                  zmax: f64| {
+                        if thi < tlo {
+                            return false; // no defined cell
+                        }
+                        let (gx, gy) = (gap(iq, i0, i1), gap(jq, j0, j1));
+                        let need = pitch * (gx * gx + gy * gy).sqrt() / tan;
+                        if tabs < need {
+                            return false; // out of reach
+                        }
+                        let most = if thi >= need { thi } else { -need };
+                        let least = if tlo <= -need { tlo } else { need };
+                        most > zmax || least < zmin
+                    };
                     for &(dj, di) in &offsets {
                         let (tj, ti) = (tq + dj, tp + di);
                         if tj < tj0 || tj > tj1 || ti < ti0 || ti > ti1 {
                             continue;
                         }
-                        {
-                            // Whether a block of cells `[i0, i1] × [j0, j1]` with these
-                            // extremes can widen the interval. The least `need` of its cells
-                            // bounds what they can give: zmax at most `thi` where some cell
-                            // may reach `need`, else at most `-need`; zmin likewise at least
-                            // `tlo` or `need`.
-                            let widens = |(thi, tlo, tabs): (f64, f64, f64),
-                                          (i0, i1, j0, j1): (i64, i64, i64, i64),
-                                          zmin: f64,
-                                          zmax: f64| {
-                                if thi < tlo {
-                                    return false; // no defined cell
+                        let (j0, i0) = (tj * TILE, ti * TILE);
+                        let (j1, i1) = ((j0 + TILE - 1).min(fi - 1), (i0 + TILE - 1).min(fi - 1));
+                        if !widens(tiles[(tj * nt + ti) as usize], (i0, i1, j0, j1), zmin, zmax) {
+                            continue;
+                        }
+                        for sj in (j0..=j1).step_by(SUB as usize) {
+                            for si in (i0..=i1).step_by(SUB as usize) {
+                                let (sj1, si1) =
+                                    ((sj + SUB - 1).min(fi - 1), (si + SUB - 1).min(fi - 1));
+                                let sub = subs[((sj / SUB) * ns + si / SUB) as usize];
+                                if !widens(sub, (si, si1, sj, sj1), zmin, zmax) {
+                                    continue;
                                 }
-                                let (gx, gy) = (gap(iq, i0, i1), gap(jq, j0, j1));
-                                let need = pitch * (gx * gx + gy * gy).sqrt() / tan;
-                                if tabs < need {
-                                    return false; // out of reach
-                                }
-                                let most = if thi >= need { thi } else { -need };
-                                let least = if tlo <= -need { tlo } else { need };
-                                most > zmax || least < zmin
-                            };
-                            let (j0, i0) = (tj * TILE, ti * TILE);
-                            let (j1, i1) =
-                                ((j0 + TILE - 1).min(fi - 1), (i0 + TILE - 1).min(fi - 1));
-                            if !widens(tiles[(tj * nt + ti) as usize], (i0, i1, j0, j1), zmin, zmax)
-                            {
-                                continue;
-                            }
-                            for sj in (j0..=j1).step_by(SUB as usize) {
-                                for si in (i0..=i1).step_by(SUB as usize) {
-                                    let (sj1, si1) =
-                                        ((sj + SUB - 1).min(fi - 1), (si + SUB - 1).min(fi - 1));
-                                    let sub = subs[((sj / SUB) * ns + si / SUB) as usize];
-                                    if !widens(sub, (si, si1, sj, sj1), zmin, zmax) {
-                                        continue;
-                                    }
-                                    for j in sj..=sj1 {
-                                        let gy = ((j - jq).abs() - 1).max(0) as usize;
-                                        for i in si..=si1 {
-                                            let k = (j * fi + i) as usize;
-                                            // An undefined cell holds (+∞, −∞): it gives
-                                            // nothing.
-                                            let (l, h) = (lo_ext[k], hi[k]);
-                                            let gx = ((i - iq).abs() - 1).max(0) as usize;
-                                            let need = needs[gy * span + gx];
-                                            // Largest and smallest Z in [l, h] with
-                                            // |Z| ≥ need.
-                                            if h >= need {
-                                                zmax = zmax.max(h);
-                                            } else if l <= -need {
-                                                zmax = zmax.max(h.min(-need));
-                                            }
-                                            if l <= -need {
-                                                zmin = zmin.min(l);
-                                            } else if h >= need {
-                                                zmin = zmin.min(l.max(need));
-                                            }
+                                for j in sj..=sj1 {
+                                    let gy = ((j - jq).abs() - 1).max(0) as usize;
+                                    for i in si..=si1 {
+                                        let k = (j * fi + i) as usize;
+                                        // An undefined cell holds (+∞, −∞): it gives nothing.
+                                        let (l, h) = (lo_ext[k], hi[k]);
+                                        let gx = ((i - iq).abs() - 1).max(0) as usize;
+                                        let need = needs[gy * span + gx];
+                                        // Largest and smallest Z in [l, h] with |Z| ≥ need.
+                                        if h >= need {
+                                            zmax = zmax.max(h);
+                                        } else if l <= -need {
+                                            zmax = zmax.max(h.min(-need));
+                                        }
+                                        if l <= -need {
+                                            zmin = zmin.min(l);
+                                        } else if h >= need {
+                                            zmin = zmin.min(l.max(need));
                                         }
                                     }
                                 }

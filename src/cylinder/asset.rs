@@ -245,14 +245,17 @@ impl Representation for Cylinder {
     ) -> Result<(CylinderData, serde_json::Value), PipelineError> {
         let t0 = Instant::now();
         let capturing = crate::profile::timer("capture");
-        let mut texture = CylindricalTexture::capture(
-            source.shape()?,
-            &texture_params(d.columns, d.rows),
-            spec.prefilter,
-        )?;
-        if !d.normals {
-            texture = texture.baked(&source.light);
-        }
+        let params = texture_params(d.columns, d.rows);
+        let texture = if d.normals {
+            CylindricalTexture::capture(source.shape()?, &params, spec.prefilter)?
+        } else {
+            CylindricalTexture::capture_baked(
+                source.shape()?,
+                &params,
+                spec.prefilter,
+                &source.light,
+            )?
+        };
         capturing.stop();
         let texture = crate::profile::stage("quantisation", || texture.quantized_rgba8());
         let capture_s = secs(t0);

@@ -140,6 +140,32 @@ impl CylindricalTexture {
         Self::from_oversampled(&capture_cylinder(shape, &fine)?, prefilter)
     }
 
+    /// [`Self::capture`] with lighting baked in sample by sample before the prefilter: each fine
+    /// sample's albedo is shaded by `light` at its own normal, and the texel holds the box
+    /// average of the shaded colours with the light's direction as its normal (as
+    /// [`Self::baked`] leaves it). Shading after averaging would mix albedo across normals: a
+    /// texel straddling an edge, or an unlit or emitting surface (whose albedo is folded by its
+    /// normal, docs/real-assets.md), would take the centre's shading for all. Cost: as
+    /// [`Self::capture`].
+    ///
+    /// Errors: as [`Self::capture`].
+    pub fn capture_baked(
+        shape: &dyn Shape,
+        params: &CylinderParams,
+        prefilter: usize,
+        light: &Light,
+    ) -> Result<Self, CylinderError> {
+        check_columns(params.columns)?;
+        check_prefilter(prefilter)?;
+        let fine = CylinderParams {
+            columns: params.columns * prefilter,
+            rows: params.rows * prefilter,
+            cylinder: params.cylinder,
+        };
+        let fine = Self::from_samples(&capture_cylinder(shape, &fine)?)?.baked(light);
+        fine.downsampled(prefilter)
+    }
+
     /// Builds an `L × Ly` texture from a cylindrical capture of `(s·L) × (s·Ly)` samples, `s` odd
     /// (the source "acquires the texture at a larger size, then downsamples it").
     ///
@@ -151,9 +177,14 @@ impl CylindricalTexture {
     /// column is shifted by up to half a texel. Cost: one pass over the fine samples.
     pub fn from_oversampled(grid: &SampleGrid, prefilter: usize) -> Result<Self, CylinderError> {
         check_prefilter(prefilter)?;
-        let fine = Self::from_samples(grid)?;
+        Self::from_samples(grid)?.downsampled(prefilter)
+    }
+
+    /// The texture of `prefilter × prefilter` fine texels per texel ([`Self::from_oversampled`]).
+    fn downsampled(self, prefilter: usize) -> Result<Self, CylinderError> {
+        let fine = self;
         let s = prefilter;
-        if fine.columns % (2 * s) != 0 || fine.rows % s != 0 {
+        if !fine.columns.is_multiple_of(2 * s) || !fine.rows.is_multiple_of(s) {
             return Err(CylinderError::InvalidParameter {
                 name: "oversampled grid",
                 value: format!("{} × {} for factor {s}", fine.columns, fine.rows),

@@ -16,7 +16,8 @@
 //!
 //! Materials keep what altrep reads: base colour factor and texture (its coordinate set,
 //! sampler wrap modes and magnification filter, `KHR_texture_transform`), alpha mode and
-//! cutoff, normal map with its scale, `doubleSided`. An OBJ alpha texture (`map_d`) goes into
+//! cutoff, normal map with its scale, `doubleSided`, emissive factor and texture,
+//! `KHR_materials_unlit`. An OBJ alpha texture (`map_d`) goes into
 //! the base colour texture's alpha (the same product at texel centres; bilinear filtering
 //! between texels may differ slightly). Metallic and roughness are written as 0 and 1: altrep
 //! does not read them. Images are the source's own PNG or JPEG files where a texture was decoded
@@ -482,6 +483,7 @@ impl Mesh {
         let mut out_materials: Vec<Value> = Vec::new();
         let mut material_index: HashMap<PrimKey, usize> = HashMap::new();
         let mut uses_transform = false;
+        let mut uses_unlit = false;
         let mut primitives = Vec::new();
         for (key, prim) in &prims {
             // The primitive's material.
@@ -548,6 +550,21 @@ impl Mesh {
                                 v["normalTexture"] =
                                     json!({"index": index, "texCoord": n.set, "scale": n.scale});
                             }
+                            if m.unlit {
+                                v["extensions"] = json!({"KHR_materials_unlit": {}});
+                                uses_unlit = true;
+                            } else if m.emissive != glam::Vec3::ZERO {
+                                v["emissiveFactor"] = json!(m.emissive.to_array());
+                                if let Some((t, set)) = &m.emissive_texture {
+                                    let index = images.texture(t, true, &mut b)?;
+                                    let mut info = json!({"index": index, "texCoord": set});
+                                    if let Some(ext) = transform_extension(t) {
+                                        info["extensions"] = json!({"KHR_texture_transform": ext});
+                                        uses_transform = true;
+                                    }
+                                    v["emissiveTexture"] = info;
+                                }
+                            }
                             v
                         }
                     };
@@ -608,8 +625,15 @@ impl Mesh {
             doc["samplers"] = json!(images.samplers);
             doc["textures"] = json!(images.textures);
         }
-        if uses_transform {
-            doc["extensionsUsed"] = json!(["KHR_texture_transform"]);
+        let used: Vec<&str> = [
+            (uses_transform, "KHR_texture_transform"),
+            (uses_unlit, "KHR_materials_unlit"),
+        ]
+        .into_iter()
+        .filter_map(|(used, name)| used.then_some(name))
+        .collect();
+        if !used.is_empty() {
+            doc["extensionsUsed"] = json!(used);
         }
         Ok(GlbFile {
             bytes: glb(&doc, &bin),

@@ -20,9 +20,13 @@
 //! * `doubleSided` (default false, as the specification says): a single-sided material's back
 //!   faces let rays through in every tracer, the truth's and the captures' alike (the inside tests
 //!   of voxelisation still count them).
+//! * `emissiveFactor` × `emissiveTexture` (sRGB decoded) and `KHR_materials_unlit` (the base
+//!   colour shown whatever the light): such a surface's hit albedo is the one the mesh's light
+//!   shades to what it shows ([`crate::Light::albedo_giving`]; named in the notes, since
+//!   stand-ins relit by another light scale it).
 //! * Everything else that changes how the asset looks is named in [`GltfScene::notes`]:
-//!   emissive and occlusion maps, `KHR_materials_unlit` (lit like any surface), skins and morph
-//!   targets (the bind pose), optional extensions.
+//!   occlusion maps, `KHR_materials_emissive_strength` and other optional extensions, skins and
+//!   morph targets (the bind pose).
 //!
 //! Every accessor is checked before it is read (element type, stride, count, range), so a
 //! malformed file is an error naming the accessor, never a panic.
@@ -399,6 +403,12 @@ pub(crate) fn load(
         if let Some(n) = m.normal_texture() {
             wanted.insert((n.texture().source().index(), false));
         }
+        if let Some(e) = m.emissive_texture()
+            && !m.unlit()
+            && m.emissive_factor() != [0.0; 3]
+        {
+            wanted.insert((e.texture().source().index(), true));
+        }
     }
     let mut images: BTreeMap<(usize, bool), Arc<TextureImage>> = BTreeMap::new();
     let decoded: Vec<((usize, bool), Result<TextureImage, DataGenError>)> = {
@@ -527,14 +537,56 @@ pub(crate) fn load(
             }
             None => None,
         };
-        if m.emissive_texture().is_some() || m.emissive_factor() != [0.0; 3] {
-            notes.insert("emission ignored".into());
+        // Emission: the factor, times the texture where there is one (read only where the
+        // factor is not black and the material is lit, as the specification's shading does).
+        let emissive = Vec3::from(m.emissive_factor());
+        let emissive_texture = match m.emissive_texture() {
+            Some(info) if !m.unlit() && emissive != Vec3::ZERO => {
+                let tex = info.texture();
+                let sampler = tex.sampler();
+                let (transform, set) = match info.texture_transform() {
+                    Some(t) => (
+                        UvTransform::from_offset_rotation_scale(
+                            t.offset(),
+                            t.rotation(),
+                            t.scale(),
+                        ),
+                        t.tex_coord().unwrap_or(info.tex_coord()),
+                    ),
+                    None => (UvTransform::default(), info.tex_coord()),
+                };
+                if set > 1 {
+                    return Err(err(
+                        path,
+                        &at,
+                        format!("emissiveTexture reads TEXCOORD_{set}; only sets 0 and 1 are read"),
+                    ));
+                }
+                let image = images
+                    .get(&(tex.source().index(), true))
+                    .cloned()
+                    .ok_or_else(|| err(path, &at, "emissive image missing"))?;
+                Some((
+                    TextureRef {
+                        image,
+                        filter: filter(&sampler),
+                        wrap: [wrap(sampler.wrap_s()), wrap(sampler.wrap_t())],
+                        transform,
+                    },
+                    set,
+                ))
+            }
+            _ => None,
+        };
+        if m.unlit() || emissive != Vec3::ZERO {
+            notes.insert(
+                "emissive or unlit materials: folded into albedo under the scene's light \
+                 (exact when lighting is baked; relit stand-ins scale them with the light)"
+                    .into(),
+            );
         }
         if m.occlusion_texture().is_some() {
             notes.insert("occlusion maps ignored".into());
-        }
-        if m.unlit() {
-            notes.insert("KHR_materials_unlit: unlit materials are lit like any other".into());
         }
         let [r, g, b, a] = pbr.base_color_factor();
         fallback.push(m.extras().as_ref().is_some_and(|e| {
@@ -550,6 +602,9 @@ pub(crate) fn load(
             alpha_mode,
             normal_map,
             single_sided: !m.double_sided(),
+            emissive,
+            emissive_texture,
+            unlit: m.unlit(),
         });
     }
     let default_material = materials.len() as u32;

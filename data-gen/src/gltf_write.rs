@@ -40,6 +40,12 @@ pub struct TestMaterial {
     pub normal_texture: Option<(Rgba8, f32)>,
     /// `doubleSided`.
     pub double_sided: bool,
+    /// `emissiveFactor` (linear RGB; not written when black).
+    pub emissive: [f32; 3],
+    /// `emissiveTexture` (sRGB-coded, like the base colour), if any.
+    pub emissive_texture: Option<Rgba8>,
+    /// `KHR_materials_unlit`.
+    pub unlit: bool,
 }
 
 impl TestMaterial {
@@ -54,6 +60,9 @@ impl TestMaterial {
             alpha_cutoff: 0.5,
             normal_texture: None,
             double_sided: true,
+            emissive: [0.0; 3],
+            emissive_texture: None,
+            unlit: false,
         }
     }
 
@@ -67,6 +76,9 @@ impl TestMaterial {
             alpha_cutoff: 0.5,
             normal_texture: None,
             double_sided: true,
+            emissive: [0.0; 3],
+            emissive_texture: None,
+            unlit: false,
         }
     }
 }
@@ -305,6 +317,7 @@ impl TestGltf {
         let mut samplers = Vec::new();
         let mut files = Vec::new();
         let mut materials = Vec::new();
+        let mut unlit = false;
         for (k, m) in self.materials.iter().enumerate() {
             let mut pbr = json!({"baseColorFactor": m.base_color, "metallicFactor": 0.0});
             // One image, sampler and texture; the texture's index.
@@ -343,6 +356,17 @@ impl TestGltf {
             if m.alpha_mode == "MASK" {
                 mat["alphaCutoff"] = json!(m.alpha_cutoff);
             }
+            if m.emissive != [0.0; 3] {
+                mat["emissiveFactor"] = json!(m.emissive);
+            }
+            if let Some(img) = &m.emissive_texture {
+                let t = texture(img, format!("{stem}_{k}_emissive.png"))?;
+                mat["emissiveTexture"] = json!({"index": t});
+            }
+            if m.unlit {
+                mat["extensions"] = json!({"KHR_materials_unlit": {}});
+                unlit = true;
+            }
             materials.push(mat);
         }
         let nodes: Vec<Value> = self
@@ -379,6 +403,9 @@ impl TestGltf {
             doc["images"] = json!(images);
             doc["textures"] = json!(textures);
             doc["samplers"] = json!(samplers);
+        }
+        if unlit {
+            doc["extensionsUsed"] = json!(["KHR_materials_unlit"]);
         }
         Ok((doc, bin, files))
     }
@@ -453,6 +480,9 @@ impl TestGltf {
                 alpha_cutoff: 0.5,
                 normal_texture: None,
                 double_sided: true,
+                emissive: [0.0; 3],
+                emissive_texture: None,
+                unlit: false,
             }],
             nodes: vec![TestNode {
                 name: "box".into(),
@@ -556,6 +586,9 @@ impl TestGltf {
                     scale,
                 )),
                 double_sided: true,
+                emissive: [0.0; 3],
+                emissive_texture: None,
+                unlit: false,
             }],
             nodes: vec![TestNode::mesh_at_origin("quad")],
             roots: vec![0],
@@ -797,6 +830,9 @@ impl TestGltf {
                     data,
                 }),
                 double_sided: false,
+                emissive: [0.0; 3],
+                emissive_texture: None,
+                unlit: false,
                 ..TestMaterial::plain([1.0; 4])
             }],
             nodes: vec![TestNode::mesh_at_origin("rock")],

@@ -51,6 +51,7 @@ use crate::radial::RadialTracer;
 use crate::shape::{OneByOne, ParallelTracer, RadialOneByOne, Shape};
 use crate::surface::{Material, SurfaceTri, barycentric, stops, uv_axes};
 use crate::surface::{TextureImage, TextureRef};
+use crate::truth::Light;
 use crate::watertight::Shear;
 use crate::yz_grid::YzGrid;
 
@@ -71,6 +72,11 @@ pub struct MeshLoadOptions {
     /// are not used. For reading back a mesh altrep wrote ([`Mesh::to_glb`], with
     /// [`Placement::of_written`]), which must come back exactly where it was.
     pub frame: Option<Placement>,
+    /// The light a surface that is unlit or gives off light is seen under (default
+    /// [`Light::default`]): such a surface's hit albedo is the one this light shades to its
+    /// radiance ([`Light::albedo_giving`]), so every renderer that shades albedo shows it. Take
+    /// the light the scene is drawn and measured with.
+    pub light: Light,
 }
 
 impl Default for MeshLoadOptions {
@@ -85,6 +91,7 @@ impl Default for MeshLoadOptions {
             up: UpAxis::PosY,
             node: None,
             frame: None,
+            light: Light::default(),
         }
     }
 }
@@ -135,6 +142,9 @@ pub struct Mesh {
     fallback: Albedo,
     /// The materials [`TriColor::Surface`] refers to.
     materials: Arc<[Material]>,
+    /// The light emissive and unlit surfaces are folded into albedo under
+    /// ([`MeshLoadOptions::light`]).
+    light: Light,
     /// Whether some material's alpha can let a ray through (every tracer then tests it).
     cut_out: bool,
     /// Whether some material is single-sided (every tracer but the inside tests then lets rays
@@ -525,6 +535,7 @@ impl Mesh {
             input_colors: kept_colors,
             fallback: options.fallback_albedo.clone(),
             materials,
+            light: options.light,
             cut_out,
             culls,
             placement: Placement::new(options.up, scale, translation, extras.units),
@@ -579,6 +590,7 @@ impl Mesh {
             input_colors: Vec::new(),
             fallback: options.fallback_albedo.clone(),
             materials: extras.materials.into(),
+            light: options.light,
             cut_out: false,
             culls: false,
             placement,
@@ -600,6 +612,7 @@ impl Mesh {
                     m.base_texture.as_ref().map(|(t, _)| t),
                     m.alpha_texture.as_ref(),
                     m.normal_map.as_ref().map(|n| &n.texture),
+                    m.emissive_texture.as_ref().map(|(t, _)| t),
                 ]
             })
             .flatten()
@@ -644,6 +657,9 @@ impl Mesh {
             }
             if let Some(n) = &mut m.normal_map {
                 reduce(&mut n.texture, false);
+            }
+            if let Some((t, _)) = &mut m.emissive_texture {
+                reduce(t, true);
             }
         }
         mesh.materials = materials.into();
@@ -700,6 +716,7 @@ impl Mesh {
             input_colors,
             fallback: self.fallback.clone(),
             materials: self.materials.clone(),
+            light: self.light,
             placement: self.placement,
             notes: self.notes.clone(),
             inputs: self.inputs.clone(),
@@ -732,6 +749,12 @@ impl Mesh {
     /// OBJ: file space) to the normalised frame, and its units.
     pub fn placement(&self) -> &Placement {
         &self.placement
+    }
+
+    /// The light its emissive and unlit surfaces are folded into albedo under
+    /// ([`MeshLoadOptions::light`]).
+    pub fn light(&self) -> Light {
+        self.light
     }
 
     /// What the source holds that altrep does not read or reads differently (glTF features,
@@ -937,6 +960,19 @@ impl Mesh {
                     -shading
                 } else {
                     shading
+                };
+                // A surface that is unlit or gives off light: the albedo the mesh's light
+                // shades to what it shows (docs/real-assets.md).
+                let albedo = match material.filter(|m| m.emits()) {
+                    None => albedo,
+                    Some(m) => {
+                        let n = normal.as_vec3();
+                        if m.unlit {
+                            self.light.albedo_giving(albedo, n)
+                        } else {
+                            albedo + self.light.albedo_giving(m.emission(uv, axes), n)
+                        }
+                    }
                 };
                 (albedo, normal)
             }

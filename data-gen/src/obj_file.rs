@@ -1,6 +1,7 @@
 //! Wavefront OBJ input (`tobj`) with its MTL materials: flat diffuse colours and vertex colours
 //! as before textures, and textured or alpha-tested materials read through the `surface` module
-//! (`Kd × map_Kd`, `map_d`, `d`; see `docs/real-assets.md`). Every MTL and texture file read is
+//! (`Kd × map_Kd`, `map_d`, `d`, and `Ke × map_Ke` for light given off; see
+//! `docs/real-assets.md`). Every MTL and texture file read is
 //! listed with its hash for the cache.
 
 use std::path::Path;
@@ -75,7 +76,36 @@ pub(crate) fn load(
     };
     for (k, mat) in materials.iter().enumerate() {
         let dissolve = mat.dissolve.unwrap_or(1.0);
-        if mat.diffuse_texture.is_none() && mat.dissolve_texture.is_none() && dissolve >= 1.0 {
+        // `Ke r g b`: emitted linear RGB, non-negative and finite.
+        let emissive = match mat.unknown_param.get("Ke") {
+            None => Vec3::ZERO,
+            Some(text) => {
+                let v: Vec<f32> = text
+                    .split_whitespace()
+                    .map(str::parse)
+                    .collect::<Result<_, _>>()
+                    .unwrap_or_default();
+                match v[..] {
+                    [r, g, b] if [r, g, b].iter().all(|c| c.is_finite() && *c >= 0.0) => {
+                        Vec3::new(r, g, b)
+                    }
+                    _ => {
+                        return Err(DataGenError::ObjParse {
+                            path: path.to_path_buf(),
+                            message: format!(
+                                "material '{}': Ke '{text}' is not three finite non-negative numbers",
+                                mat.name
+                            ),
+                        });
+                    }
+                }
+            }
+        };
+        if mat.diffuse_texture.is_none()
+            && mat.dissolve_texture.is_none()
+            && dissolve >= 1.0
+            && emissive == Vec3::ZERO
+        {
             continue;
         }
         let kd = mat.diffuse.unwrap_or([1.0; 3]);
@@ -95,6 +125,12 @@ pub(crate) fn load(
         } else {
             MaterialAlpha::Opaque
         };
+        let emissive_texture = match mat.unknown_param.get("map_Ke") {
+            Some(t) if emissive != Vec3::ZERO => {
+                Some((texture(t, &mat.name, true, &mut inputs)?, 0))
+            }
+            _ => None,
+        };
         surface_of[k] = Some(surface_materials.len() as u32);
         surface_materials.push(Material {
             name: mat.name.clone(),
@@ -104,6 +140,9 @@ pub(crate) fn load(
             alpha_mode,
             normal_map: None,
             single_sided: false,
+            emissive,
+            emissive_texture,
+            unlit: false,
         });
     }
     let total: usize = models.iter().map(|m| m.mesh.indices.len() / 3).sum();

@@ -493,6 +493,15 @@ pub struct Material {
     /// side its winding turns away (geometric normal · direction > 0) passes, in every tracer
     /// but the inside tests. False for OBJ materials, which have no such notion.
     pub single_sided: bool,
+    /// Linear RGB light the surface gives off whatever the lighting (glTF `emissiveFactor`,
+    /// default black), multiplied by [`Material::emissive_texture`] where there is one.
+    pub emissive: Vec3,
+    /// Emissive texture (glTF `emissiveTexture`, sRGB-coded like the base colour) with the
+    /// texture coordinate set it reads (0 or 1).
+    pub emissive_texture: Option<(TextureRef, u32)>,
+    /// Not lit (glTF `KHR_materials_unlit`): the surface shows its base colour (factor × texture
+    /// × vertex colour) whatever the light, and [`Material::emissive`] is not read.
+    pub unlit: bool,
 }
 
 impl Material {
@@ -528,6 +537,34 @@ impl Material {
     #[inline]
     pub fn color_over(&self, uv: [Vec2; 2], axes: [[Vec2; 2]; 2], vertex: Vec4) -> Vec4 {
         self.color_with(uv, vertex, |t, s| t.sample_footprint(uv[s], axes[s]))
+    }
+
+    /// Linear RGB light given off at `uv` (sets 0 and 1): [`Material::emissive`] × the emissive
+    /// texture, read over the footprint `axes` (as [`Material::color_over`]) or at the point.
+    /// Black for an unlit material (its base colour is what it shows) and for one whose factor
+    /// is black, without reading the texture.
+    #[inline]
+    pub fn emission(&self, uv: [Vec2; 2], axes: Option<[[Vec2; 2]; 2]>) -> Vec3 {
+        if self.unlit || self.emissive == Vec3::ZERO {
+            return Vec3::ZERO;
+        }
+        match &self.emissive_texture {
+            None => self.emissive,
+            Some((t, set)) => {
+                let s = (*set as usize).min(1);
+                let texel = match axes {
+                    Some(a) => t.sample_footprint(uv[s], a[s]),
+                    None => t.sample(uv[s]),
+                };
+                self.emissive * texel.xyz()
+            }
+        }
+    }
+
+    /// Whether the surface's colour is not albedo shaded by the light alone: it is unlit or
+    /// gives off light ([`Material::emission`]).
+    pub fn emits(&self) -> bool {
+        self.unlit || self.emissive != Vec3::ZERO
     }
 
     /// Whether alpha can stop a ray from hitting this material.

@@ -34,7 +34,25 @@ impl Light {
     /// Diffuse shading of `albedo` with unit `normal`.
     #[inline]
     pub fn shade(&self, albedo: Vec3, normal: Vec3) -> Vec3 {
-        albedo * (self.ambient + (1.0 - self.ambient) * normal.dot(self.direction).max(0.0))
+        albedo * self.factor(normal)
+    }
+
+    /// The factor [`Light::shade`] multiplies albedo by at unit `normal`: in
+    /// `[ambient, 1]`.
+    #[inline]
+    pub fn factor(&self, normal: Vec3) -> f32 {
+        self.ambient + (1.0 - self.ambient) * normal.dot(self.direction).max(0.0)
+    }
+
+    /// The albedo this light shades at unit `normal` to `radiance` (linear RGB): how a surface
+    /// that is unlit or gives off light enters renderers that shade albedo (docs/real-assets.md,
+    /// "Emission and unlit materials"). Exact under this light; another light scales it by the
+    /// ratio of the two factors. Where the factor is 0 (no ambient, facing away from the light)
+    /// no albedo gives the radiance, and black is returned.
+    #[inline]
+    pub fn albedo_giving(&self, radiance: Vec3, normal: Vec3) -> Vec3 {
+        let f = self.factor(normal);
+        if f > 0.0 { radiance / f } else { Vec3::ZERO }
     }
 }
 

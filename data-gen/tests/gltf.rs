@@ -768,3 +768,96 @@ fn single_sided_materials_let_rays_through_their_back_faces() {
         }
     }
 }
+
+/// Emission and `KHR_materials_unlit` (docs/real-assets.md, "Emission and unlit materials"): on
+/// every face of the textured box, under the default light and under one from below with little
+/// ambient, the hit shaded by the mesh's light shows what the material gives off — the base
+/// colour for an unlit material, the lit base colour plus `emissiveFactor` (× `emissiveTexture`)
+/// for an emissive one — both as loaded and after altrep's own `.glb` writer and reader.
+#[test]
+fn emissive_and_unlit_materials_show_what_they_give_off_under_the_light() {
+    use altrep_data_gen::Light;
+    let n = 4;
+    let plain = TestGltf::textured_box(n);
+    let variant = |f: &dyn Fn(&mut altrep_data_gen::gltf_write::TestMaterial)| {
+        let mut doc = plain.clone();
+        f(&mut doc.materials[0]);
+        doc
+    };
+    let e = Vec3::new(0.25, 0.5, 0.0);
+    let texture = plain.materials[0].texture.clone();
+    let variants = [
+        ("unlit", variant(&|m| m.unlit = true)),
+        ("emissive factor", variant(&|m| m.emissive = e.to_array())),
+        (
+            "emissive texture",
+            variant(&|m| {
+                m.emissive = [1.0; 3];
+                m.emissive_texture = texture.clone();
+            }),
+        ),
+    ];
+    let lights = [
+        Light::default(),
+        Light {
+            direction: Vec3::new(-0.3, -0.8, -0.4).normalize(),
+            ambient: 0.1,
+        },
+    ];
+    for light in lights {
+        let options = MeshLoadOptions {
+            light,
+            ..MeshLoadOptions::default()
+        };
+        let base = load_glb(&plain, &options).unwrap();
+        for (what, doc) in &variants {
+            let mesh = load_glb(doc, &options).unwrap();
+            assert!(
+                mesh.notes().iter().any(|n| n.contains("emissive or unlit")),
+                "{what}: {:?}",
+                mesh.notes()
+            );
+            let back = Mesh::from_gltf_bytes(
+                &mesh.to_glb().unwrap(),
+                Path::new("back.glb"),
+                &MeshLoadOptions {
+                    frame: Some(mesh.placement().of_written()),
+                    light,
+                    ..MeshLoadOptions::default()
+                },
+            )
+            .unwrap();
+            let mut checked = 0;
+            for axis in 0..3 {
+                for sign in [-1.0, 1.0] {
+                    let mut outward = DVec3::ZERO;
+                    outward[axis] = sign;
+                    let (a, b) = ((axis + 1) % 3, (axis + 2) % 3);
+                    for j in 0..n {
+                        for i in 0..n {
+                            let mut p = DVec3::splat(0.5) + 0.5 * outward;
+                            p[a] = (f64::from(i) + 0.5) / f64::from(n);
+                            p[b] = (f64::from(j) + 0.5) / f64::from(n);
+                            let lit = hit_at_source_point(&base, p, outward).0.unwrap();
+                            let l = light.factor(lit.normal.as_vec3());
+                            let want = match *what {
+                                "unlit" => lit.albedo,
+                                "emissive factor" => lit.albedo * l + e,
+                                _ => lit.albedo * l + lit.albedo,
+                            };
+                            for m in [&mesh, &back] {
+                                let hit = hit_at_source_point(m, p, outward).0.unwrap();
+                                let got = light.shade(hit.albedo, hit.normal.as_vec3());
+                                for k in 0..3 {
+                                    assert_abs_diff_eq!(got[k], want[k], epsilon = 1e-5);
+                                }
+                                checked += 1;
+                            }
+                        }
+                    }
+                }
+            }
+            assert_eq!(checked, 2 * 6 * n * n, "{what}");
+        }
+    }
+}

@@ -36,7 +36,7 @@ pub use write::{
 /// versions only add optional fields.
 pub const FORMAT_MAJOR: u32 = 1;
 /// Minor version of the asset format.
-pub const FORMAT_MINOR: u32 = 3;
+pub const FORMAT_MINOR: u32 = 4;
 /// Name of the description file in every asset folder.
 pub const DESCRIPTION_FILE: &str = "asset.json";
 

@@ -15,7 +15,7 @@
 use std::time::Instant;
 
 use altrep_data_gen::{
-    ExternalImages, Mesh, MeshLoadOptions, Placement, Simplified, SimplifyParams, UpAxis,
+    ExternalImages, Light, Mesh, MeshLoadOptions, Placement, Simplified, SimplifyParams, UpAxis,
 };
 use glam::{DAffine3, DMat4};
 use rayon::prelude::*;
@@ -403,6 +403,11 @@ impl Representation for MeshLodRepr {
             "to_object": placement.map(|p| rows(p.to_normalised)),
             "up": placement.map(|p| p.up.name()),
             "units": placement.map(|p| p.units),
+            "light": lod.levels.first().map(|l| {
+                let light = l.mesh.light();
+                let d = light.direction;
+                [d.x, d.y, d.z, light.ambient]
+            }),
         }))
     }
 
@@ -457,6 +462,23 @@ impl Representation for MeshLodRepr {
                 up,
                 units,
             };
+            // The light emissive and unlit surfaces are seen under (absent: the default).
+            let light = match &m["light"] {
+                serde_json::Value::Null => Light::default(),
+                v => {
+                    let [x, y, z, ambient]: [f32; 4] = serde_json::from_value(v.clone())
+                        .map_err(|e| r.content(format!("metadata.light: {e}")))?;
+                    let direction = glam::Vec3::new(x, y, z);
+                    if !direction.is_normalized() || !(0.0..=1.0).contains(&ambient) {
+                        return Err(r
+                            .content(format!(
+                                "metadata.light {v} is not a unit direction and an ambient in [0, 1]"
+                            ))
+                            .into());
+                    }
+                    Light { direction, ambient }
+                }
+            };
             for (k, info) in infos.into_iter().enumerate() {
                 let role = format!("level{k}");
                 let (bytes, triangles) = r.glb(&role)?;
@@ -470,6 +492,7 @@ impl Representation for MeshLodRepr {
                     &path,
                     &MeshLoadOptions {
                         frame: Some(frame),
+                        light,
                         ..MeshLoadOptions::default()
                     },
                 )?;

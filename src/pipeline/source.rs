@@ -85,6 +85,7 @@ pub(super) fn load_source(
             let options = MeshLoadOptions {
                 up: *up,
                 node: node.clone(),
+                light: *light,
                 ..MeshLoadOptions::default()
             };
             let mesh = Mesh::from_bytes(&bytes, path, &options)?;

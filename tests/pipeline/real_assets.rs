@@ -46,10 +46,10 @@ fn gltf_assets_are_built_placed_reported_and_cached_on_every_file_they_read() {
     let gltf = TestGltf::textured_box(8)
         .write_gltf(dir.path(), "box")
         .unwrap();
-    // An emissive factor: a feature altrep does not read, to be named in the report.
+    // An occlusion map: a feature altrep does not read, to be named in the report.
     let text = std::fs::read_to_string(&gltf).unwrap().replacen(
         "\"alphaMode\"",
-        "\"emissiveFactor\": [1.0, 0.0, 0.0], \"alphaMode\"",
+        "\"occlusionTexture\": {\"index\": 0}, \"alphaMode\"",
         1,
     );
     std::fs::write(&gltf, text).unwrap();
@@ -119,7 +119,7 @@ fn gltf_assets_are_built_placed_reported_and_cached_on_every_file_they_read() {
         psnr("quad")
     );
     let md = std::fs::read_to_string(out.join("report.md")).unwrap();
-    assert!(md.contains("- box: emission ignored"), "{md}");
+    assert!(md.contains("- box: occlusion maps ignored"), "{md}");
     assert!(!md.contains("- quad:"), "{md}");
 
     // Cached on a second run; a changed external image rebuilds the box only.
@@ -241,3 +241,111 @@ fn foliage_voxelised_as_a_shell_covers_what_the_truth_covers() {
         );
     }
 }
+
+/// Emissive and unlit materials through the whole run (docs/real-assets.md, "Emission and unlit
+/// materials"): the textured box unlit, and as a pure emitter (black base colour, its texture as
+/// emission), shows its texture's colours whatever the light — exactly what the plain box shows
+/// under a light of ambient 1. Images with parallax and a cylindrical texture of each, under
+/// baked lighting, store shaded colour, so they measure the same PSNR against their truths as
+/// the plain box's under ambient 1 (within [`EMISSION_TOLERANCE_DB`]). Under dynamic lighting the
+/// stored albedo `c / f(n)` clips above 1, and the PSNR shows the loss (printed, not bounded).
+#[test]
+fn emissive_and_unlit_assets_are_measured_as_they_show() {
+    use altrep_data_gen::gltf_write::TestMaterial;
+    let dir = tempfile::tempdir().unwrap();
+    let plain = TestGltf::textured_box(8);
+    let with = |f: &dyn Fn(&mut TestMaterial)| {
+        let mut doc = plain.clone();
+        f(&mut doc.materials[0]);
+        doc
+    };
+    let texture = plain.materials[0].texture.clone();
+    let docs = [
+        ("plain", plain.clone()),
+        ("unlit", with(&|m| m.unlit = true)),
+        (
+            "emitter",
+            with(&|m| {
+                m.base_color = [0.0, 0.0, 0.0, 1.0];
+                m.emissive = [1.0; 3];
+                m.emissive_texture = texture.clone();
+            }),
+        ),
+    ];
+    let asset = |name: &str, lighting: &str| {
+        format!(
+            "[[asset]]\nname = \"{name}-{lighting}\"\nmesh = \"{name}.glb\"\n[asset.needs]\n\
+             screen_px = [8, 32]\nlighting = \"{lighting}\"\n[asset.parallax]\nviews = 6\n\
+             size = 32\n[asset.cylinder]\n"
+        )
+    };
+    for (name, doc) in &docs {
+        std::fs::write(
+            dir.path().join(format!("{name}.glb")),
+            doc.to_glb().unwrap(),
+        )
+        .unwrap();
+    }
+    let mut reference = "[scene]\nambient = 1.0\n".to_string();
+    let mut scene = String::new();
+    for lighting in ["baked", "dynamic"] {
+        reference += &asset("plain", lighting);
+        scene += &(asset("unlit", lighting) + &asset("emitter", lighting));
+    }
+    let run_scene = |name: &str, text: &str| -> serde_json::Value {
+        let manifest = dir.path().join(format!("{name}.toml"));
+        std::fs::write(&manifest, text).unwrap();
+        let out = dir.path().join(name);
+        let (ok, log) = run(&manifest, &out);
+        assert!(ok, "{log}");
+        let md = std::fs::read_to_string(out.join("report.md")).unwrap();
+        if name == "scene" {
+            assert!(
+                md.contains("- unlit-baked: emissive or unlit materials"),
+                "{md}"
+            );
+            assert!(
+                md.contains("- emitter-baked: emissive or unlit materials"),
+                "{md}"
+            );
+        }
+        serde_json::from_slice(&std::fs::read(out.join("report.json")).unwrap()).unwrap()
+    };
+    let reports = [
+        run_scene("reference", &reference),
+        run_scene("scene", &scene),
+    ];
+    let psnr = |asset: &str, repr: &str| {
+        reports
+            .iter()
+            .flat_map(|r| r["outcomes"].as_array().unwrap())
+            .find(|o| o["asset"] == asset && o["representation"] == repr)
+            .and_then(|o| o["measurement"]["psnr_db"].as_f64())
+            .unwrap_or_else(|| panic!("{asset}/{repr} has no measurement"))
+    };
+    for repr in ["parallax", "cylinder"] {
+        let line = docs
+            .iter()
+            .map(|(name, _)| {
+                format!(
+                    "{name} {:.2} / {:.2}",
+                    psnr(&format!("{name}-baked"), repr),
+                    psnr(&format!("{name}-dynamic"), repr)
+                )
+            })
+            .collect::<Vec<_>>();
+        eprintln!(
+            "{repr}, PSNR dB baked / dynamic (plain at ambient 1): {}",
+            line.join(", ")
+        );
+        let plain = psnr("plain-baked", repr);
+        for name in ["unlit", "emitter"] {
+            let p = psnr(&format!("{name}-baked"), repr);
+            assert_abs_diff_eq!(p, plain, epsilon = EMISSION_TOLERANCE_DB);
+        }
+    }
+}
+
+/// How far the baked unlit and emitting boxes' PSNR may lie from the plain box's under ambient 1
+/// (the same pictures but for `f32` rounding of `c / f(n) · f(n)`).
+const EMISSION_TOLERANCE_DB: f64 = 0.05;

@@ -411,7 +411,7 @@ pub(crate) fn load(
         }
     }
     let mut images: BTreeMap<(usize, bool), Arc<TextureImage>> = BTreeMap::new();
-    let decoded: Vec<((usize, bool), Result<TextureImage, DataGenError>)> = {
+    let decoded: Vec<((usize, bool), String, Vec<u8>)> = {
         let mut encoded = Vec::new();
         for (image, srgb) in wanted
             .iter()
@@ -439,13 +439,28 @@ pub(crate) fn load(
             encoded.push(((image.index(), srgb), at, data));
         }
         encoded
-            .into_par_iter()
-            .map(|(key, at, data)| {
-                let decoded = TextureImage::decode(&data, key.1).map_err(|m| err(path, &at, m));
-                (key, decoded)
-            })
-            .collect()
     };
+    // The images are decoded while the triangles are read: the two do not depend on each
+    // other (a primitive needs to know only which coordinate set its material's normal map
+    // reads), and one large texture would otherwise leave a core idle. Errors keep their
+    // order: images, then materials, then triangles.
+    let normal_sets: Vec<Option<usize>> = document
+        .materials()
+        .map(|m| m.normal_texture().map(|n| (n.tex_coord() as usize).min(1)))
+        .collect();
+    let default_material = normal_sets.len() as u32;
+    let (decoded, triangles): (Vec<_>, _) = rayon::join(
+        || {
+            decoded
+                .into_par_iter()
+                .map(|(key, at, data)| {
+                    let decoded = TextureImage::decode(&data, key.1).map_err(|m| err(path, &at, m));
+                    (key, decoded)
+                })
+                .collect()
+        },
+        || read_triangles(path, instances, &buffers, &normal_sets, default_material),
+    );
     for (key, d) in decoded {
         images.insert(key, Arc::new(d?));
     }
@@ -607,7 +622,7 @@ pub(crate) fn load(
             unlit: m.unlit(),
         });
     }
-    let default_material = materials.len() as u32;
+    debug_assert_eq!(materials.len() as u32, default_material);
     // The specification's default material: white, opaque, single-sided.
     materials.push(Material {
         name: "default".into(),
@@ -617,7 +632,32 @@ pub(crate) fn load(
     });
     fallback.push(false);
 
-    // Triangles.
+    let (positions, surfaces, triangle_notes) = triangles?;
+    notes.extend(triangle_notes);
+    Ok(GltfScene {
+        positions,
+        surfaces,
+        materials,
+        fallback,
+        notes: notes.into_iter().collect(),
+        inputs,
+    })
+}
+
+/// The triangles of the mesh `instances` (each with its world transform) over `buffers`: their
+/// corners in world coordinates, their surface attributes, and the notes on what was not read.
+/// `normal_sets[m]` is the texture coordinate set material `m`'s normal map reads (tangents are
+/// made for those primitives); `default_material` the index primitives without a material take.
+/// Cost: one pass over the vertices and corners, MikkTSpace where tangents are made.
+#[allow(clippy::type_complexity)]
+fn read_triangles(
+    path: &Path,
+    instances: Vec<(gltf::Mesh<'_>, DMat4)>,
+    buffers: &[Vec<u8>],
+    normal_sets: &[Option<usize>],
+    default_material: u32,
+) -> Result<(Vec<[[f64; 3]; 3]>, Vec<SurfaceTri>, BTreeSet<String>), DataGenError> {
+    let mut notes = BTreeSet::new();
     let mut positions = Vec::new();
     let mut surfaces = Vec::new();
     let f32s = [DataType::F32];
@@ -645,7 +685,7 @@ pub(crate) fn load(
             let pos_acc = prim
                 .get(&gltf::Semantic::Positions)
                 .ok_or_else(|| err(path, &at, "no POSITION attribute"))?;
-            let n = check_accessor(path, &pos_acc, &[Dimensions::Vec3], &f32s, &buffers)?;
+            let n = check_accessor(path, &pos_acc, &[Dimensions::Vec3], &f32s, buffers)?;
             let reader = prim.reader(|b| buffers.get(b.index()).map(Vec::as_slice));
             let short = |what: &str| {
                 err(
@@ -661,7 +701,7 @@ pub(crate) fn load(
                 .collect();
             let normals: Option<Vec<Vec3>> = match prim.get(&gltf::Semantic::Normals) {
                 Some(acc) => {
-                    check_accessor(path, &acc, &[Dimensions::Vec3], &f32s, &buffers)?;
+                    check_accessor(path, &acc, &[Dimensions::Vec3], &f32s, buffers)?;
                     Some(
                         reader
                             .read_normals()
@@ -679,7 +719,7 @@ pub(crate) fn load(
             let mut uvs: [Option<Vec<Vec2>>; 2] = [None, None];
             for (set, slot) in uvs.iter_mut().enumerate() {
                 if let Some(acc) = prim.get(&gltf::Semantic::TexCoords(set as u32)) {
-                    check_accessor(path, &acc, &[Dimensions::Vec2], &uv_types, &buffers)?;
+                    check_accessor(path, &acc, &[Dimensions::Vec2], &uv_types, buffers)?;
                     *slot = Some(
                         reader
                             .read_tex_coords(set as u32)
@@ -697,7 +737,7 @@ pub(crate) fn load(
                         &acc,
                         &[Dimensions::Vec3, Dimensions::Vec4],
                         &uv_types,
-                        &buffers,
+                        buffers,
                     )?;
                     Some(
                         reader
@@ -724,7 +764,7 @@ pub(crate) fn load(
                         &acc,
                         &[Dimensions::Scalar],
                         &[DataType::U8, DataType::U16, DataType::U32],
-                        &buffers,
+                        buffers,
                     )?;
                     let idx: Vec<u32> = reader
                         .read_indices()
@@ -765,15 +805,12 @@ pub(crate) fn load(
             // Tangents where the material has a normal map: the file's TANGENT (carried by the
             // node's linear part, the handedness flipped by a mirroring one), else MikkTSpace's
             // in world coordinates (glTF §3.7.2.1), from the normals and the map's coordinates.
-            let normal_set = materials
-                .get(material as usize)
-                .and_then(|m: &Material| m.normal_map.as_ref())
-                .map(|m| (m.set as usize).min(1));
+            let normal_set = normal_sets.get(material as usize).copied().flatten();
             let tangents: Option<Vec<[Vec4; 3]>> = match normal_set {
                 None => None,
                 Some(set) => match prim.get(&gltf::Semantic::Tangents) {
                     Some(acc) => {
-                        check_accessor(path, &acc, &[Dimensions::Vec4], &f32s, &buffers)?;
+                        check_accessor(path, &acc, &[Dimensions::Vec4], &f32s, buffers)?;
                         let linear = DMat3::from_mat4(world);
                         let hand = linear.determinant().signum();
                         let t: Vec<Vec4> = reader
@@ -847,14 +884,7 @@ pub(crate) fn load(
             }
         }
     }
-    Ok(GltfScene {
-        positions,
-        surfaces,
-        materials,
-        fallback,
-        notes: notes.into_iter().collect(),
-        inputs,
-    })
+    Ok((positions, surfaces, notes))
 }
 
 /// MikkTSpace tangents (`xyz`, handedness in `w`) of each corner of the triangles `corners` over

@@ -202,6 +202,47 @@ pub fn silhouette_iou(
     Ok(inter as f64 / union as f64)
 }
 
+/// Pixels per degree of visual angle at which [`flip_mean`] compares pictures: FLIP's default, a
+/// 0.7 m view of a 0.7 m wide screen of 3840 pixels.
+pub const FLIP_PIXELS_PER_DEGREE: f32 = nv_flip::DEFAULT_PIXELS_PER_DEGREE;
+
+/// The mean FLIP error (Andersson et al. 2020, "FLIP: A Difference Evaluator for Alternating
+/// Images", its LDR form through the `nv-flip` crate) of `image` against `reference`: each
+/// picture's premultiplied colour (the picture composited over black) encoded to 8-bit sRGB,
+/// compared at [`FLIP_PIXELS_PER_DEGREE`], the per-pixel error (in `[0, 1]`, 0 where a viewer
+/// flipping between the two sees no difference) averaged over all pixels, as PSNR averages its
+/// error over them. Lower is better; it weighs colour and edge differences as a viewer sees
+/// them, where PSNR weighs every channel error alike. Alpha is not compared apart from the
+/// colour it darkens. Cost: FLIP's spatial filters over the picture, a few passes of
+/// `O(pixels)` each.
+///
+/// Errors: as [`compare`] (sizes, non-finite pixels, an empty picture, both pictures empty).
+pub fn flip_mean(image: &RgbaImage, reference: &RgbaImage) -> Result<f64, MetricsError> {
+    check(image, reference, None)?;
+    if image.pixels.is_empty() {
+        return Err(MetricsError::NothingToCompare);
+    }
+    let visible = |img: &RgbaImage| img.pixels.iter().any(|p| p.iter().any(|c| *c != 0.0));
+    if !visible(image) && !visible(reference) {
+        return Err(MetricsError::NothingVisible);
+    }
+    let srgb8 = |img: &RgbaImage| -> Vec<u8> {
+        img.pixels
+            .iter()
+            .flat_map(|p| {
+                [0, 1, 2].map(|c| {
+                    (altrep_data_gen::linear_to_srgb(p[c].clamp(0.0, 1.0)) * 255.0).round() as u8
+                })
+            })
+            .collect()
+    };
+    let (w, h) = (image.width as u32, image.height as u32);
+    let test = nv_flip::FlipImageRgb8::with_data(w, h, &srgb8(image));
+    let refr = nv_flip::FlipImageRgb8::with_data(w, h, &srgb8(reference));
+    let map = nv_flip::flip(refr, test, FLIP_PIXELS_PER_DEGREE);
+    Ok(f64::from(nv_flip::FlipPool::from_image(&map).mean()))
+}
+
 /// Where the error of an image lies, by the distance of each pixel to the true silhouette: the
 /// Chebyshev distance `d` to the nearest pixel on the other side of the ground truth's outline
 /// (alpha > ½), up to 2. Each `*_mse` is the squared error summed over that region's pixels and
@@ -296,6 +337,50 @@ mod tests {
             height: pixels.len() / w,
             pixels,
         }
+    }
+
+    /// FLIP: 0 for identical pictures, in (0, 1] for different ones and growing with the
+    /// difference, symmetric in its range; typed errors for empty, mismatched and non-finite
+    /// pictures.
+    #[test]
+    fn flip_is_zero_for_equal_pictures_and_grows_with_the_difference() {
+        let n = 32;
+        let grey = |v: f32| img(vec![[v, v, v, 1.0]; n * n], n);
+        let disc = |v: f32| {
+            let pixels = (0..n * n)
+                .map(|k| {
+                    let (x, y) = ((k % n) as f32 - 15.5, (k / n) as f32 - 15.5);
+                    if x.hypot(y) < 10.0 {
+                        [v, 0.2, 0.1, 1.0]
+                    } else {
+                        [0.0; 4]
+                    }
+                })
+                .collect();
+            img(pixels, n)
+        };
+        assert_eq!(flip_mean(&disc(0.5), &disc(0.5)).unwrap(), 0.0);
+        let small = flip_mean(&disc(0.55), &disc(0.5)).unwrap();
+        let large = flip_mean(&disc(0.9), &disc(0.5)).unwrap();
+        assert!(
+            small > 0.0 && small < large && large <= 1.0,
+            "{small} {large}"
+        );
+        assert!(flip_mean(&grey(1.0), &grey(0.0)).unwrap() > 0.5);
+        let empty = img(vec![[0.0; 4]; n * n], n);
+        assert_eq!(flip_mean(&empty, &empty), Err(MetricsError::NothingVisible));
+        assert!(matches!(
+            flip_mean(&grey(0.5), &img(vec![[0.5; 4]; 4], 2)),
+            Err(MetricsError::SizeMismatch { .. })
+        ));
+        assert!(matches!(
+            flip_mean(&grey(f32::NAN), &grey(0.5)),
+            Err(MetricsError::NonFinite { .. })
+        ));
+        assert_eq!(
+            flip_mean(&img(Vec::new(), 1), &img(Vec::new(), 1)),
+            Err(MetricsError::NothingToCompare)
+        );
     }
 
     #[test]

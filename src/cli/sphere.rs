@@ -257,6 +257,10 @@ pub fn run(args: SphereArgs) -> CliResult {
             )
         };
         println!(
+            "          FLIP mean (lower is better): ours {:.4}, one-step {:.4}, two-step {:.4}",
+            m.ours.flip_mean, m.baseline.flip_mean, m.baseline_two_step.flip_mean
+        );
+        println!(
             "          texel reads per ray, mean / over hits / max: ours {}, one-step {}, two-step {}",
             reads(&m.ours),
             reads(&m.baseline),
@@ -267,18 +271,30 @@ pub fn run(args: SphereArgs) -> CliResult {
     let budgets = budget_table(&rows, &args.budgets);
     println!(
         "\nbest mean PSNR within each memory budget (same selection rule for all; the gain is \
-         over the better of the two baselines):"
+         over the better of the two baselines), with that configuration's mean FLIP:"
     );
     println!(
-        "{:>8} | {:>18} | {:>20} | {:>20} | {:>7}",
-        "MiB", "ours (G, F) PSNR", "baseline (G, F) PSNR", "2-step (G, F) PSNR", "gain"
+        "{:>8} | {:>25} | {:>27} | {:>27} | {:>7}",
+        "MiB",
+        "ours (G, F) PSNR FLIP",
+        "baseline (G, F) PSNR FLIP",
+        "2-step (G, F) PSNR FLIP",
+        "gain"
     );
-    for b in &budgets {
-        let cell = |x: Option<(usize, usize, f64)>| {
-            x.map_or("—".to_string(), |(g, f, p)| {
-                format!("({g:>2}, {f:>3}) {p:6.2}")
-            })
+    let flip =
+        |g: usize, f: usize, which: fn(&SphereMeasurement) -> &crate::sphere::MethodStats| {
+            rows.iter()
+                .find(|m| (m.grid, m.size) == (g, f))
+                .map_or(f64::NAN, |m| which(m).flip_mean)
         };
+    for b in &budgets {
+        let cell =
+            |x: Option<(usize, usize, f64)>,
+             which: fn(&SphereMeasurement) -> &crate::sphere::MethodStats| {
+                x.map_or("—".to_string(), |(g, f, p)| {
+                    format!("({g:>2}, {f:>3}) {p:6.2} {:.4}", flip(g, f, which))
+                })
+            };
         let strongest = [b.baseline, b.baseline_two_step]
             .into_iter()
             .flatten()
@@ -289,11 +305,11 @@ pub fn run(args: SphereArgs) -> CliResult {
             _ => "—".into(),
         };
         println!(
-            "{:>8} | {:>18} | {:>20} | {:>20} | {:>7}",
+            "{:>8} | {:>25} | {:>27} | {:>27} | {:>7}",
             b.budget_mib,
-            cell(b.ours),
-            cell(b.baseline),
-            cell(b.baseline_two_step),
+            cell(b.ours, |m| &m.ours),
+            cell(b.baseline, |m| &m.baseline),
+            cell(b.baseline_two_step, |m| &m.baseline_two_step),
             gain
         );
     }

@@ -467,12 +467,14 @@ impl Representation for SphereRepr {
             image: RgbaImage::side_by_side(&[&ours.cost_picture(max), &base.cost_picture(max)]),
         });
         let method = format!(
-            "exact warp of {g}×{g} frames of {f}² at {n} directions in the needed ranges, {size}² with 1 ray per pixel, vs truth 3×3; engine impostor blend of the same frames {b:.2} dB (IoU {bi:.3}); texel reads per ray {r:.1} ({rh:.1} over rays that hit, at most {rm}) against the blend's {br:.1} ({what})",
+            "exact warp of {g}×{g} frames of {f}² at {n} directions in the needed ranges, {size}² with 1 ray per pixel, vs truth 3×3; engine impostor blend of the same frames {b:.2} dB (IoU {bi:.3}); mean FLIP {of:.4} against the blend's {bf:.4}; texel reads per ray {r:.1} ({rh:.1} over rays that hit, at most {rm}) against the blend's {br:.1} ({what})",
             g = data.params.set.grid,
             f = data.params.size,
             n = dirs.len(),
             b = m.baseline.psnr_mean,
             bi = m.baseline.iou_mean,
+            of = m.ours.flip_mean,
+            bf = m.baseline.flip_mean,
             r = m.ours.reads_mean,
             rh = m.ours.reads_hit_mean,
             rm = m.ours.reads_max,

@@ -67,6 +67,9 @@ pub struct MethodStats {
     /// Mean coverage error ([`coverage_error`]: mean absolute alpha difference over the pixels
     /// either picture covers).
     pub coverage_error_mean: f64,
+    /// Mean FLIP error over the directions ([`crate::metrics::flip_mean`]: in `[0, 1]`, lower
+    /// is better; what a viewer flipping between the picture and the truth sees).
+    pub flip_mean: f64,
     /// Mean texel fetches per ray (all enclosing frames together).
     pub steps_mean: f64,
     /// Largest texel fetches of one ray.
@@ -163,6 +166,7 @@ fn stats(outs: &[(RenderOutput, f64)], truths: &[RgbaImage]) -> Result<MethodSta
         s.psnr_min = s.psnr_min.min(p);
         s.iou_mean += silhouette_iou(&out.image, truth, 0.5)?;
         s.coverage_error_mean += coverage_error(&out.image, truth)?;
+        s.flip_mean += crate::metrics::flip_mean(&out.image, truth)?;
         s.split.add(&error_split(&out.image, truth)?);
         steps += out.steps.iter().map(|&v| f64::from(v)).sum::<f64>();
         rays += out.steps.len();
@@ -183,6 +187,7 @@ fn stats(outs: &[(RenderOutput, f64)], truths: &[RgbaImage]) -> Result<MethodSta
     s.psnr_mean /= n;
     s.iou_mean /= n;
     s.coverage_error_mean /= n;
+    s.flip_mean /= n;
     s.split.scale(1.0 / n);
     s.ms_per_image /= n;
     s.steps_mean = steps / rays.max(1) as f64;

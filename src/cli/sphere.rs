@@ -256,9 +256,15 @@ pub fn run(args: SphereArgs) -> CliResult {
                 s.reads_mean, s.reads_hit_mean, s.reads_max
             )
         };
+        let db = |p: Option<f64>| p.map_or("—".to_string(), |p| format!("{p:.2}"));
         println!(
-            "          FLIP mean (lower is better): ours {:.4}, one-step {:.4}, two-step {:.4}",
-            m.ours.flip_mean, m.baseline.flip_mean, m.baseline_two_step.flip_mean
+            "          FLIP mean (lower is better): ours {:.4}, one-step {:.4}, two-step {:.4}; colour PSNR where both cover: ours {}, one-step {}, two-step {}",
+            m.ours.flip_mean,
+            m.baseline.flip_mean,
+            m.baseline_two_step.flip_mean,
+            db(m.ours.colour_psnr_mean),
+            db(m.baseline.colour_psnr_mean),
+            db(m.baseline_two_step.colour_psnr_mean)
         );
         println!(
             "          texel reads per ray, mean / over hits / max: ours {}, one-step {}, two-step {}",

@@ -467,7 +467,7 @@ impl Representation for SphereRepr {
             image: RgbaImage::side_by_side(&[&ours.cost_picture(max), &base.cost_picture(max)]),
         });
         let method = format!(
-            "exact warp of {g}×{g} frames of {f}² at {n} directions in the needed ranges, {size}² with 1 ray per pixel, vs truth 3×3; engine impostor blend of the same frames {b:.2} dB (IoU {bi:.3}); mean FLIP {of:.4} against the blend's {bf:.4}; texel reads per ray {r:.1} ({rh:.1} over rays that hit, at most {rm}) against the blend's {br:.1} ({what})",
+            "exact warp of {g}×{g} frames of {f}² at {n} directions in the needed ranges, {size}² with 1 ray per pixel, vs truth 3×3; engine impostor blend of the same frames {b:.2} dB (IoU {bi:.3}); mean FLIP {of:.4} against the blend's {bf:.4}; colour PSNR where both cover {oc} dB against {bc}; texel reads per ray {r:.1} ({rh:.1} over rays that hit, at most {rm}) against the blend's {br:.1} ({what})",
             g = data.params.set.grid,
             f = data.params.size,
             n = dirs.len(),
@@ -475,6 +475,14 @@ impl Representation for SphereRepr {
             bi = m.baseline.iou_mean,
             of = m.ours.flip_mean,
             bf = m.baseline.flip_mean,
+            oc = m
+                .ours
+                .colour_psnr_mean
+                .map_or("—".into(), |p| format!("{p:.2}")),
+            bc = m
+                .baseline
+                .colour_psnr_mean
+                .map_or("—".into(), |p| format!("{p:.2}")),
             r = m.ours.reads_mean,
             rh = m.ours.reads_hit_mean,
             rm = m.ours.reads_max,

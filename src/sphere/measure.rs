@@ -67,6 +67,11 @@ pub struct MethodStats {
     /// Mean coverage error ([`coverage_error`]: mean absolute alpha difference over the pixels
     /// either picture covers).
     pub coverage_error_mean: f64,
+    /// Mean colour PSNR (dB) over the directions ([`crate::metrics::colour_psnr`]: the colour
+    /// error alone, over the pixels both the picture and the truth cover fully), over the
+    /// directions that have such pixels; `None` where none has (thin or sparse objects at a
+    /// small size).
+    pub colour_psnr_mean: Option<f64>,
     /// Mean FLIP error over the directions ([`crate::metrics::flip_mean`]: in `[0, 1]`, lower
     /// is better; what a viewer flipping between the picture and the truth sees).
     pub flip_mean: f64,
@@ -157,6 +162,7 @@ fn stats(outs: &[(RenderOutput, f64)], truths: &[RgbaImage]) -> Result<MethodSta
     };
     let (mut rays, mut steps, mut holes, mut unresolved) = (0usize, 0.0f64, 0usize, 0usize);
     let (mut reads, mut hit_reads, mut hits) = (0.0f64, 0.0f64, 0usize);
+    let mut colour = (0.0f64, 0u32);
     for ((out, ms), truth) in outs.iter().zip(truths) {
         let p = psnr(&out.image, truth)?;
         s.psnr_per_direction.push(p);
@@ -167,6 +173,14 @@ fn stats(outs: &[(RenderOutput, f64)], truths: &[RgbaImage]) -> Result<MethodSta
         s.iou_mean += silhouette_iou(&out.image, truth, 0.5)?;
         s.coverage_error_mean += coverage_error(&out.image, truth)?;
         s.flip_mean += crate::metrics::flip_mean(&out.image, truth)?;
+        match crate::metrics::colour_psnr(&out.image, truth) {
+            Ok(p) => {
+                colour.0 += p;
+                colour.1 += 1;
+            }
+            Err(crate::metrics::MetricsError::NothingToCompare) => {}
+            Err(e) => return Err(e.into()),
+        }
         s.split.add(&error_split(&out.image, truth)?);
         steps += out.steps.iter().map(|&v| f64::from(v)).sum::<f64>();
         rays += out.steps.len();
@@ -188,6 +202,7 @@ fn stats(outs: &[(RenderOutput, f64)], truths: &[RgbaImage]) -> Result<MethodSta
     s.iou_mean /= n;
     s.coverage_error_mean /= n;
     s.flip_mean /= n;
+    s.colour_psnr_mean = (colour.1 > 0).then(|| colour.0 / f64::from(colour.1));
     s.split.scale(1.0 / n);
     s.ms_per_image /= n;
     s.steps_mean = steps / rays.max(1) as f64;

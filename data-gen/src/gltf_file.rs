@@ -473,47 +473,47 @@ pub(crate) fn load(
         Some(gltf::texture::MagFilter::Nearest) => SamplerFilter::Nearest,
         _ => SamplerFilter::Linear,
     };
+    // An sRGB-coded texture a material reads (`what`: its glTF key), with the coordinate set it
+    // reads: the decoded image, the sampler's filter and wrap modes, `KHR_texture_transform`.
+    let colour_texture = |info: &gltf::texture::Info,
+                          what: &str,
+                          at: &str|
+     -> Result<(TextureRef, u32), DataGenError> {
+        let tex = info.texture();
+        let sampler = tex.sampler();
+        let (transform, set) = match info.texture_transform() {
+            Some(t) => (
+                UvTransform::from_offset_rotation_scale(t.offset(), t.rotation(), t.scale()),
+                t.tex_coord().unwrap_or(info.tex_coord()),
+            ),
+            None => (UvTransform::default(), info.tex_coord()),
+        };
+        if set > 1 {
+            return Err(err(
+                path,
+                at,
+                format!("{what} reads TEXCOORD_{set}; only sets 0 and 1 are read"),
+            ));
+        }
+        let image = images
+            .get(&(tex.source().index(), true))
+            .cloned()
+            .ok_or_else(|| err(path, at, format!("{what}: image missing")))?;
+        Ok((
+            TextureRef {
+                image,
+                filter: filter(&sampler),
+                wrap: [wrap(sampler.wrap_s()), wrap(sampler.wrap_t())],
+                transform,
+            },
+            set,
+        ))
+    };
     for m in document.materials() {
         let at = format!("materials[{}]", m.index().unwrap_or(0));
         let pbr = m.pbr_metallic_roughness();
         let base_texture = match pbr.base_color_texture() {
-            Some(info) => {
-                let tex = info.texture();
-                let sampler = tex.sampler();
-                let (transform, set) = match info.texture_transform() {
-                    Some(t) => (
-                        UvTransform::from_offset_rotation_scale(
-                            t.offset(),
-                            t.rotation(),
-                            t.scale(),
-                        ),
-                        t.tex_coord().unwrap_or(info.tex_coord()),
-                    ),
-                    None => (UvTransform::default(), info.tex_coord()),
-                };
-                if set > 1 {
-                    return Err(err(
-                        path,
-                        &at,
-                        format!(
-                            "baseColorTexture reads TEXCOORD_{set}; only sets 0 and 1 are read"
-                        ),
-                    ));
-                }
-                let image = images
-                    .get(&(tex.source().index(), true))
-                    .cloned()
-                    .ok_or_else(|| err(path, &at, "base colour image missing"))?;
-                Some((
-                    TextureRef {
-                        image,
-                        filter: filter(&sampler),
-                        wrap: [wrap(sampler.wrap_s()), wrap(sampler.wrap_t())],
-                        transform,
-                    },
-                    set,
-                ))
-            }
+            Some(info) => Some(colour_texture(&info, "baseColorTexture", &at)?),
             None => None,
         };
         let alpha_mode = match m.alpha_mode() {
@@ -557,39 +557,7 @@ pub(crate) fn load(
         let emissive = Vec3::from(m.emissive_factor());
         let emissive_texture = match m.emissive_texture() {
             Some(info) if !m.unlit() && emissive != Vec3::ZERO => {
-                let tex = info.texture();
-                let sampler = tex.sampler();
-                let (transform, set) = match info.texture_transform() {
-                    Some(t) => (
-                        UvTransform::from_offset_rotation_scale(
-                            t.offset(),
-                            t.rotation(),
-                            t.scale(),
-                        ),
-                        t.tex_coord().unwrap_or(info.tex_coord()),
-                    ),
-                    None => (UvTransform::default(), info.tex_coord()),
-                };
-                if set > 1 {
-                    return Err(err(
-                        path,
-                        &at,
-                        format!("emissiveTexture reads TEXCOORD_{set}; only sets 0 and 1 are read"),
-                    ));
-                }
-                let image = images
-                    .get(&(tex.source().index(), true))
-                    .cloned()
-                    .ok_or_else(|| err(path, &at, "emissive image missing"))?;
-                Some((
-                    TextureRef {
-                        image,
-                        filter: filter(&sampler),
-                        wrap: [wrap(sampler.wrap_s()), wrap(sampler.wrap_t())],
-                        transform,
-                    },
-                    set,
-                ))
+                Some(colour_texture(&info, "emissiveTexture", &at)?)
             }
             _ => None,
         };

@@ -62,6 +62,18 @@ pub struct CylindricalTexture {
     texels: Vec<Option<Texel>>,
 }
 
+/// The capture grid of `prefilter × prefilter` samples per texel of `params`. Errors: a bad
+/// column count or prefilter factor.
+fn fine_params(params: &CylinderParams, prefilter: usize) -> Result<CylinderParams, CylinderError> {
+    check_columns(params.columns)?;
+    check_prefilter(prefilter)?;
+    Ok(CylinderParams {
+        columns: params.columns * prefilter,
+        rows: params.rows * prefilter,
+        cylinder: params.cylinder,
+    })
+}
+
 impl CylindricalTexture {
     /// Builds the texture from a cylindrical capture of data-gen ([`capture_cylinder`]).
     ///
@@ -130,14 +142,10 @@ impl CylindricalTexture {
         params: &CylinderParams,
         prefilter: usize,
     ) -> Result<Self, CylinderError> {
-        check_columns(params.columns)?;
-        check_prefilter(prefilter)?;
-        let fine = CylinderParams {
-            columns: params.columns * prefilter,
-            rows: params.rows * prefilter,
-            cylinder: params.cylinder,
-        };
-        Self::from_oversampled(&capture_cylinder(shape, &fine)?, prefilter)
+        Self::from_oversampled(
+            &capture_cylinder(shape, &fine_params(params, prefilter)?)?,
+            prefilter,
+        )
     }
 
     /// [`Self::capture`] with lighting baked in sample by sample before the prefilter: each fine
@@ -155,15 +163,10 @@ impl CylindricalTexture {
         prefilter: usize,
         light: &Light,
     ) -> Result<Self, CylinderError> {
-        check_columns(params.columns)?;
-        check_prefilter(prefilter)?;
-        let fine = CylinderParams {
-            columns: params.columns * prefilter,
-            rows: params.rows * prefilter,
-            cylinder: params.cylinder,
-        };
-        let fine = Self::from_samples(&capture_cylinder(shape, &fine)?)?.baked(light);
-        fine.downsampled(prefilter)
+        let fine = capture_cylinder(shape, &fine_params(params, prefilter)?)?;
+        Self::from_samples(&fine)?
+            .baked(light)
+            .downsampled(prefilter)
     }
 
     /// Builds an `L × Ly` texture from a cylindrical capture of `(s·L) × (s·Ly)` samples, `s` odd

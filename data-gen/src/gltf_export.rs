@@ -16,8 +16,8 @@
 //!
 //! Materials keep what altrep reads: base colour factor and texture (its coordinate set,
 //! sampler wrap modes and magnification filter, `KHR_texture_transform`), alpha mode and
-//! cutoff, normal map with its scale, `doubleSided`, emissive factor and texture,
-//! `KHR_materials_unlit`. An OBJ alpha texture (`map_d`) goes into
+//! cutoff, normal map with its scale, `doubleSided`, emissive factor and texture (a factor above
+//! 1 as `KHR_materials_emissive_strength`), `KHR_materials_unlit`. An OBJ alpha texture (`map_d`) goes into
 //! the base colour texture's alpha (the same product at texel centres; bilinear filtering
 //! between texels may differ slightly). Metallic and roughness are written as 0 and 1: altrep
 //! does not read them. Images are the source's own PNG or JPEG files where a texture was decoded
@@ -484,6 +484,7 @@ impl Mesh {
         let mut material_index: HashMap<PrimKey, usize> = HashMap::new();
         let mut uses_transform = false;
         let mut uses_unlit = false;
+        let mut uses_strength = false;
         let mut primitives = Vec::new();
         for (key, prim) in &prims {
             // The primitive's material.
@@ -554,7 +555,16 @@ impl Mesh {
                                 v["extensions"] = json!({"KHR_materials_unlit": {}});
                                 uses_unlit = true;
                             } else if m.emissive != glam::Vec3::ZERO {
-                                v["emissiveFactor"] = json!(m.emissive.to_array());
+                                // glTF factors stop at 1: a brighter emission is its largest
+                                // component as KHR_materials_emissive_strength.
+                                let strength = m.emissive.max_element().max(1.0);
+                                v["emissiveFactor"] = json!((m.emissive / strength).to_array());
+                                if strength > 1.0 {
+                                    v["extensions"] = json!({
+                                        "KHR_materials_emissive_strength": {"emissiveStrength": strength}
+                                    });
+                                    uses_strength = true;
+                                }
                                 if let Some((t, set)) = &m.emissive_texture {
                                     let index = images.texture(t, true, &mut b)?;
                                     let mut info = json!({"index": index, "texCoord": set});
@@ -628,6 +638,7 @@ impl Mesh {
         let used: Vec<&str> = [
             (uses_transform, "KHR_texture_transform"),
             (uses_unlit, "KHR_materials_unlit"),
+            (uses_strength, "KHR_materials_emissive_strength"),
         ]
         .into_iter()
         .filter_map(|(used, name)| used.then_some(name))

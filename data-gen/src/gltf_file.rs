@@ -20,12 +20,13 @@
 //! * `doubleSided` (default false, as the specification says): a single-sided material's back
 //!   faces let rays through in every tracer, the truth's and the captures' alike (the inside tests
 //!   of voxelisation still count them).
-//! * `emissiveFactor` × `emissiveTexture` (sRGB decoded) and `KHR_materials_unlit` (the base
+//! * `emissiveFactor` × `emissiveTexture` (sRGB decoded; `KHR_materials_emissive_strength`
+//!   scales the factor) and `KHR_materials_unlit` (the base
 //!   colour shown whatever the light): such a surface's hit albedo is the one the mesh's light
 //!   shades to what it shows ([`crate::Light::albedo_giving`]; named in the notes, since
 //!   stand-ins relit by another light scale it).
 //! * Everything else that changes how the asset looks is named in [`GltfScene::notes`]:
-//!   occlusion maps, `KHR_materials_emissive_strength` and other optional extensions, skins and
+//!   occlusion maps, optional extensions altrep does not know, skins and
 //!   morph targets (the bind pose).
 //!
 //! Every accessor is checked before it is read (element type, stride, count, range), so a
@@ -47,7 +48,11 @@ use crate::surface::{
 };
 
 /// Extensions whose `extensionsRequired` entry altrep accepts.
-const UNDERSTOOD: &[&str] = &["KHR_texture_transform", "KHR_materials_unlit"];
+const UNDERSTOOD: &[&str] = &[
+    "KHR_texture_transform",
+    "KHR_materials_unlit",
+    "KHR_materials_emissive_strength",
+];
 
 /// The triangles of a glTF scene in its world coordinates.
 pub(crate) struct GltfScene {
@@ -406,6 +411,7 @@ pub(crate) fn load(
         if let Some(e) = m.emissive_texture()
             && !m.unlit()
             && m.emissive_factor() != [0.0; 3]
+            && m.emissive_strength() != Some(0.0)
         {
             wanted.insert((e.texture().source().index(), true));
         }
@@ -554,7 +560,16 @@ pub(crate) fn load(
         };
         // Emission: the factor, times the texture where there is one (read only where the
         // factor is not black and the material is lit, as the specification's shading does).
-        let emissive = Vec3::from(m.emissive_factor());
+        // `KHR_materials_emissive_strength` scales the factor past 1.
+        let strength = m.emissive_strength().unwrap_or(1.0);
+        if !(strength.is_finite() && strength >= 0.0) {
+            return Err(err(
+                path,
+                &at,
+                format!("KHR_materials_emissive_strength {strength} must be finite and ≥ 0"),
+            ));
+        }
+        let emissive = Vec3::from(m.emissive_factor()) * strength;
         let emissive_texture = match m.emissive_texture() {
             Some(info) if !m.unlit() && emissive != Vec3::ZERO => {
                 Some(colour_texture(&info, "emissiveTexture", &at)?)

@@ -40,7 +40,8 @@ pub struct TestMaterial {
     pub normal_texture: Option<(Rgba8, f32)>,
     /// `doubleSided`.
     pub double_sided: bool,
-    /// `emissiveFactor` (linear RGB; not written when black).
+    /// `emissiveFactor` (linear RGB; not written when black; above 1, divided by its largest
+    /// component, written as `KHR_materials_emissive_strength`).
     pub emissive: [f32; 3],
     /// `emissiveTexture` (sRGB-coded, like the base colour), if any.
     pub emissive_texture: Option<Rgba8>,
@@ -317,7 +318,7 @@ impl TestGltf {
         let mut samplers = Vec::new();
         let mut files = Vec::new();
         let mut materials = Vec::new();
-        let mut unlit = false;
+        let mut used: Vec<&str> = Vec::new();
         for (k, m) in self.materials.iter().enumerate() {
             let mut pbr = json!({"baseColorFactor": m.base_color, "metallicFactor": 0.0});
             // One image, sampler and texture; the texture's index.
@@ -357,7 +358,14 @@ impl TestGltf {
                 mat["alphaCutoff"] = json!(m.alpha_cutoff);
             }
             if m.emissive != [0.0; 3] {
-                mat["emissiveFactor"] = json!(m.emissive);
+                // Above 1, the largest component as KHR_materials_emissive_strength.
+                let strength = m.emissive.iter().fold(1.0f32, |a, &b| a.max(b));
+                mat["emissiveFactor"] = json!(m.emissive.map(|c| c / strength));
+                if strength > 1.0 {
+                    mat["extensions"] =
+                        json!({"KHR_materials_emissive_strength": {"emissiveStrength": strength}});
+                    used.push("KHR_materials_emissive_strength");
+                }
             }
             if let Some(img) = &m.emissive_texture {
                 let t = texture(img, format!("{stem}_{k}_emissive.png"))?;
@@ -365,7 +373,7 @@ impl TestGltf {
             }
             if m.unlit {
                 mat["extensions"] = json!({"KHR_materials_unlit": {}});
-                unlit = true;
+                used.push("KHR_materials_unlit");
             }
             materials.push(mat);
         }
@@ -404,8 +412,10 @@ impl TestGltf {
             doc["textures"] = json!(textures);
             doc["samplers"] = json!(samplers);
         }
-        if unlit {
-            doc["extensionsUsed"] = json!(["KHR_materials_unlit"]);
+        used.sort_unstable();
+        used.dedup();
+        if !used.is_empty() {
+            doc["extensionsUsed"] = json!(used);
         }
         Ok((doc, bin, files))
     }

@@ -329,6 +329,15 @@ fn malformed_gltf_is_a_typed_error_naming_the_gltf_path() {
             "accessors[0]: 1000 elements do not fit",
         ),
         (
+            edit_glb(&doc, |j| {
+                j["materials"][0]["emissiveFactor"] = serde_json::json!([1.0, 0.5, 0.0]);
+                j["materials"][0]["extensions"] = serde_json::json!({
+                    "KHR_materials_emissive_strength": {"emissiveStrength": -2.0}
+                });
+            }),
+            "materials[0]",
+        ),
+        (
             edit_glb(&doc, |j| j["accessors"][0]["count"] = 0.into()),
             "accessors[0]",
         ),
@@ -772,8 +781,9 @@ fn single_sided_materials_let_rays_through_their_back_faces() {
 /// Emission and `KHR_materials_unlit` (docs/real-assets.md, "Emission and unlit materials"): on
 /// every face of the textured box, under the default light and under one from below with little
 /// ambient, the hit shaded by the mesh's light shows what the material gives off — the base
-/// colour for an unlit material, the lit base colour plus `emissiveFactor` (× `emissiveTexture`)
-/// for an emissive one — both as loaded and after altrep's own `.glb` writer and reader.
+/// colour for an unlit material, the lit base colour plus `emissiveFactor` (× `emissiveTexture`,
+/// × `KHR_materials_emissive_strength`) for an emissive one — both as loaded and after altrep's
+/// own `.glb` writer and reader.
 #[test]
 fn emissive_and_unlit_materials_show_what_they_give_off_under_the_light() {
     use altrep_data_gen::Light;
@@ -789,6 +799,11 @@ fn emissive_and_unlit_materials_show_what_they_give_off_under_the_light() {
     let variants = [
         ("unlit", variant(&|m| m.unlit = true)),
         ("emissive factor", variant(&|m| m.emissive = e.to_array())),
+        // Above 1: written as KHR_materials_emissive_strength 2.
+        (
+            "emissive strength",
+            variant(&|m| m.emissive = (4.0 * e).to_array()),
+        ),
         (
             "emissive texture",
             variant(&|m| {
@@ -817,8 +832,15 @@ fn emissive_and_unlit_materials_show_what_they_give_off_under_the_light() {
                 "{what}: {:?}",
                 mesh.notes()
             );
+            // An emission above 1 goes through the strength extension, both ways.
+            let written = mesh.to_glb().unwrap();
+            let ext = b"KHR_materials_emissive_strength";
+            let holds = |bytes: &[u8]| bytes.windows(ext.len()).any(|w| w == ext);
+            let strong = *what == "emissive strength";
+            assert_eq!(holds(&doc.to_glb().unwrap()), strong, "{what}");
+            assert_eq!(holds(&written), strong, "{what}");
             let back = Mesh::from_gltf_bytes(
-                &mesh.to_glb().unwrap(),
+                &written,
                 Path::new("back.glb"),
                 &MeshLoadOptions {
                     frame: Some(mesh.placement().of_written()),
@@ -843,6 +865,7 @@ fn emissive_and_unlit_materials_show_what_they_give_off_under_the_light() {
                             let want = match *what {
                                 "unlit" => lit.albedo,
                                 "emissive factor" => lit.albedo * l + e,
+                                "emissive strength" => lit.albedo * l + 4.0 * e,
                                 _ => lit.albedo * l + lit.albedo,
                             };
                             for m in [&mesh, &back] {

@@ -37,11 +37,20 @@ pub(crate) fn load(
     // (read here, so that they are hashed with the mesh).
     let folder = path.parent().unwrap_or(Path::new(""));
     let read_mtl = std::sync::Mutex::new(Vec::new());
+    // Why an MTL file was refused before tobj read it (tobj panics on a colour line of fewer
+    // than three numbers).
+    let refused = std::sync::Mutex::new(None::<String>);
     let (models, materials) = tobj::load_obj_buf(&mut &bytes[..], &load, |mtl| {
         let file = folder.join(mtl);
         let text = std::fs::read(&file).map_err(|_| tobj::LoadError::OpenFileFailed)?;
         if let Ok(mut read) = read_mtl.lock() {
-            read.push((file, blake3::hash(&text)));
+            read.push((file.clone(), blake3::hash(&text)));
+        }
+        if let Some(why) = short_colour_line(&text) {
+            if let Ok(mut r) = refused.lock() {
+                *r = Some(format!("{}: {why}", file.display()));
+            }
+            return Err(tobj::LoadError::MaterialParseError);
         }
         tobj::load_mtl_buf(&mut &text[..])
     })
@@ -49,7 +58,22 @@ pub(crate) fn load(
         path: path.to_path_buf(),
         message: e.to_string(),
     })?;
-    let materials = materials.unwrap_or_default();
+    // A material file that is absent leaves the fallback colours (many OBJ files name one they
+    // were not shipped with); one that is there but malformed is an error.
+    let materials = match materials {
+        Ok(m) => m,
+        Err(tobj::LoadError::OpenFileFailed) => Vec::new(),
+        Err(e) => {
+            return Err(DataGenError::ObjParse {
+                path: path.to_path_buf(),
+                message: refused
+                    .lock()
+                    .ok()
+                    .and_then(|mut r| r.take())
+                    .unwrap_or_else(|| format!("its material file: {e}")),
+            });
+        }
+    };
     let mut inputs = read_mtl.into_inner().unwrap_or_default();
     // Materials with a texture or alpha are read through the `surface` module; the others
     // keep their flat diffuse colour.
@@ -76,29 +100,19 @@ pub(crate) fn load(
     };
     for (k, mat) in materials.iter().enumerate() {
         let dissolve = mat.dissolve.unwrap_or(1.0);
-        // `Ke r g b`: emitted linear RGB, non-negative and finite.
-        let emissive = match mat.unknown_param.get("Ke") {
+        // `Ke r g b` (tobj parses it; malformed text fails the whole file there): emitted
+        // linear RGB, non-negative and finite.
+        let emissive = match mat.emissive {
             None => Vec3::ZERO,
-            Some(text) => {
-                let v: Vec<f32> = text
-                    .split_whitespace()
-                    .map(str::parse)
-                    .collect::<Result<_, _>>()
-                    .unwrap_or_default();
-                match v[..] {
-                    [r, g, b] if [r, g, b].iter().all(|c| c.is_finite() && *c >= 0.0) => {
-                        Vec3::new(r, g, b)
-                    }
-                    _ => {
-                        return Err(DataGenError::ObjParse {
-                            path: path.to_path_buf(),
-                            message: format!(
-                                "material '{}': Ke '{text}' is not three finite non-negative numbers",
-                                mat.name
-                            ),
-                        });
-                    }
-                }
+            Some(ke) if ke.iter().all(|c| c.is_finite() && *c >= 0.0) => Vec3::from(ke),
+            Some(ke) => {
+                return Err(DataGenError::ObjParse {
+                    path: path.to_path_buf(),
+                    message: format!(
+                        "material '{}': Ke {ke:?} is not three finite non-negative numbers",
+                        mat.name
+                    ),
+                });
             }
         };
         if mat.diffuse_texture.is_none()
@@ -241,4 +255,19 @@ pub(crate) fn load(
         units: "file unit",
     };
     Ok((positions, colors, extras))
+}
+
+/// The first colour line (`Ka`, `Kd`, `Ks`, `Ke`) of MTL `text` with fewer than three values, as
+/// `line N: ...`; `None` when every one has three or more.
+fn short_colour_line(text: &[u8]) -> Option<String> {
+    String::from_utf8_lossy(text)
+        .lines()
+        .enumerate()
+        .find_map(|(k, line)| {
+            let mut words = line.split_whitespace();
+            let key = words.next()?;
+            let values = words.count();
+            (["Ka", "Kd", "Ks", "Ke"].contains(&key) && values < 3)
+                .then(|| format!("line {}: {key} needs three numbers, found {values}", k + 1))
+        })
 }

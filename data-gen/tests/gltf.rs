@@ -277,6 +277,98 @@ fn a_textured_obj_reads_kd_times_map_kd_and_lists_the_files_it_read() {
     assert!(text.contains("tex.png") && text.contains("'t'"), "{text}");
 }
 
+/// OBJ/MTL emission: `Ke` on a flat material (no texture) and `Ke × map_Ke` on a textured one
+/// add to the lit diffuse colour as glTF's emission does; a `Ke` out of range (negative, NaN,
+/// infinite) is an error naming the material, one that is not three numbers an error on the file.
+#[test]
+fn an_obj_material_gives_off_ke_times_map_ke() {
+    use altrep_data_gen::Light;
+    let dir = tempfile::tempdir().unwrap();
+    let n = 4u32;
+    let data: Vec<u8> = (0..n)
+        .flat_map(|j| (0..n).flat_map(move |i| TestGltf::textured_box_texel(i, j)))
+        .collect();
+    image::save_buffer(
+        dir.path().join("glow.png"),
+        &data,
+        n,
+        n,
+        image::ExtendedColorType::Rgba8,
+    )
+    .unwrap();
+    // Two unit squares at z = 0: x in [0, 1] flat, x in [2, 3] textured emission.
+    let obj = "mtllib m.mtl\nv 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv 2 0 0\nv 3 0 0\nv 3 1 0\nv 2 1 0\n\
+               vt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\nusemtl flat\nf 1/1 2/2 3/3\nf 1/1 3/3 4/4\n\
+               usemtl glow\nf 5/1 6/2 7/3\nf 5/1 7/3 8/4\n";
+    std::fs::write(dir.path().join("q.obj"), obj).unwrap();
+    let mtl = |ke: &str| {
+        format!(
+            "newmtl flat\nKd 0.2 0.4 0.6\nKe {ke}\nnewmtl glow\nKd 0.5 0.5 0.5\nKe 1 1 1\nmap_Ke glow.png\n"
+        )
+    };
+    std::fs::write(dir.path().join("m.mtl"), mtl("0.3 0.1 0")).unwrap();
+    let light = Light::default();
+    let mesh = Mesh::load(dir.path().join("q.obj"), &MeshLoadOptions::default()).unwrap();
+    let read: Vec<String> = mesh
+        .inputs()
+        .iter()
+        .map(|(p, _)| p.file_name().unwrap().to_string_lossy().into_owned())
+        .collect();
+    assert_eq!(read, ["m.mtl", "glow.png"]);
+    let shade = |p: DVec3| {
+        let hit = hit_at_source_point(&mesh, p, DVec3::Z).0.expect("hits");
+        let n = hit.normal.as_vec3();
+        (light.shade(hit.albedo, n), light.factor(n))
+    };
+    let (got, f) = shade(DVec3::new(0.5, 0.5, 0.0));
+    let want = Vec3::new(0.2, 0.4, 0.6) * f + Vec3::new(0.3, 0.1, 0.0);
+    for k in 0..3 {
+        assert_abs_diff_eq!(got[k], want[k], epsilon = 1e-5);
+    }
+    for j in 0..n {
+        for i in 0..n {
+            let p = DVec3::new(
+                2.0 + (f64::from(i) + 0.5) / f64::from(n),
+                1.0 - (f64::from(j) + 0.5) / f64::from(n),
+                0.0,
+            );
+            let (got, f) = shade(p);
+            let want = Vec3::splat(0.5) * f + linear(TestGltf::textured_box_texel(i, j));
+            for k in 0..3 {
+                assert_abs_diff_eq!(got[k], want[k], epsilon = 1e-5);
+            }
+        }
+    }
+    // Numbers out of range are named with their material; text that is not three numbers fails
+    // the MTL parse (a typed error on the file).
+    for (bad, named) in [
+        ("0.3 -0.1 0", true),
+        ("nan 0 0", true),
+        ("inf 0 0", true),
+        ("0.3 0.1", false),
+        ("a b c", false),
+    ] {
+        // Kd as well: a short colour line is refused before the MTL parser, which panics on it.
+        std::fs::write(dir.path().join("m.mtl"), mtl(bad)).unwrap();
+        let e = Mesh::load(dir.path().join("q.obj"), &MeshLoadOptions::default()).unwrap_err();
+        let text = e.to_string();
+        assert!(matches!(e, DataGenError::ObjParse { .. }), "{bad}: {text}");
+        if named {
+            assert!(
+                text.contains("'flat'") && text.contains("Ke"),
+                "{bad}: {text}"
+            );
+        }
+    }
+    std::fs::write(dir.path().join("m.mtl"), "newmtl flat\nKd 0.2\n").unwrap();
+    let e = Mesh::load(dir.path().join("q.obj"), &MeshLoadOptions::default()).unwrap_err();
+    let text = e.to_string();
+    assert!(
+        text.contains("m.mtl") && text.contains("line 2: Kd needs three numbers, found 1"),
+        "{text}"
+    );
+}
+
 /// Edits the JSON chunk of a `.glb` and returns the new file.
 fn edit_glb(doc: &TestGltf, edit: impl FnOnce(&mut serde_json::Value)) -> Vec<u8> {
     let glb = doc.to_glb().unwrap();

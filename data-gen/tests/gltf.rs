@@ -57,11 +57,7 @@ fn a_textured_box_shows_every_texel_colour_in_glb_and_in_gltf_with_external_file
     let gltf_path = doc.write_gltf(dir.path(), "box").unwrap();
     let from_files = Mesh::load(&gltf_path, &MeshLoadOptions::default()).unwrap();
     // The buffer and the image were read from beside the .gltf, and are listed for the cache.
-    let read: Vec<String> = from_files
-        .inputs()
-        .iter()
-        .map(|(p, _)| p.file_name().unwrap().to_string_lossy().into_owned())
-        .collect();
+    let read = file_names_read(&from_files);
     assert_eq!(read, ["box.bin", "box_0.png"]);
     let from_glb = load_glb(&doc, &MeshLoadOptions::default()).unwrap();
     for mesh in [&from_files, &from_glb] {
@@ -221,21 +217,27 @@ fn a_mirrored_node_and_a_z_up_source_are_placed_exactly_by_the_recorded_map() {
     }
 }
 
+/// The names of the files `mesh` read besides its own ([`Mesh::inputs`]), in order.
+fn file_names_read(mesh: &Mesh) -> Vec<String> {
+    mesh.inputs()
+        .iter()
+        .map(|(p, _)| p.file_name().unwrap().to_string_lossy().into_owned())
+        .collect()
+}
+
+/// Writes the textured box's `n × n` texture ([`TestGltf::textured_box_texel`]) as a PNG.
+fn save_box_texture(path: &Path, n: u32) {
+    let data: Vec<u8> = (0..n)
+        .flat_map(|j| (0..n).flat_map(move |i| TestGltf::textured_box_texel(i, j)))
+        .collect();
+    image::save_buffer(path, &data, n, n, image::ExtendedColorType::Rgba8).unwrap();
+}
+
 #[test]
 fn a_textured_obj_reads_kd_times_map_kd_and_lists_the_files_it_read() {
     let dir = tempfile::tempdir().unwrap();
     let n = 4u32;
-    let data: Vec<u8> = (0..n)
-        .flat_map(|j| (0..n).flat_map(move |i| TestGltf::textured_box_texel(i, j)))
-        .collect();
-    image::save_buffer(
-        dir.path().join("tex.png"),
-        &data,
-        n,
-        n,
-        image::ExtendedColorType::Rgba8,
-    )
-    .unwrap();
+    save_box_texture(&dir.path().join("tex.png"), n);
     std::fs::write(
         dir.path().join("m.mtl"),
         "newmtl t\nKd 0.5 1 1\nmap_Kd tex.png\n",
@@ -248,11 +250,7 @@ fn a_textured_obj_reads_kd_times_map_kd_and_lists_the_files_it_read() {
     )
     .unwrap();
     let mesh = Mesh::load(dir.path().join("q.obj"), &MeshLoadOptions::default()).unwrap();
-    let read: Vec<String> = mesh
-        .inputs()
-        .iter()
-        .map(|(p, _)| p.file_name().unwrap().to_string_lossy().into_owned())
-        .collect();
+    let read = file_names_read(&mesh);
     assert_eq!(read, ["m.mtl", "tex.png"]);
     assert!(mesh.notes().iter().any(|n| n.contains("up axis")));
     for j in 0..n {
@@ -285,17 +283,7 @@ fn an_obj_material_gives_off_ke_times_map_ke() {
     use altrep_data_gen::Light;
     let dir = tempfile::tempdir().unwrap();
     let n = 4u32;
-    let data: Vec<u8> = (0..n)
-        .flat_map(|j| (0..n).flat_map(move |i| TestGltf::textured_box_texel(i, j)))
-        .collect();
-    image::save_buffer(
-        dir.path().join("glow.png"),
-        &data,
-        n,
-        n,
-        image::ExtendedColorType::Rgba8,
-    )
-    .unwrap();
+    save_box_texture(&dir.path().join("glow.png"), n);
     // Two unit squares at z = 0: x in [0, 1] flat, x in [2, 3] textured emission.
     let obj = "mtllib m.mtl\nv 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv 2 0 0\nv 3 0 0\nv 3 1 0\nv 2 1 0\n\
                vt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\nusemtl flat\nf 1/1 2/2 3/3\nf 1/1 3/3 4/4\n\
@@ -309,11 +297,7 @@ fn an_obj_material_gives_off_ke_times_map_ke() {
     std::fs::write(dir.path().join("m.mtl"), mtl("0.3 0.1 0")).unwrap();
     let light = Light::default();
     let mesh = Mesh::load(dir.path().join("q.obj"), &MeshLoadOptions::default()).unwrap();
-    let read: Vec<String> = mesh
-        .inputs()
-        .iter()
-        .map(|(p, _)| p.file_name().unwrap().to_string_lossy().into_owned())
-        .collect();
+    let read = file_names_read(&mesh);
     assert_eq!(read, ["m.mtl", "glow.png"]);
     let shade = |p: DVec3| {
         let hit = hit_at_source_point(&mesh, p, DVec3::Z).0.expect("hits");

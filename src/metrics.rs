@@ -254,14 +254,12 @@ pub fn flip_mean(image: &RgbaImage, reference: &RgbaImage) -> Result<f64, Metric
     if !visible(image) && !visible(reference) {
         return Err(MetricsError::NothingVisible);
     }
+    // The picture over black (its premultiplied colour, opaque) as sRGB8, alpha dropped.
     let srgb8 = |img: &RgbaImage| -> Vec<u8> {
-        img.pixels
-            .iter()
-            .flat_map(|p| {
-                [0, 1, 2].map(|c| {
-                    (altrep_data_gen::linear_to_srgb(p[c].clamp(0.0, 1.0)) * 255.0).round() as u8
-                })
-            })
+        img.over([0.0; 3])
+            .srgb8_codes()
+            .chunks_exact(4)
+            .flat_map(|c| [c[0], c[1], c[2]])
             .collect()
     };
     let (w, h) = (image.width as u32, image.height as u32);

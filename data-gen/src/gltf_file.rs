@@ -417,7 +417,7 @@ pub(crate) fn load(
         }
     }
     let mut images: BTreeMap<(usize, bool), Arc<TextureImage>> = BTreeMap::new();
-    let decoded: Vec<((usize, bool), String, Vec<u8>)> = {
+    let encoded: Vec<((usize, bool), String, Vec<u8>)> = {
         let mut encoded = Vec::new();
         for (image, srgb) in wanted
             .iter()
@@ -457,7 +457,7 @@ pub(crate) fn load(
     let default_material = normal_sets.len() as u32;
     let (decoded, triangles): (Vec<_>, _) = rayon::join(
         || {
-            decoded
+            encoded
                 .into_par_iter()
                 .map(|(key, at, data)| {
                     let decoded = TextureImage::decode(&data, key.1).map_err(|m| err(path, &at, m));

@@ -291,16 +291,15 @@ pub fn run(args: SphereArgs) -> CliResult {
         |g: usize, f: usize, which: fn(&SphereMeasurement) -> &crate::sphere::MethodStats| {
             rows.iter()
                 .find(|m| (m.grid, m.size) == (g, f))
-                .map_or(f64::NAN, |m| which(m).flip_mean)
+                .map_or("—".to_string(), |m| format!("{:.4}", which(m).flip_mean))
         };
+    let cell = |x: Option<(usize, usize, f64)>,
+                which: fn(&SphereMeasurement) -> &crate::sphere::MethodStats| {
+        x.map_or("—".to_string(), |(g, f, p)| {
+            format!("({g:>2}, {f:>3}) {p:6.2} {}", flip(g, f, which))
+        })
+    };
     for b in &budgets {
-        let cell =
-            |x: Option<(usize, usize, f64)>,
-             which: fn(&SphereMeasurement) -> &crate::sphere::MethodStats| {
-                x.map_or("—".to_string(), |(g, f, p)| {
-                    format!("({g:>2}, {f:>3}) {p:6.2} {:.4}", flip(g, f, which))
-                })
-            };
         let strongest = [b.baseline, b.baseline_two_step]
             .into_iter()
             .flatten()

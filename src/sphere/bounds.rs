@@ -37,8 +37,9 @@ fn code_value(c: u8) -> f64 {
 
 impl ConeBounds {
     /// Builds the bounds of `frame` for the cone of half-angle `beta` (radians, below 90°).
-    /// Exact interval reasoning (module docs), quantised outward. Cost: per texel, the cells
-    /// within `tan β` (frame units) — `O(F² · (F·tan β)²)`, texel rows in parallel.
+    /// Exact interval reasoning (module docs), quantised outward. Cost: per texel, at worst
+    /// the cells within `tan β` (frame units), `O(F² · (F·tan β)²)`; the pruned walk visits a
+    /// few tiles per texel (docs/design.md §7b, "Cone bounds"). Tiles of texels in parallel.
     pub fn build(frame: &Frame, beta: f64) -> Self {
         let f = frame.size;
         let fi = f as i64;
@@ -70,134 +71,56 @@ impl ConeBounds {
                 }
             }
         }
-        // Tiles of TILE² cells with their extreme values prune the gather exactly: a tile is
-        // skipped when none of its cells can raise zmax or lower zmin further (out of reach,
-        // or nothing to add at the `need` of its nearest cell); the same over sub-tiles of
-        // SUB² cells inside a tile that passed.
-        const TILE: i64 = 8;
-        const SUB: i64 = 2;
-        // Per block of `b²` cells, `(max hi, min lo_ext, max |Z|)` over its defined cells, and
-        // the blocks per side.
-        let blocks = |b: i64| {
-            let n = (fi + b - 1) / b;
-            let mut out = vec![(f64::NEG_INFINITY, f64::INFINITY, 0.0f64); (n * n) as usize];
-            for j in 0..fi {
-                for i in 0..fi {
-                    let k = (j * fi + i) as usize;
-                    if frame.defined[k] {
-                        let t = &mut out[((j / b) * n + i / b) as usize];
-                        t.0 = t.0.max(hi[k]);
-                        t.1 = t.1.min(lo_ext[k]);
-                        t.2 = t.2.max(hi[k].abs().max(lo_ext[k].abs()));
-                    }
-                }
-            }
-            (out, n)
-        };
-        let ((tiles, nt), (subs, ns)) = (blocks(TILE), blocks(SUB));
-        let reach = (tan / pitch).ceil() as i64 + 1;
-        // `need` of every cell gap within the frame, as the gather computes it.
-        let span = f;
-        let needs: Vec<f64> = (0..span * span)
-            .map(|g| {
-                let (gx, gy) = ((g % span) as f64, (g / span) as f64);
-                pitch * (gx * gx + gy * gy).sqrt() / tan
-            })
-            .collect();
-        // The tiles within reach, nearest first: near cells widen the interval most (their
-        // `need` is smallest), so the far tiles that follow are mostly skipped as unable to
-        // widen it further. The order changes which tiles are skipped, not the result.
-        let rt = reach / TILE + 1;
-        let mut offsets: Vec<(i64, i64)> = (-rt..=rt)
-            .flat_map(|dj| (-rt..=rt).map(move |di| (dj, di)))
-            .collect();
-        offsets.sort_by_key(|&(dj, di)| (dj * dj + di * di, dj, di));
-        let rows: Vec<(Vec<u8>, Vec<u8>)> = (0..fi)
+        // zmax gathers the largest event over one side; zmin is the same gather over the
+        // mirrored side (`Z → −Z` swaps `hi` and `lo_ext`), negated. Negation is exact, so
+        // both are found by one walk.
+        let geometry = Geometry::new(fi, pitch, tan);
+        let upper = Side::new(&geometry, hi.clone(), lo_ext.clone());
+        let lower = Side::new(
+            &geometry,
+            lo_ext.iter().map(|&l| -l).collect(),
+            hi.iter().map(|&h| -h).collect(),
+        );
+        let nt = geometry.tiles;
+        let blocks: Vec<Vec<(u8, u8)>> = (0..nt * nt)
             .into_par_iter()
-            .map(|jq| {
-                let mut zmin_row = vec![255u8; f];
-                let mut zmax_row = vec![0u8; f];
-                // Cell-gap distance (in texels) between Q and the span [a, b] along one axis.
-                let gap = |q: i64, a: i64, b: i64| ((a - q).max(q - b) - 1).max(0) as f64;
-                for iq in 0..fi {
-                    let (mut zmin, mut zmax) = (f64::INFINITY, f64::NEG_INFINITY);
-                    let (tj0, tj1) = ((jq - reach).max(0) / TILE, (jq + reach).min(fi - 1) / TILE);
-                    let (ti0, ti1) = ((iq - reach).max(0) / TILE, (iq + reach).min(fi - 1) / TILE);
-                    let (tq, tp) = (jq / TILE, iq / TILE);
-                    // Whether a block of cells `[i0, i1] × [j0, j1]` with these extremes can
-                    // widen the interval. The least `need` of its cells bounds what they can
-                    // give: zmax at most `thi` where some cell may reach `need`, else at most
-                    // `-need`; zmin likewise at least `tlo` or `need`.
-                    let widens = |(thi, tlo, tabs): (f64, f64, f64),
-                                  (i0, i1, j0, j1): (i64, i64, i64, i64),
-                                  zmin: f64,
-                                  zmax: f64| {
-                        if thi < tlo {
-                            return false; // no defined cell
-                        }
-                        let (gx, gy) = (gap(iq, i0, i1), gap(jq, j0, j1));
-                        let need = pitch * (gx * gx + gy * gy).sqrt() / tan;
-                        if tabs < need {
-                            return false; // out of reach
-                        }
-                        let most = if thi >= need { thi } else { -need };
-                        let least = if tlo <= -need { tlo } else { need };
-                        most > zmax || least < zmin
-                    };
-                    for &(dj, di) in &offsets {
-                        let (tj, ti) = (tq + dj, tp + di);
-                        if tj < tj0 || tj > tj1 || ti < ti0 || ti > ti1 {
-                            continue;
-                        }
-                        let (j0, i0) = (tj * TILE, ti * TILE);
-                        let (j1, i1) = ((j0 + TILE - 1).min(fi - 1), (i0 + TILE - 1).min(fi - 1));
-                        if !widens(tiles[(tj * nt + ti) as usize], (i0, i1, j0, j1), zmin, zmax) {
-                            continue;
-                        }
-                        for sj in (j0..=j1).step_by(SUB as usize) {
-                            for si in (i0..=i1).step_by(SUB as usize) {
-                                let (sj1, si1) =
-                                    ((sj + SUB - 1).min(fi - 1), (si + SUB - 1).min(fi - 1));
-                                let sub = subs[((sj / SUB) * ns + si / SUB) as usize];
-                                if !widens(sub, (si, si1, sj, sj1), zmin, zmax) {
-                                    continue;
-                                }
-                                for j in sj..=sj1 {
-                                    let gy = ((j - jq).abs() - 1).max(0) as usize;
-                                    for i in si..=si1 {
-                                        let k = (j * fi + i) as usize;
-                                        // An undefined cell holds (+∞, −∞): it gives nothing.
-                                        let (l, h) = (lo_ext[k], hi[k]);
-                                        let gx = ((i - iq).abs() - 1).max(0) as usize;
-                                        let need = needs[gy * span + gx];
-                                        // Largest and smallest Z in [l, h] with |Z| ≥ need.
-                                        if h >= need {
-                                            zmax = zmax.max(h);
-                                        } else if l <= -need {
-                                            zmax = zmax.max(h.min(-need));
-                                        }
-                                        if l <= -need {
-                                            zmin = zmin.min(l);
-                                        } else if h >= need {
-                                            zmin = zmin.min(l.max(need));
-                                        }
-                                    }
-                                }
-                            }
-                        }
-                    }
-                    if zmin <= zmax {
-                        zmin_row[iq as usize] = code_down(zmin);
-                        zmax_row[iq as usize] = code_up(zmax);
+            .map(|b| {
+                let (tq, tp) = (b / nt, b % nt);
+                let candidates = geometry.candidates(&upper, tq, tp);
+                let up = upper.by_highest(&geometry, &candidates);
+                let down = lower.by_highest(&geometry, &candidates);
+                let ((qi0, qi1), (qj0, qj1)) = (geometry.span(tp, TILE), geometry.span(tq, TILE));
+                // What every texel of the tile has: each texel's walk starts from it and
+                // stops sooner.
+                let (upper0, lower0) = (
+                    upper.highest(&geometry, &up, (qi0, qi1), (qj0, qj1), f64::NEG_INFINITY),
+                    lower.highest(&geometry, &down, (qi0, qi1), (qj0, qj1), f64::NEG_INFINITY),
+                );
+                let mut out = Vec::with_capacity((TILE * TILE) as usize);
+                for jq in qj0..=qj1 {
+                    for iq in qi0..=qi1 {
+                        let zmax = upper.highest(&geometry, &up, (iq, iq), (jq, jq), upper0);
+                        let zmin = -lower.highest(&geometry, &down, (iq, iq), (jq, jq), lower0);
+                        out.push(if zmin <= zmax {
+                            (code_down(zmin), code_up(zmax))
+                        } else {
+                            (255, 0)
+                        });
                     }
                 }
-                (zmin_row, zmax_row)
+                out
             })
             .collect();
-        let (mut zmin, mut zmax) = (Vec::with_capacity(f * f), Vec::with_capacity(f * f));
-        for (a, b) in rows {
-            zmin.extend(a);
-            zmax.extend(b);
+        let (mut zmin, mut zmax) = (vec![255u8; f * f], vec![0u8; f * f]);
+        for (b, codes) in blocks.iter().enumerate() {
+            let (tq, tp) = (b as i64 / nt, b as i64 % nt);
+            let (qj0, qi0) = (tq * TILE, tp * TILE);
+            let w = (TILE.min(fi - qi0)) as usize;
+            for (n, &(lo_code, hi_code)) in codes.iter().enumerate() {
+                let k = (qj0 as usize + n / w) * f + qi0 as usize + n % w;
+                zmin[k] = lo_code;
+                zmax[k] = hi_code;
+            }
         }
         Self {
             size: f,
@@ -236,6 +159,227 @@ impl ConeBounds {
             sum / n.max(1) as f64,
             1.0 - n as f64 / self.zmin.len().max(1) as f64,
         )
+    }
+}
+
+/// Tiles of `TILE²` cells with their extreme values prune the gather exactly: a tile is
+/// skipped when none of its cells can widen the interval further (out of reach, or nothing to
+/// add at the `need` of its nearest cell); the same over sub-tiles of `SUB²` cells inside a
+/// tile that passed.
+const TILE: i64 = 8;
+const SUB: i64 = 2;
+
+/// A frame's sizes, cone and the `need` table the gather shares between its two sides.
+struct Geometry {
+    /// Texels per side.
+    fi: i64,
+    /// Texel pitch (frame units).
+    pitch: f64,
+    /// `tan β` of the cone.
+    tan: f64,
+    /// The window of reach around a texel, in texels: `⌈tan β / pitch⌉ + 1` (no event lies
+    /// beyond `|Z| = 1`); tiles are visited when they meet it.
+    reach: i64,
+    /// Tiles and sub-tiles per side.
+    tiles: i64,
+    subs: i64,
+    /// `need` of every cell gap `(gx, gy)` within the frame, at `gy · fi + gx`.
+    needs: Vec<f64>,
+}
+
+impl Geometry {
+    fn new(fi: i64, pitch: f64, tan: f64) -> Self {
+        let f = fi as usize;
+        Self {
+            fi,
+            pitch,
+            tan,
+            reach: (tan / pitch).ceil() as i64 + 1,
+            tiles: (fi + TILE - 1) / TILE,
+            subs: (fi + SUB - 1) / SUB,
+            needs: (0..f * f)
+                .map(|g| {
+                    let (gx, gy) = ((g % f) as f64, (g / f) as f64);
+                    pitch * (gx * gx + gy * gy).sqrt() / tan
+                })
+                .collect(),
+        }
+    }
+
+    /// The cells `[a, a + side − 1]` (clipped to the frame) of block `t` along one axis.
+    fn span(&self, t: i64, side: i64) -> (i64, i64) {
+        (t * side, (t * side + side - 1).min(self.fi - 1))
+    }
+
+    /// The tiles of cells that may widen the interval of some texel of texel tile `(tq, tp)`:
+    /// those with a defined cell, meeting some texel's window, and whose largest `|Z|` reaches
+    /// the tile's nearest texel. Both sides share the list (`|Z|` is the same).
+    fn candidates(&self, side: &Side, tq: i64, tp: i64) -> Vec<(i64, i64)> {
+        let ((qi0, qi1), (qj0, qj1)) = (self.span(tp, TILE), self.span(tq, TILE));
+        let window = |q0: i64, q1: i64| {
+            (
+                (q0 - self.reach).max(0) / TILE,
+                (q1 + self.reach).min(self.fi - 1) / TILE,
+            )
+        };
+        let ((ti0, ti1), (tj0, tj1)) = (window(qi0, qi1), window(qj0, qj1));
+        let mut list = Vec::new();
+        for tj in tj0..=tj1 {
+            for ti in ti0..=ti1 {
+                let (thi, tlo, tabs) = side.tiles[(tj * self.tiles + ti) as usize];
+                if thi < tlo {
+                    continue; // no defined cell
+                }
+                let ((i0, i1), (j0, j1)) = (self.span(ti, TILE), self.span(tj, TILE));
+                let gx = ((i0 - qi1).max(qi0 - i1) - 1).max(0) as f64;
+                let gy = ((j0 - qj1).max(qj0 - j1) - 1).max(0) as f64;
+                if tabs >= self.pitch * (gx * gx + gy * gy).sqrt() / self.tan {
+                    list.push((tj, ti));
+                }
+            }
+        }
+        list
+    }
+}
+
+/// One side of the gather: per cell the range `[lo, hi]` of `Z` an event may take (`hi` the
+/// plane's top over the cell, `lo` the extended low end; undefined cells hold `(+∞, −∞)`),
+/// and per tile and sub-tile `(max hi, min lo, max |Z|)`. The upper side finds zmax; the
+/// lower side is the mirror image (`hi = −lo_ext`, `lo = −hi`) and finds `−zmin`.
+struct Side {
+    hi: Vec<f64>,
+    lo: Vec<f64>,
+    tiles: Vec<(f64, f64, f64)>,
+    subs: Vec<(f64, f64, f64)>,
+    /// Per tile, its sub-tiles with a defined cell (top-left cell `(j, i)`), highest `hi`
+    /// first: within a tile the walk stops at the first that cannot raise the maximum.
+    sub_order: Vec<Vec<(i64, i64)>>,
+}
+
+impl Side {
+    fn new(g: &Geometry, hi: Vec<f64>, lo: Vec<f64>) -> Self {
+        let fi = g.fi;
+        // Per block of `b²` cells, `(max hi, min lo, max |Z|)` over its defined cells.
+        let blocks = |b: i64, n: i64| {
+            let mut out = vec![(f64::NEG_INFINITY, f64::INFINITY, 0.0f64); (n * n) as usize];
+            for j in 0..fi {
+                for i in 0..fi {
+                    let k = (j * fi + i) as usize;
+                    if hi[k] >= lo[k] {
+                        let t = &mut out[((j / b) * n + i / b) as usize];
+                        t.0 = t.0.max(hi[k]);
+                        t.1 = t.1.min(lo[k]);
+                        t.2 = t.2.max(hi[k].abs().max(lo[k].abs()));
+                    }
+                }
+            }
+            out
+        };
+        let (tiles, subs) = (blocks(TILE, g.tiles), blocks(SUB, g.subs));
+        let sub_order = (0..g.tiles * g.tiles)
+            .map(|t| {
+                let ((i0, i1), (j0, j1)) = (g.span(t % g.tiles, TILE), g.span(t / g.tiles, TILE));
+                let sub = |(sj, si): (i64, i64)| subs[((sj / SUB) * g.subs + si / SUB) as usize];
+                let mut order: Vec<(i64, i64)> = (j0..=j1)
+                    .step_by(SUB as usize)
+                    .flat_map(|sj| (i0..=i1).step_by(SUB as usize).map(move |si| (sj, si)))
+                    .filter(|&s| sub(s).0 >= sub(s).1)
+                    .collect();
+                order.sort_by(|&x, &y| sub(y).0.total_cmp(&sub(x).0));
+                order
+            })
+            .collect();
+        Self {
+            hi,
+            lo,
+            tiles,
+            subs,
+            sub_order,
+        }
+    }
+
+    /// `list` ordered by the tiles' highest `hi`, highest first.
+    fn by_highest(&self, g: &Geometry, list: &[(i64, i64)]) -> Vec<(i64, i64)> {
+        let top = |(tj, ti): (i64, i64)| self.tiles[(tj * g.tiles + ti) as usize].0;
+        let mut out = list.to_vec();
+        out.sort_by(|&x, &y| top(y).total_cmp(&top(x)));
+        out
+    }
+
+    /// The largest event `Z` over this side's cells for the texels `[qi0, qi1] × [qj0, qj1]`
+    /// that every one of them has, at least `start`: per cell the largest `Z` in `[lo, hi]`
+    /// with `|Z| ≥ need`, `need` taken at the farthest texel (for one texel, exactly its
+    /// gather; `−∞` where no cell has one). Only tiles within every texel's window count.
+    /// `order` is the candidate tiles by [`Side::by_highest`]: every value a tile can give is
+    /// at most its highest `hi`, so the walk stops at the first tile whose `hi` does not
+    /// exceed the maximum found so far. A block can give at most its highest `hi` where some
+    /// cell may reach `need`, else at most `−need`.
+    fn highest(
+        &self,
+        g: &Geometry,
+        order: &[(i64, i64)],
+        (qi0, qi1): (i64, i64),
+        (qj0, qj1): (i64, i64),
+        start: f64,
+    ) -> f64 {
+        let fi = g.fi;
+        let window = |q0: i64, q1: i64| {
+            (
+                (q1 - g.reach).max(0) / TILE,
+                (q0 + g.reach).min(fi - 1) / TILE,
+            )
+        };
+        let ((ti0, ti1), (tj0, tj1)) = (window(qi0, qi1), window(qj0, qj1));
+        // Least `need` of a block's cells from the nearest texel; what a block of extremes
+        // `(top, abs)` can give, if it can reach at all.
+        let block_need = |(i0, i1): (i64, i64), (j0, j1): (i64, i64)| {
+            let gap = |q0: i64, q1: i64, a: i64, b: i64| ((a - q1).max(q0 - b) - 1).max(0) as f64;
+            let (gx, gy) = (gap(qi0, qi1, i0, i1), gap(qj0, qj1, j0, j1));
+            g.pitch * (gx * gx + gy * gy).sqrt() / g.tan
+        };
+        let most = |top: f64, abs: f64, need: f64| {
+            (abs >= need).then_some(if top >= need { top } else { -need })
+        };
+        let mut zmax = start;
+        for &(tj, ti) in order {
+            let (thi, _, tabs) = self.tiles[(tj * g.tiles + ti) as usize];
+            if thi <= zmax {
+                break;
+            }
+            if tj < tj0 || tj > tj1 || ti < ti0 || ti > ti1 {
+                continue; // outside a window of reach
+            }
+            let need = block_need(g.span(ti, TILE), g.span(tj, TILE));
+            if most(thi, tabs, need).is_none_or(|m| m <= zmax) {
+                continue;
+            }
+            for &(sj, si) in &self.sub_order[(tj * g.tiles + ti) as usize] {
+                let (shi, _, sabs) = self.subs[((sj / SUB) * g.subs + si / SUB) as usize];
+                if shi <= zmax {
+                    break;
+                }
+                let (sj1, si1) = ((sj + SUB - 1).min(fi - 1), (si + SUB - 1).min(fi - 1));
+                if most(shi, sabs, block_need((si, si1), (sj, sj1))).is_none_or(|m| m <= zmax) {
+                    continue;
+                }
+                for j in sj..=sj1 {
+                    let gy = ((j - qj0).abs().max((j - qj1).abs()) - 1).max(0);
+                    for i in si..=si1 {
+                        let k = (j * fi + i) as usize;
+                        // An undefined cell holds (+∞, −∞): it gives nothing.
+                        let (l, h) = (self.lo[k], self.hi[k]);
+                        let gx = ((i - qi0).abs().max((i - qi1).abs()) - 1).max(0);
+                        let need = g.needs[(gy * fi + gx) as usize];
+                        if h >= need {
+                            zmax = zmax.max(h);
+                        } else if l <= -need {
+                            zmax = zmax.max(h.min(-need));
+                        }
+                    }
+                }
+            }
+        }
+        zmax
     }
 }
 
@@ -382,11 +526,13 @@ mod tests {
     #[test]
     fn the_pruned_build_equals_the_full_gather() {
         // Small frames, and frames of several tiles whose cones reach across tiles (the
-        // pruning by each tile's least `need` and the nearest-first order at work).
+        // walks by highest value, their stops and the tiles' starting values at work).
         for (name, grid, size, frames) in [
             ("chair", 3, 24, &[0usize, 4, 7][..]),
             ("tree", 3, 64, &[0, 5][..]),
             ("truck", 2, 72, &[1][..]),
+            // A size that is not a multiple of the tiles: clipped tiles of texels and cells.
+            ("pear", 3, 37, &[0, 2][..]),
         ] {
             let shape = scene_shape(name).unwrap();
             let img = SphereImages::capture(&shape, &SphereParams::hemisphere(grid, size).unwrap())

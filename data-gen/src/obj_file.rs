@@ -99,10 +99,12 @@ pub(crate) fn load(
         Ok::<_, DataGenError>(TextureRef::from_image(img))
     };
     for (k, mat) in materials.iter().enumerate() {
-        let dissolve = mat.dissolve.unwrap_or(1.0);
+        // Material values are read in f64 (the feature that reads positions in f64) and kept
+        // in f32, as every colour is.
+        let dissolve = mat.dissolve.map_or(1.0, |d| d as f32);
         // `Ke r g b` (tobj parses it; malformed text fails the whole file there): emitted
         // linear RGB, non-negative and finite.
-        let emissive = match mat.emissive {
+        let emissive = match mat.emissive.map(|ke| ke.map(|c| c as f32)) {
             None => Vec3::ZERO,
             Some(ke) if ke.iter().all(|c| c.is_finite() && *c >= 0.0) => Vec3::from(ke),
             Some(ke) => {
@@ -122,7 +124,7 @@ pub(crate) fn load(
         {
             continue;
         }
-        let kd = mat.diffuse.unwrap_or([1.0; 3]);
+        let kd = mat.diffuse.map_or([1.0; 3], |d| d.map(|c| c as f32));
         let base_texture = match &mat.diffuse_texture {
             Some(t) => Some((texture(t, &mat.name, true, &mut inputs)?, 0)),
             None => None,
@@ -179,13 +181,13 @@ pub(crate) fn load(
         let vertex = |k: usize| {
             let i = 3 * m.indices[k] as usize;
             let p = &m.positions[i..i + 3];
-            [f64::from(p[0]), f64::from(p[1]), f64::from(p[2])]
+            [p[0], p[1], p[2]]
         };
         let material_color = m
             .material_id
             .and_then(|id| materials.get(id))
             .and_then(|mat| mat.diffuse)
-            .map(|d| Vec3::new(d[0], d[1], d[2]));
+            .map(|d| Vec3::new(d[0] as f32, d[1] as f32, d[2] as f32));
         let surface = m
             .material_id
             .and_then(|id| surface_of.get(id).copied().flatten());
@@ -204,7 +206,7 @@ pub(crate) fn load(
                 let i = m.indices[3 * tri + k] as usize;
                 if has_vc {
                     let c = &m.vertex_color[3 * i..3 * i + 3];
-                    Vec4::new(c[0], c[1], c[2], 1.0)
+                    Vec4::new(c[0] as f32, c[1] as f32, c[2] as f32, 1.0)
                 } else {
                     Vec4::ONE
                 }
@@ -214,7 +216,7 @@ pub(crate) fn load(
                 let uv = |k: usize| {
                     if has_uv {
                         let i = 2 * m.texcoord_indices[3 * tri + k] as usize;
-                        Vec2::new(m.texcoords[i], 1.0 - m.texcoords[i + 1])
+                        Vec2::new(m.texcoords[i] as f32, 1.0 - m.texcoords[i + 1] as f32)
                     } else {
                         Vec2::ZERO
                     }
@@ -231,9 +233,9 @@ pub(crate) fn load(
                 let c = |k: usize| {
                     let i = m.indices[3 * tri + k] as usize;
                     Vec3::new(
-                        m.vertex_color[3 * i],
-                        m.vertex_color[3 * i + 1],
-                        m.vertex_color[3 * i + 2],
+                        m.vertex_color[3 * i] as f32,
+                        m.vertex_color[3 * i + 1] as f32,
+                        m.vertex_color[3 * i + 2] as f32,
                     )
                 };
                 TriColor::Vertex([c(0), c(1), c(2)])

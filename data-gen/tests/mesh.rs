@@ -6,6 +6,7 @@ use altrep_data_gen::{
     BoundingCylinder, DataGenError, Mesh, MeshLoadOptions, Ray, Shape, ViewParams, capture_view,
     shared_mesh,
 };
+use approx::assert_abs_diff_eq;
 use glam::DVec3;
 
 fn write(dir: &tempfile::TempDir, name: &str, text: &str) -> std::path::PathBuf {
@@ -78,6 +79,36 @@ fn small_box_mesh_is_normalised_and_ray_cast() {
             .flatten()
             .all(|s| (f64::from(s.depth) - 2.0 / 3.0).abs() < tol)
     );
+}
+
+/// OBJ coordinates are read in f64: [`BOX_OBJ`] shrunk 100 times and moved a million units
+/// away (where f32 steps by 0.0625, more than the box) keeps its shape, and its placement maps
+/// back to where it was.
+#[test]
+fn a_box_far_from_the_origin_keeps_its_shape() {
+    let far = |v: f64| 1.0e6 + 0.01 * v;
+    let mut text = String::new();
+    for line in BOX_OBJ.lines() {
+        match line.strip_prefix("v ") {
+            Some(v) => {
+                let c: Vec<f64> = v.split(' ').map(|x| far(x.parse().unwrap())).collect();
+                text += &format!("v {} {} {}\n", c[0], c[1], c[2]);
+            }
+            None => text += &format!("{line}\n"),
+        }
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let mesh = Mesh::load_obj(write(&dir, "far.obj", &text), &MeshLoadOptions::default()).unwrap();
+    let near =
+        Mesh::load_obj(write(&dir, "box.obj", BOX_OBJ), &MeshLoadOptions::default()).unwrap();
+    assert_eq!(mesh.triangle_count(), 12);
+    let ((lo, hi), (lo0, hi0)) = (mesh.bounds(), near.bounds());
+    assert_abs_diff_eq!(lo.to_array()[..], lo0.to_array()[..], epsilon = 1e-6);
+    assert_abs_diff_eq!(hi.to_array()[..], hi0.to_array()[..], epsilon = 1e-6);
+    // The normalised frame's origin (the base's centre) is the source's (10, 0, −5), moved.
+    let origin = mesh.placement().to_source().transform_point3(DVec3::ZERO);
+    let expected = [far(10.0), far(0.0), far(-5.0)];
+    assert_abs_diff_eq!(origin.to_array()[..], expected[..], epsilon = 1e-6);
 }
 
 /// Materials are read from the file beside the OBJ (as `tobj::load_obj` reads them), whether

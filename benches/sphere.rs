@@ -1,8 +1,9 @@
-//! Frames over the sphere: the cone bounds of a G = 8, 128² set over the whole sphere (the part of
-//! a sphere asset's build that dominated it; docs/design.md §7b, "Cone bounds"), per frame set
-//! and for the frame with the widest cone, and the exact warp's drawing of one 128² picture. Setup prints
-//! the capture and bounds times of the build and the mean stored interval, so the timing can be
-//! read against what the bounds save.
+//! Frames over the sphere: the cone bounds of a G = 8, 128² set over the whole sphere (the part
+//! of a sphere asset's build that dominated it; docs/design.md §7b, "Cone bounds"), per frame set
+//! and for the frame with the widest cone, and the exact warp's drawing of one 128² picture.
+//! Setup prints the capture and bounds times of the build and the mean stored interval, so the
+//! timing can be read against what the bounds save. Run with `-- --noplot` where criterion's plot
+//! backend finds no font.
 
 use std::hint::black_box;
 

@@ -225,7 +225,7 @@ fn frames_measured(
 ) -> Result<(Measurement, f64, MethodStats), PipelineError> {
     let px = sphere_px(size, sphere_radius(source)?);
     let ((ours, engine), _, _) =
-        crate::sphere::asset::measured(data, needs, px, source, measure_one_step)?;
+        crate::sphere::asset::measured(data, needs, px, source, false, measure_one_step)?;
     let m = crate::sphere::asset::exact_warp_measurement(&ours, String::new(), size);
     Ok((m, engine.psnr_min, engine))
 }

@@ -136,6 +136,20 @@ pub fn run(args: SphereArgs) -> CliResult {
         params.truth_supersample,
         &params.render.light,
     )?;
+    // The truth again at the drawings' own rays, where its rays are others: the error without
+    // the difference in sampling (MethodStats::psnr_same_positions_mean).
+    let same = (params.truth_supersample != params.render.supersample)
+        .then(|| {
+            truth_images(
+                shape.as_ref(),
+                &dirs,
+                params.render.size,
+                params.render.supersample,
+                &params.render.light,
+            )
+        })
+        .transpose()?;
+    let same_positions = same.as_deref().or(Some(&truths[..]));
     println!(
         "{}: {} directions over the {}, truth {}² with {}×{} rays per pixel ({:.1} s); both methods draw {}² with {}×{} rays per pixel",
         shape.name(),
@@ -181,7 +195,7 @@ pub fn run(args: SphereArgs) -> CliResult {
             model,
         };
         let images = SphereImages::capture(shape.as_ref(), &sp)?;
-        let m = measure(&images, &dirs, &truths, &params)?;
+        let m = measure(&images, &dirs, &truths, same_positions, &params)?;
         let mib = |b: usize| b as f64 / (1024.0 * 1024.0);
         println!(
             "{:>3} {:>4} | {:>9.3} {:>7.2} {:>7.2} {:>6.3} {:>6.1} {:>5} | {:>9.3} {:>7.2} {:>7.2} {:>6.3} | {:>6.2} {:>6.2} {:>6.4}",
@@ -265,6 +279,12 @@ pub fn run(args: SphereArgs) -> CliResult {
             db(m.ours.colour_psnr_mean),
             db(m.baseline.colour_psnr_mean),
             db(m.baseline_two_step.colour_psnr_mean)
+        );
+        println!(
+            "          PSNR against the truth cast at the drawings' own rays: ours {}, one-step {}, two-step {}",
+            db(m.ours.psnr_same_positions_mean),
+            db(m.baseline.psnr_same_positions_mean),
+            db(m.baseline_two_step.psnr_same_positions_mean)
         );
         println!(
             "          texel reads per ray, mean / over hits / max: ours {}, one-step {}, two-step {}",

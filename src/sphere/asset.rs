@@ -434,7 +434,7 @@ impl Representation for SphereRepr {
         source: &Source,
     ) -> Result<(Measurement, Vec<Picture>), PipelineError> {
         let size = size.clamp(1, 4096);
-        let (m, dirs, truths) = measured(data, needs, size, source, measure)?;
+        let (m, dirs, truths) = measured(data, needs, size, source, true, measure)?;
         let params = render_params(size, source);
         let ours = render(data, dirs[0], &params).map_err(sphere_err)?;
         let base = render_engine_baseline(data, dirs[0], &params).map_err(sphere_err)?;
@@ -467,12 +467,14 @@ impl Representation for SphereRepr {
             image: RgbaImage::side_by_side(&[&ours.cost_picture(max), &base.cost_picture(max)]),
         });
         let method = format!(
-            "exact warp of {g}×{g} frames of {f}² at {n} directions in the needed ranges, {size}² with 1 ray per pixel, vs truth 3×3; engine impostor blend of the same frames {b:.2} dB (IoU {bi:.3}); mean FLIP {of:.4} against the blend's {bf:.4}; colour PSNR where both cover {oc} dB against {bc}; texel reads per ray {r:.1} ({rh:.1} over rays that hit, at most {rm}) against the blend's {br:.1} ({what})",
+            "exact warp of {g}×{g} frames of {f}² at {n} directions in the needed ranges, {size}² with 1 ray per pixel, vs truth 3×3; engine impostor blend of the same frames {b:.2} dB (IoU {bi:.3}); against the truth cast at the drawing's own rays {os} dB, the blend {bs} dB; mean FLIP {of:.4} against the blend's {bf:.4}; colour PSNR where both cover {oc} dB against {bc}; texel reads per ray {r:.1} ({rh:.1} over rays that hit, at most {rm}) against the blend's {br:.1} ({what})",
             g = data.params.set.grid,
             f = data.params.size,
             n = dirs.len(),
             b = m.baseline.psnr_mean,
             bi = m.baseline.iou_mean,
+            os = same_positions_db(&m.ours),
+            bs = same_positions_db(&m.baseline),
             of = m.ours.flip_mean,
             bf = m.baseline.flip_mean,
             oc = m
@@ -491,6 +493,14 @@ impl Representation for SphereRepr {
         );
         Ok((exact_warp_measurement(&m.ours, method, size), pictures))
     }
+}
+
+/// A method's mean PSNR against the truth at its own rays, for the report (`—` where not
+/// measured).
+fn same_positions_db(stats: &MethodStats) -> String {
+    stats
+        .psnr_same_positions_mean
+        .map_or("—".into(), |p| format!("{p:.2}"))
 }
 
 /// The exact warp's figures `ours` as the pipeline reports a representation's, measured at
@@ -527,18 +537,22 @@ pub(crate) fn render_params(size: usize, source: &Source) -> SphereRenderParams 
 /// The frames measured by `measure` ([`measure`], or [`crate::sphere::measure_one_step`]:
 /// the exact warp and the engines' octahedral impostor built from the same frames), drawn at
 /// `size²` pixels (1 ray per pixel) along 8 directions in the needed ranges against the truth
-/// (3 × 3 rays per pixel), with those directions and truths. Errors: nothing of the object
-/// visible along some direction (typed, named). Cost: 8 truths of `9·size²` rays, and
-/// `measure`'s drawings of `size²` rays (2 or 3 per direction).
+/// (3 × 3 rays per pixel), with those directions and truths; with `same_positions`, also
+/// against the truth cast at the drawing's own rays (one per pixel, the pixel centre). Errors:
+/// nothing of the object visible along some direction (typed, named). Cost: 8 truths of
+/// `9·size²` rays (and 8 of `size²` with `same_positions`), and `measure`'s drawings of `size²`
+/// rays (2 or 3 per direction).
 pub(crate) fn measured<T>(
     data: &SphereImages,
     needs: &Needs,
     size: usize,
     source: &Source,
+    same_positions: bool,
     measure: impl FnOnce(
         &SphereImages,
         &[DVec3],
         &[RgbaImage],
+        Option<&[RgbaImage]>,
         &SphereMeasureParams,
     ) -> Result<T, SphereError>,
 ) -> Result<(T, Vec<DVec3>, Vec<RgbaImage>), PipelineError> {
@@ -560,6 +574,10 @@ pub(crate) fn measured<T>(
             what: format!("the ground truth along {:?}", dirs[k]),
         });
     }
-    let m = measure(data, &dirs, &truths, &params).map_err(sphere_err)?;
+    let same = same_positions
+        .then(|| truth_images(shape, &dirs, size, params.render.supersample, &source.light))
+        .transpose()
+        .map_err(sphere_err)?;
+    let m = measure(data, &dirs, &truths, same.as_deref(), &params).map_err(sphere_err)?;
     Ok((m, dirs, truths))
 }

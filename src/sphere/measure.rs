@@ -76,6 +76,12 @@ pub struct MethodStats {
     /// Mean FLIP error over the directions ([`crate::metrics::flip_mean`]: in `[0, 1]`, lower
     /// is better; what a viewer flipping between the picture and the truth sees).
     pub flip_mean: f64,
+    /// Mean PSNR (dB) against a truth cast at the drawing's own rays (the same sub-pixel
+    /// positions, `render.supersample`), where one was given: the error left once the
+    /// difference between the truth's and the drawing's sampling is taken out. A drawing that
+    /// finds the truth's colour on every ray scores infinity here, not against the truth cast
+    /// with more rays.
+    pub psnr_same_positions_mean: Option<f64>,
     /// Mean texel fetches per ray (all enclosing frames together).
     pub steps_mean: f64,
     /// Largest texel fetches of one ray.
@@ -156,11 +162,22 @@ pub fn truth_images(
         .collect()
 }
 
-fn stats(outs: &[(RenderOutput, f64)], truths: &[RgbaImage]) -> Result<MethodStats, SphereError> {
+fn stats(
+    outs: &[(RenderOutput, f64)],
+    truths: &[RgbaImage],
+    same_positions: Option<&[RgbaImage]>,
+) -> Result<MethodStats, SphereError> {
     let mut s = MethodStats {
         psnr_min: f64::INFINITY,
         ..Default::default()
     };
+    if let Some(same) = same_positions {
+        let mut sum = 0.0;
+        for ((out, _), truth) in outs.iter().zip(same) {
+            sum += psnr(&out.image, truth)?;
+        }
+        s.psnr_same_positions_mean = Some(sum / outs.len().max(1) as f64);
+    }
     let (mut rays, mut steps, mut holes, mut unresolved) = (0usize, 0.0f64, 0usize, 0usize);
     let (mut reads, mut hit_reads, mut hits) = (0.0f64, 0.0f64, 0usize);
     let mut colour = (0.0f64, 0u32);
@@ -242,6 +259,7 @@ pub fn measure_one_step(
     images: &SphereImages,
     directions: &[DVec3],
     truths: &[RgbaImage],
+    same_positions: Option<&[RgbaImage]>,
     params: &SphereMeasureParams,
 ) -> Result<(MethodStats, MethodStats), SphereError> {
     check(
@@ -250,15 +268,28 @@ pub fn measure_one_step(
         truths.len(),
         "need one per direction, and at least one direction",
     )?;
+    if let Some(same) = same_positions {
+        check(
+            same.len() == directions.len(),
+            "truth images at the drawing's positions",
+            same.len(),
+            "need one per direction",
+        )?;
+    }
     let ours = timed(directions, &|d| render(images, d, &params.render))?;
     let base = timed(directions, &|d| {
         render_engine(images, d, &params.render, EngineSteps::One)
     })?;
-    Ok((stats(&ours, truths)?, stats(&base, truths)?))
+    Ok((
+        stats(&ours, truths, same_positions)?,
+        stats(&base, truths, same_positions)?,
+    ))
 }
 
 /// Measures `images` (exact warp) and the engine baseline built from the same frames along
-/// `directions`, against `truths` (from [`truth_images`] at `params.render.size`).
+/// `directions`, against `truths` (from [`truth_images`] at `params.render.size`), and, where
+/// given, against `same_positions`: the truths cast at the drawing's own rays ([`truth_images`]
+/// with `params.render.supersample`; see [`MethodStats::psnr_same_positions_mean`]).
 ///
 /// Errors: mismatched lengths or sizes, a direction the view set does not cover, or an empty
 /// picture (both the drawing and the truth empty: nothing to compare).
@@ -266,9 +297,10 @@ pub fn measure(
     images: &SphereImages,
     directions: &[DVec3],
     truths: &[RgbaImage],
+    same_positions: Option<&[RgbaImage]>,
     params: &SphereMeasureParams,
 ) -> Result<SphereMeasurement, SphereError> {
-    let (ours, baseline) = measure_one_step(images, directions, truths, params)?;
+    let (ours, baseline) = measure_one_step(images, directions, truths, same_positions, params)?;
     let base2 = timed(directions, &|d| {
         render_engine(images, d, &params.render, EngineSteps::Two)
     })?;
@@ -288,7 +320,7 @@ pub fn measure(
         bound_interval: interval / images.bounds.len().max(1) as f64,
         ours,
         baseline,
-        baseline_two_step: stats(&base2, truths)?,
+        baseline_two_step: stats(&base2, truths, same_positions)?,
         directions: directions.iter().map(|d| d.to_array()).collect(),
     })
 }

@@ -109,6 +109,47 @@ fn at_a_frames_own_rays_the_warp_meets_the_truth_cast_there() {
     }
 }
 
+/// A flat sign seen exactly edge-on shows nothing: the measurement refuses that direction by
+/// name instead of scoring it (two empty pictures are not a perfect match).
+#[test]
+fn a_direction_with_nothing_to_compare_is_named() {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/cutout.obj");
+    let sign = altrep::data_gen::Mesh::load(&path, &Default::default()).unwrap();
+    let img = SphereImages::capture(&sign, &SphereParams::hemisphere(4, 32).unwrap()).unwrap();
+    let params = SphereMeasureParams {
+        directions: 2,
+        render: SphereRenderParams {
+            size: 32,
+            ..SphereRenderParams::default()
+        },
+        truth_supersample: Supersample::of(3),
+    };
+    // The sign's plane holds x and y: along x it is seen edge-on.
+    let dirs = [DVec3::new(0.6, 0.3, 0.74).normalize(), DVec3::X];
+    let light = params.render.light;
+    let truths = truth_images(&sign, &dirs, 32, Supersample::of(3), &light).unwrap();
+    assert!(truths[1].pixels.iter().all(|p| p[3] == 0.0));
+    let err = measure(&img, &dirs, &truths, None, &params).unwrap_err();
+    match &err {
+        SphereError::EmptyView {
+            elevation_deg,
+            azimuth_deg,
+            size,
+            ..
+        } => {
+            assert_abs_diff_eq!(*elevation_deg, 0.0, epsilon = 1e-9);
+            assert_abs_diff_eq!(*azimuth_deg, 0.0, epsilon = 1e-9);
+            assert_eq!(*size, 32);
+        }
+        e => panic!("expected the empty direction named, got {e}"),
+    }
+    let text = err.to_string();
+    assert!(text.contains("elevation 0.0°, azimuth 0.0°"), "{text}");
+    // Along the other direction alone it is measured.
+    let m = measure(&img, &dirs[..1], &truths[..1], None, &params).unwrap();
+    assert!(m.ours.psnr_mean.is_finite());
+}
+
 /// The stored texel `p` of frame `k` (32 texels per side), shaded.
 fn frame_colour(img: &SphereImages, k: usize, p: usize, light: &Light) -> [f32; 3] {
     let (_, albedo, normal) = img.frames[k].texel(p % 32, p / 32).expect("defined texel");

@@ -103,6 +103,9 @@ pub enum PipelineError {
     /// Slices failed.
     #[error(transparent)]
     Slices(#[from] crate::slices::SliceError),
+    /// The frames over the sphere failed.
+    #[error(transparent)]
+    Sphere(#[from] crate::sphere::SphereError),
     /// An image comparison failed.
     #[error(transparent)]
     Metrics(#[from] crate::metrics::MetricsError),

@@ -150,7 +150,7 @@ fn atlas_index(k: usize, grid: usize, size: usize, x: usize, y: usize) -> usize 
 
 /// A failure of the frames' code as the pipeline reports it.
 pub(crate) fn sphere_err(e: SphereError) -> PipelineError {
-    PipelineError::Spec(e.to_string())
+    PipelineError::Sphere(e)
 }
 
 impl Representation for SphereRepr {

@@ -10,7 +10,7 @@ use rayon::prelude::*;
 use super::baseline::{EngineSteps, render_engine};
 use super::warp::{RenderOutput, SphereRenderParams, render};
 use super::{Coverage, SphereError, SphereImages, SphereParams, check};
-use crate::metrics::{ErrorSplit, coverage_error, error_split, psnr, silhouette_iou};
+use crate::metrics::{ErrorSplit, MetricsError, coverage_error, error_split, psnr, silhouette_iou};
 
 /// `n` directions spread evenly over the upper hemisphere or the sphere (Fibonacci spiral:
 /// heights uniform, azimuths stepped by the golden angle). Elevations stay strictly inside
@@ -162,8 +162,24 @@ pub fn truth_images(
         .collect()
 }
 
+/// A metric's error for the pictures along `dir` (`size²`): nothing to compare there (the
+/// metric's [`MetricsError::NothingVisible`]) is named by its direction
+/// ([`SphereError::EmptyView`], `what` saying what was missing beyond any pixel at all).
+fn along(dir: DVec3, size: usize, what: &'static str, e: MetricsError) -> SphereError {
+    match e {
+        MetricsError::NothingVisible => SphereError::EmptyView {
+            elevation_deg: dir.y.clamp(-1.0, 1.0).asin().to_degrees(),
+            azimuth_deg: dir.z.atan2(dir.x).to_degrees(),
+            size,
+            what,
+        },
+        e => e.into(),
+    }
+}
+
 fn stats(
     outs: &[(RenderOutput, f64)],
+    directions: &[DVec3],
     truths: &[RgbaImage],
     same_positions: Option<&[RgbaImage]>,
 ) -> Result<MethodStats, SphereError> {
@@ -171,10 +187,14 @@ fn stats(
         psnr_min: f64::INFINITY,
         ..Default::default()
     };
+    let at = |k: usize| {
+        let size = truths[k].width;
+        move |e| along(directions[k], size, "", e)
+    };
     if let Some(same) = same_positions {
         let mut sum = 0.0;
-        for ((out, _), truth) in outs.iter().zip(same) {
-            sum += psnr(&out.image, truth)?;
+        for (k, ((out, _), truth)) in outs.iter().zip(same).enumerate() {
+            sum += psnr(&out.image, truth).map_err(at(k))?;
         }
         s.psnr_same_positions_mean = Some(sum / outs.len().max(1) as f64);
     }
@@ -185,18 +205,22 @@ fn stats(
     let flips: Vec<f64> = outs
         .par_iter()
         .zip(truths)
-        .map(|((out, _), truth)| crate::metrics::flip_mean(&out.image, truth))
+        .enumerate()
+        .map(|(k, ((out, _), truth))| crate::metrics::flip_mean(&out.image, truth).map_err(at(k)))
         .collect::<Result<_, _>>()?;
     s.flip_mean = flips.iter().sum();
-    for ((out, ms), truth) in outs.iter().zip(truths) {
-        let p = psnr(&out.image, truth)?;
+    for (k, ((out, ms), truth)) in outs.iter().zip(truths).enumerate() {
+        let p = psnr(&out.image, truth).map_err(at(k))?;
         s.psnr_per_direction.push(p);
         s.holes_per_direction
             .push(out.holes as f64 / out.steps.len().max(1) as f64);
         s.psnr_mean += p;
         s.psnr_min = s.psnr_min.min(p);
-        s.iou_mean += silhouette_iou(&out.image, truth, 0.5)?;
-        s.coverage_error_mean += coverage_error(&out.image, truth)?;
+        // Both silhouettes empty (no pixel covered by more than half) where the pictures are
+        // not.
+        s.iou_mean += silhouette_iou(&out.image, truth, 0.5)
+            .map_err(|e| along(directions[k], truth.width, " by more than half", e))?;
+        s.coverage_error_mean += coverage_error(&out.image, truth).map_err(at(k))?;
         match crate::metrics::colour_psnr(&out.image, truth) {
             Ok(p) => {
                 colour.0 += p;
@@ -205,7 +229,7 @@ fn stats(
             Err(crate::metrics::MetricsError::NothingToCompare) => {}
             Err(e) => return Err(e.into()),
         }
-        s.split.add(&error_split(&out.image, truth)?);
+        s.split.add(&error_split(&out.image, truth).map_err(at(k))?);
         steps += out.steps.iter().map(|&v| f64::from(v)).sum::<f64>();
         rays += out.steps.len();
         s.steps_max = s.steps_max.max(out.max_steps());
@@ -281,8 +305,8 @@ pub fn measure_one_step(
         render_engine(images, d, &params.render, EngineSteps::One)
     })?;
     Ok((
-        stats(&ours, truths, same_positions)?,
-        stats(&base, truths, same_positions)?,
+        stats(&ours, directions, truths, same_positions)?,
+        stats(&base, directions, truths, same_positions)?,
     ))
 }
 
@@ -320,7 +344,7 @@ pub fn measure(
         bound_interval: interval / images.bounds.len().max(1) as f64,
         ours,
         baseline,
-        baseline_two_step: stats(&base2, truths, same_positions)?,
+        baseline_two_step: stats(&base2, directions, truths, same_positions)?,
         directions: directions.iter().map(|d| d.to_array()).collect(),
     })
 }

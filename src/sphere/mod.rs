@@ -153,6 +153,23 @@ pub enum SphereError {
         /// Frames captured.
         frames: usize,
     },
+    /// Along one measured direction neither the truth nor the drawing shows anything (or, for
+    /// the silhouette, covers a pixel by more than half): no error can be measured there.
+    #[error(
+        "nothing to compare at elevation {elevation_deg:.1}°, azimuth {azimuth_deg:.1}°: at {size}² \
+         neither the truth nor the drawing covers a pixel{what}; the object is too small there or \
+         seen edge-on (measure at a larger size or along other directions)"
+    )]
+    EmptyView {
+        /// The direction's elevation (degrees, `y` up).
+        elevation_deg: f64,
+        /// Its azimuth (degrees, from `x` toward `z`).
+        azimuth_deg: f64,
+        /// The pictures' side (pixels).
+        size: usize,
+        /// What was missing beyond no pixel at all ("" or " by more than half").
+        what: &'static str,
+    },
     /// Capture or ground truth failed.
     #[error(transparent)]
     DataGen(#[from] DataGenError),

@@ -356,6 +356,7 @@ pub fn error_split(image: &RgbaImage, truth: &RgbaImage) -> Result<ErrorSplit, M
 #[cfg(test)]
 mod tests {
     use super::*;
+    use approx::assert_abs_diff_eq;
 
     fn img(pixels: Vec<[f32; 4]>, w: usize) -> RgbaImage {
         RgbaImage {
@@ -389,7 +390,7 @@ mod tests {
             2,
         );
         let want = 10.0 * (3.0f64 / 0.01).log10();
-        assert!((colour_psnr(&a, &b).unwrap() - want).abs() < 1e-4);
+        assert_abs_diff_eq!(colour_psnr(&a, &b).unwrap(), want, epsilon = 1e-4);
         assert_eq!(colour_psnr(&a, &a).unwrap(), f64::INFINITY);
         let half = img(vec![[0.2, 0.2, 0.2, 0.5]; 4], 2);
         assert_eq!(colour_psnr(&half, &b), Err(MetricsError::NothingToCompare));

@@ -33,7 +33,7 @@ use glam::{DAffine3, DMat4, Vec3A, Vec4};
 use serde_json::{Value, json};
 
 use crate::error::DataGenError;
-use crate::gltf_write::{BinBuilder, glb, png_bytes};
+use crate::gltf_write::{BinBuilder, emissive_json, glb, png_bytes};
 use crate::mesh::{Mesh, TriColor};
 use crate::placement::Placement;
 use crate::shape::Shape;
@@ -555,14 +555,11 @@ impl Mesh {
                                 v["extensions"] = json!({"KHR_materials_unlit": {}});
                                 uses_unlit = true;
                             } else if m.emissive != glam::Vec3::ZERO {
-                                // glTF factors stop at 1: a brighter emission is its largest
-                                // component as KHR_materials_emissive_strength.
-                                let strength = m.emissive.max_element().max(1.0);
-                                v["emissiveFactor"] = json!((m.emissive / strength).to_array());
-                                if strength > 1.0 {
-                                    v["extensions"] = json!({
-                                        "KHR_materials_emissive_strength": {"emissiveStrength": strength}
-                                    });
+                                let (factor, strength) = emissive_json(m.emissive.to_array());
+                                v["emissiveFactor"] = factor;
+                                if let Some(strength) = strength {
+                                    v["extensions"] =
+                                        json!({"KHR_materials_emissive_strength": strength});
                                     uses_strength = true;
                                 }
                                 if let Some((t, set)) = &m.emissive_texture {

@@ -263,6 +263,17 @@ impl BinBuilder {
     }
 }
 
+/// An emission (linear RGB, finite, non-negative) as glTF writes it: `emissiveFactor`, whose
+/// components stop at 1, and where the emission is brighter the `KHR_materials_emissive_strength`
+/// object (`emissiveStrength`: its largest component) that scales the factor back.
+pub(crate) fn emissive_json(emissive: [f32; 3]) -> (Value, Option<Value>) {
+    let strength = emissive.iter().fold(1.0f32, |a, &b| a.max(b));
+    (
+        json!(emissive.map(|c| c / strength)),
+        (strength > 1.0).then(|| json!({ "emissiveStrength": strength })),
+    )
+}
+
 /// A `.glb` file of the JSON document `doc` and the binary chunk `bin` (padded to 4 bytes).
 pub(crate) fn glb(doc: &Value, bin: &[u8]) -> Vec<u8> {
     let mut json = serde_json::to_vec(doc).expect("a JSON value serialises");
@@ -358,12 +369,10 @@ impl TestGltf {
                 mat["alphaCutoff"] = json!(m.alpha_cutoff);
             }
             if m.emissive != [0.0; 3] {
-                // Above 1, the largest component as KHR_materials_emissive_strength.
-                let strength = m.emissive.iter().fold(1.0f32, |a, &b| a.max(b));
-                mat["emissiveFactor"] = json!(m.emissive.map(|c| c / strength));
-                if strength > 1.0 {
-                    mat["extensions"] =
-                        json!({"KHR_materials_emissive_strength": {"emissiveStrength": strength}});
+                let (factor, strength) = emissive_json(m.emissive);
+                mat["emissiveFactor"] = factor;
+                if let Some(strength) = strength {
+                    mat["extensions"] = json!({"KHR_materials_emissive_strength": strength});
                     used.push("KHR_materials_emissive_strength");
                 }
             }

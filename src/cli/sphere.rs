@@ -270,7 +270,7 @@ pub fn run(args: SphereArgs) -> CliResult {
                 s.reads_mean, s.reads_hit_mean, s.reads_max
             )
         };
-        let db = |p: Option<f64>| p.map_or("—".to_string(), |p| format!("{p:.2}"));
+        let db = crate::sphere::asset::decibels;
         println!(
             "          FLIP mean (lower is better): ours {:.4}, one-step {:.4}, two-step {:.4}; colour PSNR where both cover: ours {}, one-step {}, two-step {}",
             m.ours.flip_mean,

@@ -473,18 +473,12 @@ impl Representation for SphereRepr {
             n = dirs.len(),
             b = m.baseline.psnr_mean,
             bi = m.baseline.iou_mean,
-            os = same_positions_db(&m.ours),
-            bs = same_positions_db(&m.baseline),
+            os = decibels(m.ours.psnr_same_positions_mean),
+            bs = decibels(m.baseline.psnr_same_positions_mean),
             of = m.ours.flip_mean,
             bf = m.baseline.flip_mean,
-            oc = m
-                .ours
-                .colour_psnr_mean
-                .map_or("—".into(), |p| format!("{p:.2}")),
-            bc = m
-                .baseline
-                .colour_psnr_mean
-                .map_or("—".into(), |p| format!("{p:.2}")),
+            oc = decibels(m.ours.colour_psnr_mean),
+            bc = decibels(m.baseline.colour_psnr_mean),
             r = m.ours.reads_mean,
             rh = m.ours.reads_hit_mean,
             rm = m.ours.reads_max,
@@ -495,12 +489,10 @@ impl Representation for SphereRepr {
     }
 }
 
-/// A method's mean PSNR against the truth at its own rays, for the report (`—` where not
-/// measured).
-fn same_positions_db(stats: &MethodStats) -> String {
-    stats
-        .psnr_same_positions_mean
-        .map_or("—".into(), |p| format!("{p:.2}"))
+/// A figure in dB that may be missing, as the reports print it: two decimals, `—` where not
+/// measured.
+pub(crate) fn decibels(db: Option<f64>) -> String {
+    db.map_or("—".into(), |p| format!("{p:.2}"))
 }
 
 /// The exact warp's figures `ours` as the pipeline reports a representation's, measured at

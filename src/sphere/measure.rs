@@ -10,7 +10,10 @@ use rayon::prelude::*;
 use super::baseline::{EngineSteps, render_engine};
 use super::warp::{RenderOutput, SphereRenderParams, render};
 use super::{Coverage, SphereError, SphereImages, SphereParams, check};
-use crate::metrics::{ErrorSplit, MetricsError, coverage_error, error_split, psnr, silhouette_iou};
+use crate::metrics::{
+    ErrorSplit, MetricsError, colour_psnr, coverage_error, error_split, flip_mean, psnr,
+    silhouette_iou,
+};
 
 /// `n` directions spread evenly over the upper hemisphere or the sphere (Fibonacci spiral:
 /// heights uniform, azimuths stepped by the golden angle). Elevations stay strictly inside
@@ -206,7 +209,7 @@ fn stats(
         .par_iter()
         .zip(truths)
         .enumerate()
-        .map(|(k, ((out, _), truth))| crate::metrics::flip_mean(&out.image, truth).map_err(at(k)))
+        .map(|(k, ((out, _), truth))| flip_mean(&out.image, truth).map_err(at(k)))
         .collect::<Result<_, _>>()?;
     s.flip_mean = flips.iter().sum();
     for (k, ((out, ms), truth)) in outs.iter().zip(truths).enumerate() {
@@ -221,12 +224,12 @@ fn stats(
         s.iou_mean += silhouette_iou(&out.image, truth, 0.5)
             .map_err(|e| along(directions[k], truth.width, " by more than half", e))?;
         s.coverage_error_mean += coverage_error(&out.image, truth).map_err(at(k))?;
-        match crate::metrics::colour_psnr(&out.image, truth) {
+        match colour_psnr(&out.image, truth) {
             Ok(p) => {
                 colour.0 += p;
                 colour.1 += 1;
             }
-            Err(crate::metrics::MetricsError::NothingToCompare) => {}
+            Err(MetricsError::NothingToCompare) => {}
             Err(e) => return Err(e.into()),
         }
         s.split.add(&error_split(&out.image, truth).map_err(at(k))?);

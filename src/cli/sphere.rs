@@ -10,8 +10,8 @@ use super::CliResult;
 use super::capture::load_shape;
 use crate::sphere::{
     Coverage, SphereImages, SphereMeasureParams, SphereMeasurement, SphereParams,
-    SphereRenderParams, SurfaceModel, ViewSet, budget_table, check_bounds, fibonacci_directions,
-    measure, truth_images,
+    SphereRenderParams, Storage, SurfaceModel, ViewSet, budget_table, check_bounds,
+    fibonacci_directions, measure_stored, truth_images,
 };
 
 /// Arguments of `altrep sphere`.
@@ -65,6 +65,12 @@ pub struct SphereArgs {
     /// capped at `--max-size`.
     #[arg(long)]
     pub fit_budgets: bool,
+    /// Count and draw the frames block-compressed as a GPU samples them (docs/design.md §7b,
+    /// "Compressed memory"): the baseline's two BC7 atlases (2 bytes per texel), the exact
+    /// warp's BC7 albedo, BC5 normals, raw depth and bounds rebuilt from the decoded frames (6
+    /// bytes per texel). `--fit-budgets` then fits the compressed bytes.
+    #[arg(long)]
+    pub compressed: bool,
     /// Print, per configuration, the directions where the exact warp scores lowest (elevation,
     /// azimuth, PSNR of both methods, share of rays no frame sees).
     #[arg(long, default_value_t = 0)]
@@ -127,6 +133,11 @@ pub fn run(args: SphereArgs) -> CliResult {
     } else {
         SurfaceModel::DEFAULT
     };
+    let storage = if args.compressed {
+        Storage::Compressed
+    } else {
+        Storage::Raw
+    };
     let dirs = fibonacci_directions(params.directions, coverage);
     let t = std::time::Instant::now();
     let truths = truth_images(
@@ -168,6 +179,14 @@ pub fn run(args: SphereArgs) -> CliResult {
         params.render.supersample.get()
     );
     println!(
+        "memory counted {}",
+        match storage {
+            Storage::Raw => "raw: 10 bytes per texel (exact warp), 8 (baseline)",
+            Storage::Compressed =>
+                "block-compressed: 6 bytes per texel (exact warp), 2 (baseline), sides padded to whole 4 × 4 blocks",
+        }
+    );
+    println!(
         "{:>3} {:>4} | {:>9} {:>7} {:>7} {:>6} {:>6} {:>5} | {:>9} {:>7} {:>7} {:>6} | {:>6} {:>6} {:>6}",
         "G",
         "F",
@@ -185,7 +204,7 @@ pub fn run(args: SphereArgs) -> CliResult {
         "bnd s",
         "holes"
     );
-    let configs = configurations(&args, coverage)?;
+    let configs = configurations(&args, coverage, storage)?;
     let mut rows: Vec<SphereMeasurement> = Vec::new();
     let mut checks = Vec::new();
     for &(g, f) in &configs {
@@ -195,7 +214,7 @@ pub fn run(args: SphereArgs) -> CliResult {
             model,
         };
         let images = SphereImages::capture(shape.as_ref(), &sp)?;
-        let m = measure(&images, &dirs, &truths, same_positions, &params)?;
+        let m = measure_stored(&images, storage, &dirs, &truths, same_positions, &params)?;
         let mib = |b: usize| b as f64 / (1024.0 * 1024.0);
         println!(
             "{:>3} {:>4} | {:>9.3} {:>7.2} {:>7.2} {:>6.3} {:>6.1} {:>5} | {:>9.3} {:>7.2} {:>7.2} {:>6.3} | {:>6.2} {:>6.2} {:>6.4}",
@@ -257,6 +276,12 @@ pub fn run(args: SphereArgs) -> CliResult {
                 c.directions, c.marches, c.violations, c.worst_excess
             );
             checks.push(json!({"grid": g, "size": f, "check": c}));
+        }
+        if storage == Storage::Compressed {
+            println!(
+                "          block compression of both layouts: {:.2} s; the warp's bounds from the decoded frames: {:.2} s",
+                m.encode_s, m.bounds_s
+            );
         }
         println!(
             "          two-step baseline: {:>7.2} {:>7.2} {:>6.3}",
@@ -354,25 +379,40 @@ pub fn run(args: SphereArgs) -> CliResult {
 
 /// The `(G, F)` pairs to measure: `--grids × --sizes`, or with `--fit-budgets` the largest size
 /// of each grid that fits each budget for either method (sorted, without repeats).
-fn configurations(args: &SphereArgs, coverage: Coverage) -> Result<Vec<(usize, usize)>, String> {
+fn configurations(
+    args: &SphereArgs,
+    coverage: Coverage,
+    storage: Storage,
+) -> Result<Vec<(usize, usize)>, String> {
     let mut v = Vec::new();
     for &g in &args.grids {
         if !args.fit_budgets {
             v.extend(args.sizes.iter().map(|&f| (g, f)));
             continue;
         }
-        let frames = ViewSet::new(coverage, g).map_err(|e| e.to_string())?.len();
+        let set = ViewSet::new(coverage, g).map_err(|e| e.to_string())?;
+        let frames = set.len();
         for &b in &args.budgets {
             if !(b.is_finite() && b > 0.0) {
                 return Err(format!("budget {b} MiB must be finite and positive"));
             }
             let bytes = b * 1024.0 * 1024.0;
-            for per_texel in [
-                SphereParams::FRAME_TEXEL_BYTES + SphereParams::BOUND_TEXEL_BYTES,
-                SphereParams::FRAME_TEXEL_BYTES,
-            ] {
-                let f = (bytes / (frames * per_texel) as f64).sqrt().floor() as usize;
-                let f = f.min(args.max_size as usize);
+            let params = |size| SphereParams {
+                set,
+                size,
+                model: SurfaceModel::DEFAULT,
+            };
+            let methods: [fn(&SphereParams, Storage) -> usize; 2] =
+                [SphereParams::warp_bytes, SphereParams::baseline_bytes];
+            for bytes_of in methods {
+                // The largest size within the budget: from the bytes per texel (of a frame of
+                // one whole block), then down while the padding to whole blocks overflows it.
+                let per_texel = bytes_of(&params(4), storage) / (frames * 16);
+                let mut f = (bytes / (frames * per_texel) as f64).sqrt().floor() as usize;
+                f = f.min(args.max_size as usize);
+                while f >= 8 && bytes_of(&params(f), storage) as f64 > bytes {
+                    f -= 1;
+                }
                 if f >= 8 {
                     v.push((g, f));
                 }
@@ -382,4 +422,39 @@ fn configurations(args: &SphereArgs, coverage: Coverage) -> Result<Vec<(usize, u
     v.sort_unstable();
     v.dedup();
     Ok(v)
+}
+
+#[cfg(test)]
+mod tests {
+    use clap::Parser;
+
+    use super::*;
+
+    #[derive(Parser)]
+    struct Command {
+        #[command(flatten)]
+        args: SphereArgs,
+    }
+
+    #[test]
+    fn budgets_are_fitted_with_the_bytes_of_the_storage() {
+        let args = Command::try_parse_from([
+            "sphere",
+            "--shape",
+            "chair",
+            "--grids",
+            "4",
+            "--fit-budgets",
+            "--budgets",
+            "0.5",
+        ])
+        .unwrap()
+        .args;
+        let fit = |storage| configurations(&args, Coverage::Hemisphere, storage).unwrap();
+        // 0.5 MiB over 16 frames: raw, 10 and 8 bytes per texel give 57² and 64².
+        assert_eq!(fit(Storage::Raw), vec![(4, 57), (4, 64)]);
+        // Compressed, 6 and 2 bytes per texel: 73² would fit unpadded, but its blocks cover
+        // 76² and overflow the budget, so the warp gets 72²; the baseline 128².
+        assert_eq!(fit(Storage::Compressed), vec![(4, 72), (4, 128)]);
+    }
 }

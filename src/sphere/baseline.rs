@@ -22,7 +22,7 @@
 
 use glam::{DVec2, Vec3};
 
-use super::frames::Frame;
+use super::frames::{Frame, nearest_defined};
 use super::warp::{
     RaySample, RenderOutput, SphereRenderParams, display_frame, draw, enclosing_maps,
 };
@@ -46,38 +46,12 @@ impl EngineSteps {
     }
 }
 
-/// A frame's depth with every undefined texel padded by its nearest defined texel's (multi-source
-/// breadth-first search over the 4-neighbour grid; ties go to the first reached). Empty when the
-/// frame has no defined texel. Cost: `F²`.
+/// A frame's depth with every undefined texel padded by its nearest defined texel's
+/// ([`nearest_defined`]). Empty when the frame has no defined texel. Cost: `F²`.
 fn dilated_depth(frame: &Frame) -> Vec<f64> {
-    let f = frame.size;
-    let mut depth = vec![f64::NAN; f * f];
-    let mut queue = std::collections::VecDeque::new();
-    for (k, d) in depth.iter_mut().enumerate() {
-        if frame.defined[k] {
-            *d = frame.depth[k];
-            queue.push_back(k);
-        }
-    }
-    if queue.is_empty() {
-        return Vec::new();
-    }
-    while let Some(k) = queue.pop_front() {
-        let (i, j) = (k % f, k / f);
-        let neighbours = [
-            (i > 0).then(|| k - 1),
-            (i + 1 < f).then(|| k + 1),
-            (j > 0).then(|| k - f),
-            (j + 1 < f).then(|| k + f),
-        ];
-        for n in neighbours.into_iter().flatten() {
-            if depth[n].is_nan() {
-                depth[n] = depth[k];
-                queue.push_back(n);
-            }
-        }
-    }
-    depth
+    nearest_defined(&frame.defined, frame.size)
+        .map(|near| near.iter().map(|&n| frame.depth[n]).collect())
+        .unwrap_or_default()
 }
 
 /// Depth at frame position `p`: bilinear over the defined texels of the four, renormalised; the

@@ -96,11 +96,11 @@ pub struct Frame {
     pub(crate) normal: Vec<Vec3>,
 }
 
-fn depth_code(z: f64) -> u16 {
+pub(crate) fn depth_code(z: f64) -> u16 {
     (1.0 + (z.clamp(-1.0, 1.0) + 1.0) * 0.5 * 65534.0).round() as u16
 }
 
-fn depth_value(code: u16) -> f64 {
+pub(crate) fn depth_value(code: u16) -> f64 {
     f64::from(code - 1) / 65534.0 * 2.0 - 1.0
 }
 
@@ -430,18 +430,82 @@ impl Frame {
             let c = codes.normal[k];
             let nrm = Vec3::new(dec(c[0]), dec(c[1]), dec(c[2])).normalize_or_zero();
             fr.normal[k] = nrm;
-            if let SurfaceModel::Tangent { max_slope } = model {
-                let nd = nrm.as_dvec3();
-                let nf = DVec3::new(nd.dot(frame.right), nd.dot(frame.up), nd.dot(frame.dir));
-                let nz = nf.z.max(1e-6);
-                fr.slope[k] = DVec2::new(
-                    (-nf.x / nz).clamp(-max_slope, max_slope),
-                    (-nf.y / nz).clamp(-max_slope, max_slope),
-                );
-            }
+            fr.slope[k] = slope_of(frame, nrm, model);
         }
         Ok(fr)
     }
+
+    /// The frame with its normals replaced by `normals` (unit, object frame; one per texel, read
+    /// where defined) and its slopes recomputed from them: the surface a store that keeps
+    /// normals in another code than [`FrameCodes::normal`] decodes to (block-compressed
+    /// octahedral normals, [`super::compress`]). Errors: a length other than `F²`.
+    pub(crate) fn with_normals(
+        mut self,
+        normals: &[Vec3],
+        model: SurfaceModel,
+    ) -> Result<Self, SphereError> {
+        check(
+            normals.len() == self.size * self.size,
+            "frame normals",
+            normals.len(),
+            "need one per texel",
+        )?;
+        for (k, &n) in normals.iter().enumerate() {
+            if self.defined[k] {
+                self.normal[k] = n;
+                self.slope[k] = slope_of(&self.frame, n, model);
+            }
+        }
+        Ok(self)
+    }
+}
+
+/// The slope `(∂Z/∂X, ∂Z/∂Y)` of the plane with object-frame normal `nrm` in `frame`'s axes, each
+/// component clamped to the model's limit; zero for [`SurfaceModel::Flat`].
+fn slope_of(frame: &OrthoFrame, nrm: Vec3, model: SurfaceModel) -> DVec2 {
+    let SurfaceModel::Tangent { max_slope } = model else {
+        return DVec2::ZERO;
+    };
+    let nd = nrm.as_dvec3();
+    let nf = DVec3::new(nd.dot(frame.right), nd.dot(frame.up), nd.dot(frame.dir));
+    let nz = nf.z.max(1e-6);
+    DVec2::new(
+        (-nf.x / nz).clamp(-max_slope, max_slope),
+        (-nf.y / nz).clamp(-max_slope, max_slope),
+    )
+}
+
+/// For each texel of an `f × f` grid, the index of its nearest defined texel by breadth-first
+/// distance over the 4-neighbour grid (ties go to the first reached, sources in index order):
+/// what engine bakers pad (dilate) empty texels with. `None` when no texel is defined. Cost: `f²`.
+pub(crate) fn nearest_defined(defined: &[bool], f: usize) -> Option<Vec<usize>> {
+    let mut nearest = vec![usize::MAX; f * f];
+    let mut queue = std::collections::VecDeque::new();
+    for (k, n) in nearest.iter_mut().enumerate() {
+        if defined[k] {
+            *n = k;
+            queue.push_back(k);
+        }
+    }
+    if queue.is_empty() {
+        return None;
+    }
+    while let Some(k) = queue.pop_front() {
+        let (i, j) = (k % f, k / f);
+        let neighbours = [
+            (i > 0).then(|| k - 1),
+            (i + 1 < f).then(|| k + 1),
+            (j > 0).then(|| k - f),
+            (j + 1 < f).then(|| k + f),
+        ];
+        for n in neighbours.into_iter().flatten() {
+            if nearest[n] == usize::MAX {
+                nearest[n] = nearest[k];
+                queue.push_back(n);
+            }
+        }
+    }
+    Some(nearest)
 }
 
 #[cfg(test)]

@@ -8,6 +8,7 @@ use glam::DVec3;
 use rayon::prelude::*;
 
 use super::baseline::{EngineSteps, render_engine};
+use super::compress::{Storage, compress};
 use super::warp::{RenderOutput, SphereRenderParams, render};
 use super::{Coverage, SphereError, SphereImages, SphereParams, check};
 use crate::metrics::{
@@ -119,13 +120,18 @@ pub struct SphereMeasurement {
     pub grid: usize,
     /// Texels per frame side `F`.
     pub size: usize,
-    /// Bytes of the exact warp (frames and bounds).
+    /// How the frames were held when counted and drawn.
+    pub storage: Storage,
+    /// Bytes of the exact warp (frames and bounds) in that storage.
     pub bytes_ours: usize,
-    /// Bytes of the engine baseline (frames only).
+    /// Bytes of the engine baseline (frames only) in that storage.
     pub bytes_baseline: usize,
+    /// Block compression and decoding of both layouts (s; zero for raw storage).
+    pub encode_s: f64,
     /// Capture and quantisation time (s).
     pub capture_s: f64,
-    /// Cone bounds time (s).
+    /// Cone bounds time (s; for compressed storage, the bounds built again from the decoded
+    /// frames).
     pub bounds_s: f64,
     /// Mean stored bound interval (frame depth units, texels where an event is possible).
     pub bound_interval: f64,
@@ -289,6 +295,19 @@ pub fn measure_one_step(
     same_positions: Option<&[RgbaImage]>,
     params: &SphereMeasureParams,
 ) -> Result<(MethodStats, MethodStats), SphereError> {
+    measure_pair(images, images, directions, truths, same_positions, params)
+}
+
+/// The exact warp drawn from `warp` and the one-step baseline from `baseline` (the same frames,
+/// or each method's decoding of them), with the arguments checked.
+fn measure_pair(
+    warp: &SphereImages,
+    baseline: &SphereImages,
+    directions: &[DVec3],
+    truths: &[RgbaImage],
+    same_positions: Option<&[RgbaImage]>,
+    params: &SphereMeasureParams,
+) -> Result<(MethodStats, MethodStats), SphereError> {
     check(
         directions.len() == truths.len() && !directions.is_empty(),
         "truth images",
@@ -303,9 +322,9 @@ pub fn measure_one_step(
             "need one per direction",
         )?;
     }
-    let ours = timed(directions, &|d| render(images, d, &params.render))?;
+    let ours = timed(directions, &|d| render(warp, d, &params.render))?;
     let base = timed(directions, &|d| {
-        render_engine(images, d, &params.render, EngineSteps::One)
+        render_engine(baseline, d, &params.render, EngineSteps::One)
     })?;
     Ok((
         stats(&ours, directions, truths, same_positions)?,
@@ -316,7 +335,8 @@ pub fn measure_one_step(
 /// Measures `images` (exact warp) and the engine baseline built from the same frames along
 /// `directions`, against `truths` (from [`truth_images`] at `params.render.size`), and, where
 /// given, against `same_positions`: the truths cast at the drawing's own rays ([`truth_images`]
-/// with `params.render.supersample`; see [`MethodStats::psnr_same_positions_mean`]).
+/// with `params.render.supersample`; see [`MethodStats::psnr_same_positions_mean`]). The frames
+/// are held raw ([`measure_stored`] with [`Storage::Raw`]).
 ///
 /// Errors: mismatched lengths or sizes, a direction the view set does not cover, or an empty
 /// picture (both the drawing and the truth empty: nothing to compare).
@@ -327,12 +347,41 @@ pub fn measure(
     same_positions: Option<&[RgbaImage]>,
     params: &SphereMeasureParams,
 ) -> Result<SphereMeasurement, SphereError> {
-    let (ours, baseline) = measure_one_step(images, directions, truths, same_positions, params)?;
+    measure_stored(
+        images,
+        Storage::Raw,
+        directions,
+        truths,
+        same_positions,
+        params,
+    )
+}
+
+/// [`measure`] with the frames held in `storage`: compressed, each method draws from its own
+/// layout's decoded blocks ([`compress`]) and is counted in its compressed bytes. Same
+/// arguments and errors; the compression adds its encoding and a second build of the bounds.
+pub fn measure_stored(
+    images: &SphereImages,
+    storage: Storage,
+    directions: &[DVec3],
+    truths: &[RgbaImage],
+    same_positions: Option<&[RgbaImage]>,
+    params: &SphereMeasureParams,
+) -> Result<SphereMeasurement, SphereError> {
+    let compressed = match storage {
+        Storage::Raw => None,
+        Storage::Compressed => Some(compress(images)?),
+    };
+    let (warp, base, encode_s) = match &compressed {
+        None => (images, images, 0.0),
+        Some(c) => (&c.warp, &c.baseline, c.encode_s),
+    };
+    let (ours, baseline) = measure_pair(warp, base, directions, truths, same_positions, params)?;
     let base2 = timed(directions, &|d| {
-        render_engine(images, d, &params.render, EngineSteps::Two)
+        render_engine(base, d, &params.render, EngineSteps::Two)
     })?;
     let p = &images.params;
-    let (interval, _) = images
+    let (interval, _) = warp
         .bounds
         .iter()
         .map(|b| b.stats())
@@ -340,11 +389,13 @@ pub fn measure(
     Ok(SphereMeasurement {
         grid: p.set.grid,
         size: p.size,
-        bytes_ours: p.total_bytes(),
-        bytes_baseline: p.frame_bytes(),
+        storage,
+        bytes_ours: p.warp_bytes(storage),
+        bytes_baseline: p.baseline_bytes(storage),
+        encode_s,
         capture_s: images.capture_time.as_secs_f64(),
-        bounds_s: images.bounds_time.as_secs_f64(),
-        bound_interval: interval / images.bounds.len().max(1) as f64,
+        bounds_s: warp.bounds_time.as_secs_f64(),
+        bound_interval: interval / warp.bounds.len().max(1) as f64,
         ours,
         baseline,
         baseline_two_step: stats(&base2, directions, truths, same_positions)?,

@@ -110,6 +110,7 @@
 pub mod asset;
 mod baseline;
 mod bounds;
+mod compress;
 mod frames;
 mod measure;
 mod viewset;
@@ -117,10 +118,11 @@ mod warp;
 
 pub use baseline::{EngineSteps, render_engine, render_engine_baseline};
 pub use bounds::{BoundsCheck, ConeBounds, check_bounds};
+pub use compress::{CompressedFrames, Storage, compress};
 pub use frames::{Frame, FrameCodes, SphereImages, SphereParams, SurfaceModel};
 pub use measure::{
     BudgetRow, MethodStats, SphereMeasureParams, SphereMeasurement, budget_table,
-    fibonacci_directions, measure, measure_one_step, truth_images,
+    fibonacci_directions, measure, measure_one_step, measure_stored, truth_images,
 };
 pub use viewset::{Coverage, ViewSet, azimuth_elevation};
 pub use warp::{

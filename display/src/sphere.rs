@@ -54,6 +54,9 @@ pub struct SphereDraw {
     pub extra_frames: usize,
     /// The light.
     pub light: Light,
+    /// A cap on each ray's fetches (`altrep::sphere::SphereRenderParams::max_steps`; `None`:
+    /// none).
+    pub max_steps: Option<u32>,
 }
 
 impl SphereDraw {
@@ -68,6 +71,7 @@ impl SphereDraw {
             hole_depth: d.hole_depth,
             extra_frames: d.extra_frames,
             light: d.light,
+            max_steps: d.max_steps,
         }
     }
 }
@@ -86,6 +90,8 @@ pub struct SphereFrame {
     pub holes: usize,
     /// Rays still unresolved after the carving rounds.
     pub unresolved: usize,
+    /// Rays stopped by the cap on fetches.
+    pub capped: usize,
     /// Per fragment, the depth written (1 where nothing was drawn).
     pub depth: Vec<f32>,
     /// Wall time of the draw and read-back (milliseconds; on lavapipe this is CPU emulation).
@@ -209,6 +215,9 @@ impl SphereDisplay {
                 "must be at most MAX_EXTRA_FRAMES (8)",
             ));
         }
+        if d.max_steps == Some(0) {
+            return Err(invalid("max steps", 0, "must be at least 1"));
+        }
         if !(d.visibility.is_finite() && d.visibility > 0.0) {
             return Err(invalid(
                 "visibility",
@@ -263,6 +272,7 @@ impl SphereDisplay {
             enclosing.len() as u32,
             extra.len() as u32,
             u32::from(d.use_bounds),
+            d.max_steps.unwrap_or(u32::MAX),
         ];
         for (s, e) in enclosing.iter().chain(&extra).enumerate() {
             for (r, row) in e.rows.iter().enumerate() {
@@ -290,6 +300,7 @@ impl SphereDisplay {
             traced: Vec::with_capacity(frags),
             holes: 0,
             unresolved: 0,
+            capped: 0,
             depth: drawn.depth,
             millis: drawn.millis,
         };
@@ -298,6 +309,7 @@ impl SphereDisplay {
             frame.traced.push(w[1] & 4 != 0);
             frame.holes += usize::from(w[1] & 1 != 0);
             frame.unresolved += usize::from(w[1] & 2 != 0);
+            frame.capped += usize::from(w[1] & 8 != 0);
         }
         Ok(frame)
     }

@@ -327,6 +327,10 @@ fn bad_draw_parameters_are_typed_errors() {
             dir: DVec3::new(0.3, -0.8, 0.2),
             ..ok
         },
+        SphereDraw {
+            max_steps: Some(0),
+            ..ok
+        },
     ] {
         let e = disp.render(gpu, &d).unwrap_err();
         assert!(
@@ -372,6 +376,65 @@ fn gpu_hole_depth_matches_the_cpu() {
         "hole depth 0.05: {emptied} pixels emptied over the cases; worst image PSNR GPU vs CPU {worst_db:.1} dB"
     );
     assert!(emptied > 0, "the hole depth must empty some pixels");
+}
+
+/// With a cap on each ray's fetches that stops many rays, the GPU stops them where the CPU
+/// does: the same pictures, the same fetches to within the `f32` march's texel-edge rays, the
+/// same rays capped, and no ray past the cap by more than two fetches per frame asked.
+#[test]
+fn gpu_fetch_cap_matches_the_cpu() {
+    let Some(gpu) = gpu() else { return };
+    let dir = tempfile::tempdir().unwrap();
+    const CAP: u32 = 16;
+    let (mut gpu_capped, mut cpu_capped, mut rays) = (0usize, 0usize, 0usize);
+    let (mut gpu_sum, mut cpu_sum, mut worst_db) = (0u64, 0u64, f64::INFINITY);
+    for (shape, coverage, model) in CASES {
+        let images = asset(shape, coverage, model, dir.path());
+        let disp = SphereDisplay::new(gpu, &images, Precision::F32).unwrap();
+        for d in directions(&images) {
+            let draw = SphereDraw {
+                max_steps: Some(CAP),
+                ..SphereDraw::new(d, SIZE)
+            };
+            let frame = disp.render(gpu, &draw).unwrap();
+            let rp = SphereRenderParams {
+                size: SIZE,
+                max_steps: Some(CAP),
+                ..SphereRenderParams::default()
+            };
+            let want = render(&images, d, &rp).unwrap();
+            let name = format!("sphere-cap-{shape}-{:.2}-{:.2}-{:.2}", d.x, d.y, d.z);
+            worst_db = worst_db.min(check_image(&name, &frame.image, &want.image, 40.0, 0.01));
+            let most = CAP + 2 * (3 + altrep::sphere::DEFAULT_EXTRA_FRAMES as u32);
+            assert!(want.max_steps() <= most, "{name}: CPU {}", want.max_steps());
+            let g = traced_steps(&frame);
+            assert!(g.iter().all(|&s| s <= most), "{name}: GPU past the cap");
+            gpu_sum += g.iter().map(|&s| u64::from(s)).sum::<u64>();
+            cpu_sum += want.steps.iter().map(|&s| u64::from(s)).sum::<u64>();
+            gpu_capped += frame.capped;
+            cpu_capped += want.capped;
+            rays += want.steps.len();
+        }
+    }
+    eprintln!(
+        "cap of {CAP} fetches: rays capped GPU {gpu_capped}, CPU {cpu_capped} of {rays}; mean fetches GPU {:.3} CPU {:.3}; worst image PSNR GPU vs CPU {worst_db:.1} dB",
+        gpu_sum as f64 / rays as f64,
+        cpu_sum as f64 / rays as f64
+    );
+    assert!(
+        cpu_capped * 100 > rays,
+        "the cap must stop over 1 % of the rays"
+    );
+    assert_abs_diff_eq!(
+        gpu_capped as f64,
+        cpu_capped as f64,
+        epsilon = 1.0 + 0.01 * cpu_capped as f64
+    );
+    assert_abs_diff_eq!(
+        gpu_sum as f64,
+        cpu_sum as f64,
+        epsilon = 0.01 * cpu_sum as f64
+    );
 }
 
 /// Without extra frames and with the most the shader holds, the GPU draws what the CPU draws,

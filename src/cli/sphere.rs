@@ -88,6 +88,10 @@ pub struct SphereArgs {
     /// nearest to the direction first); 0 asks only the three enclosing frames.
     #[arg(long, default_value_t = crate::sphere::DEFAULT_EXTRA_FRAMES)]
     pub extra_frames: usize,
+    /// Cap each ray's march fetches of the exact warp at this many (0: no cap): a ray that
+    /// reaches it stops where it is and is coloured there (`SphereRenderParams::max_steps`).
+    #[arg(long, default_value_t = 0)]
+    pub max_steps: u32,
     /// Largest frame size `--fit-budgets` may choose.
     #[arg(long, default_value_t = 256, value_parser = clap::value_parser!(u32).range(8..=4096))]
     pub max_size: u32,
@@ -122,6 +126,7 @@ pub fn run(args: SphereArgs) -> CliResult {
             use_bounds: !args.no_bounds,
             hole_depth: (args.hole_depth != 0.0).then_some(args.hole_depth),
             extra_frames: args.extra_frames,
+            max_steps: (args.max_steps != 0).then_some(args.max_steps),
             ..SphereRenderParams::default()
         },
         truth_supersample: Supersample::of(args.truth_supersample as usize),
@@ -317,6 +322,12 @@ pub fn run(args: SphereArgs) -> CliResult {
             reads(&m.baseline),
             reads(&m.baseline_two_step)
         );
+        if params.render.max_steps.is_some() {
+            println!(
+                "          rays stopped by the cap of {} fetches: {:.5}",
+                args.max_steps, m.ours.capped_share
+            );
+        }
         rows.push(m);
     }
     let budgets = budget_table(&rows, &args.budgets);

@@ -452,6 +452,7 @@ pub fn check_bounds(
                             entry,
                             line.a - line.c * zs,
                             &mut steps,
+                            u32::MAX,
                         );
                         match (ev, iv) {
                             (None, _) => {}

@@ -104,6 +104,9 @@ pub struct MethodStats {
     pub hole_share: f64,
     /// Rays unresolved after the carving rounds, per ray (exact warp only).
     pub unresolved_share: f64,
+    /// Rays stopped by the cap on fetches, per ray (exact warp with
+    /// [`SphereRenderParams::max_steps`] only).
+    pub capped_share: f64,
     /// PSNR (dB) of each direction, in the order measured.
     pub psnr_per_direction: Vec<f64>,
     /// Share of rays whose surface point no frame sees, per direction (exact warp only).
@@ -208,6 +211,7 @@ fn stats(
         s.psnr_same_positions_mean = Some(sum / outs.len().max(1) as f64);
     }
     let (mut rays, mut steps, mut holes, mut unresolved) = (0usize, 0.0f64, 0usize, 0usize);
+    let mut capped = 0usize;
     let (mut reads, mut hit_reads, mut hits) = (0.0f64, 0.0f64, 0usize);
     let mut colour = (0.0f64, 0u32);
     // FLIP, the costliest figure (its spatial filters), over the directions in parallel.
@@ -253,6 +257,7 @@ fn stats(
         s.ms_per_image += ms;
         holes += out.holes;
         unresolved += out.unresolved;
+        capped += out.capped;
     }
     let n = outs.len().max(1) as f64;
     s.psnr_mean /= n;
@@ -267,6 +272,7 @@ fn stats(
     s.reads_hit_mean = hit_reads / hits.max(1) as f64;
     s.hole_share = holes as f64 / rays.max(1) as f64;
     s.unresolved_share = unresolved as f64 / rays.max(1) as f64;
+    s.capped_share = capped as f64 / rays.max(1) as f64;
     Ok(s)
 }
 

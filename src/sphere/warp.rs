@@ -84,10 +84,20 @@ pub struct SphereRenderParams {
     pub extra_frames: usize,
     /// The light (the one shading function of the project).
     pub light: Light,
+    /// A cap on each ray's march fetches ([`RenderOutput::steps`]), `None` for none. A ray that
+    /// reaches it stops where it is: a frame's march takes the point it reached as its event,
+    /// no further carving round starts and no extra frame is asked; the point found is
+    /// coloured as any other (by the frames that see it, else as a hole). The rounds under
+    /// way finish their checks, so a ray's fetches stay below the cap plus two per frame
+    /// asked. What the cap costs in quality is measured by `altrep sphere --max-steps`
+    /// (docs/design.md §7b).
+    #[serde(default)]
+    pub max_steps: Option<u32>,
 }
 
 impl Default for SphereRenderParams {
-    /// 128², one ray per pixel, visibility 2, bounds on, hole depth 0.5, the default light.
+    /// 128², one ray per pixel, visibility 2, bounds on, hole depth 0.5, the default light, no
+    /// cap on the fetches.
     fn default() -> Self {
         Self {
             size: 128,
@@ -97,6 +107,7 @@ impl Default for SphereRenderParams {
             hole_depth: Some(DEFAULT_HOLE_DEPTH),
             extra_frames: DEFAULT_EXTRA_FRAMES,
             light: Light::default(),
+            max_steps: None,
         }
     }
 }
@@ -130,6 +141,9 @@ impl SphereRenderParams {
             self.extra_frames,
             "must be at most MAX_EXTRA_FRAMES (8)",
         )?;
+        if let Some(m) = self.max_steps {
+            check(m >= 1, "max steps", m, "must be at least 1")?;
+        }
         if let Some(d) = self.hole_depth {
             check(
                 d.is_finite() && d > 0.0,
@@ -165,6 +179,8 @@ pub struct RenderOutput {
     /// Rays whose surface point no frame asked sees (coloured by the nearest frame surface
     /// within the hole depth, else empty).
     pub holes: usize,
+    /// Rays stopped by the cap on fetches ([`SphereRenderParams::max_steps`]).
+    pub capped: usize,
     /// Per pixel, row-major: the display depth `z` (frame units, toward the camera) of the
     /// surface found by the pixel's first ray, `None` where it found none (everywhere for the
     /// engine baseline, which finds no depth).
@@ -281,7 +297,8 @@ impl FrameMap {
 
 /// Marches `P(Z) = q + Z·t` through `frame` from `Z = z_hi` down to `z_lo`, one texel fetch per
 /// cell (added to `steps`), and returns the frame depth `Z` of the first point that is not free
-/// (module docs).
+/// (module docs); once `steps` reaches `cap`, the depth of the point reached
+/// ([`SphereRenderParams::max_steps`]).
 pub(crate) fn first_event(
     frame: &Frame,
     q: DVec2,
@@ -289,6 +306,7 @@ pub(crate) fn first_event(
     z_hi: f64,
     z_lo: f64,
     steps: &mut u32,
+    cap: u32,
 ) -> Option<f64> {
     if z_hi < z_lo {
         return None;
@@ -349,6 +367,10 @@ pub(crate) fn first_event(
     };
     let mut l_in = l0;
     loop {
+        if *steps >= cap {
+            // The ray's fetches are spent: the point reached stands for the event.
+            return Some(z_hi - l_in);
+        }
         let l_out = tmax_x.min(tmax_y).min(l1);
         *steps += 1;
         if let Some(k) = frame.cell(i, j) {
@@ -484,6 +506,8 @@ pub(crate) struct RaySample {
     pub hole: bool,
     /// Still unresolved after [`MAX_CARVE_ROUNDS`].
     pub unresolved: bool,
+    /// Stopped by [`SphereRenderParams::max_steps`].
+    pub capped: bool,
 }
 
 /// Draws a `size²` image over the unit disc of the display frame: `samples²` stratified rays
@@ -545,6 +569,7 @@ pub(crate) fn draw(
         pixel_reads: Vec::with_capacity(w * w),
         unresolved: 0,
         holes: 0,
+        capped: 0,
         depth: Vec::with_capacity(w * w),
     };
     for (j, (row, depth, reads, rays)) in rows.into_iter().enumerate() {
@@ -557,6 +582,7 @@ pub(crate) fn draw(
             out.hit.push(r.colour.is_some());
             out.unresolved += usize::from(r.unresolved);
             out.holes += usize::from(r.hole);
+            out.capped += usize::from(r.capped);
         }
     }
     out
@@ -644,9 +670,17 @@ fn trace(
     let mut z_cur = zs;
     let mut z_c = zs;
     let mut extra = extras.iter();
+    let cap = params.max_steps.unwrap_or(u32::MAX);
     loop {
         ray.unresolved = true;
         for _ in 0..MAX_CARVE_ROUNDS {
+            if ray.steps >= cap {
+                // Spent: the candidate found stands (a ray capped before its first round
+                // keeps the sphere's front).
+                ray.capped = true;
+                ray.unresolved = false;
+                break;
+            }
             // The deepest of the frames' next events below `z_cur` (display depth), and the
             // frame whose event it is (the first such frame on ties).
             let mut deepest = f64::INFINITY;
@@ -660,7 +694,7 @@ fn trace(
                 let z = if hidden(frame, p, zf) {
                     z_cur
                 } else {
-                    match first_event(frame, line.q, line.t, zf.min(hi), lo, &mut ray.steps) {
+                    match first_event(frame, line.q, line.t, zf.min(hi), lo, &mut ray.steps, cap) {
                         Some(z) => (z - line.a) / line.c,
                         // Free from here on, and no event below `lo`: the whole rest of the
                         // ray is free.
@@ -723,8 +757,9 @@ fn trace(
             break;
         }
         // No frame asked sees the point: ask the next extra frame, carving again from the
-        // candidate (if the new frame sees through it, the march goes on below it).
-        if let Some(&(k, ref map)) = extra.next() {
+        // candidate (if the new frame sees through it, the march goes on below it); a capped
+        // ray asks none.
+        if let Some(&(k, ref map)) = extra.next().filter(|_| ray.steps < cap) {
             let line = map.line(x, y);
             let (lo, hi) = (line.a - line.c * zs, line.a + line.c * zs);
             lines.push((&images.frames[k], line, lo, hi, EXTRA_WEIGHT));

@@ -11,7 +11,8 @@
 // nearest to the direction first): rows X, Y, Z of its map (9 values, row-major) and its weight.
 @group(0) @binding(0) var<storage, read> P: array<real>;
 // Integers: 0 number of enclosing frames (1..3), 1 number of extra frames (0..MAX_EXTRA_FRAMES),
-// 2 use the bounds, then 3 + s the frame index of slot s.
+// 2 use the bounds, 3 the cap on a ray's fetches (warp.rs `SphereRenderParams::max_steps`; the
+// largest u32: none), then 4 + s the frame index of slot s.
 @group(0) @binding(1) var<storage, read> U: array<u32>;
 // Light: direction xyz (unit, object frame), ambient.
 @group(0) @binding(2) var<storage, read> L: array<f32>;
@@ -23,7 +24,8 @@
 // bits 16..23 zmax code (8-bit codes of [−1, 1]).
 @group(0) @binding(5) var<storage, read> CODE: array<u32>;
 // Per fragment: texel fetches of the ray; flags (bit 0 no frame sees the point, bit 1 still
-// unresolved after the carving rounds, bit 2 the ray was traced: inside the sphere's disc).
+// unresolved after the carving rounds, bit 2 the ray was traced: inside the sphere's disc, bit 3
+// stopped by the cap on fetches).
 @group(0) @binding(6) var<storage, read_write> STEPS: array<u32>;
 
 const MAX_CARVE_ROUNDS: u32 = 8u;
@@ -95,7 +97,8 @@ struct Event {
 };
 
 // warp.rs `first_event`: marches P(Z) = q + Z·t through frame k from Z = z_hi down to z_lo, one
-// fetch per cell, and returns the frame depth of the first point that is not free.
+// fetch per cell, and returns the frame depth of the first point that is not free; once the
+// ray's fetches reach the cap (U[3]), the depth of the point reached.
 fn first_event(k: u32, q: vec2<real>, t: vec2<real>, z_hi: real, z_lo: real) -> Event {
     var none: Event;
     none.found = false;
@@ -176,6 +179,12 @@ fn first_event(k: u32, q: vec2<real>, t: vec2<real>, z_hi: real, z_lo: real) -> 
     var l_in = l0;
     // A line crosses at most 2F cells of the square; the bound only guards the loop.
     for (var n = 0; n < 4 * fs + 8; n = n + 1) {
+        if steps >= U[3] {
+            var e: Event;
+            e.found = true;
+            e.z = z_hi - l_in;
+            return e;
+        }
         let l_out = min(min(tmax_x, tmax_y), l1);
         steps = steps + 1u;
         let c = cell(k, i, j);
@@ -234,7 +243,7 @@ fn map_at(s: u32, r: u32, col: u32) -> real {
 
 fn line_of(s: u32, x: real, y: real) -> Line {
     var l: Line;
-    l.k = U[3u + s];
+    l.k = U[4u + s];
     l.c = map_at(s, 2u, 2u);
     l.a = map_at(s, 2u, 0u) * x + map_at(s, 2u, 1u) * y;
     let z0 = -l.a / l.c;
@@ -369,6 +378,12 @@ fn fs_main(in: VsOut) -> FsOut {
     loop {
         unresolved = true;
         for (var round = 0u; round < MAX_CARVE_ROUNDS; round = round + 1u) {
+            if steps >= U[3] {
+                // Spent: the candidate found stands.
+                flags = flags | 8u;
+                unresolved = false;
+                break;
+            }
             // The deepest of the frames' next events below z_cur (display depth).
             // and the frame whose event it is (the first on ties).
             var deepest = P[2];
@@ -442,7 +457,7 @@ fn fs_main(in: VsOut) -> FsOut {
                 nearest_col = shaded;
             }
         }
-        if wsum > real(0.0) || nl >= nf + ne {
+        if wsum > real(0.0) || nl >= nf + ne || steps >= U[3] {
             break;
         }
         // No frame asked sees the point: ask the next extra frame, its whole chord, carving
@@ -465,13 +480,13 @@ fn fs_main(in: VsOut) -> FsOut {
         if nearest_gap > P[7] {
             // A hole deeper than the hole depth: taken as empty.
             STEPS[2u * frag] = steps;
-            STEPS[2u * frag + 1u] = flags & 5u;
+            STEPS[2u * frag + 1u] = flags & 13u;
             discard;
         }
         colour = vec4<f32>(nearest_col, 1.0);
     } else {
         STEPS[2u * frag] = steps;
-        STEPS[2u * frag + 1u] = flags & 4u;
+        STEPS[2u * frag + 1u] = flags & 12u;
         discard;
     }
     // Orthographic depth: 0 at the front of the bounding sphere, 1 at its back.

@@ -61,6 +61,10 @@ struct Args {
     /// (0 to 8; `altrep::sphere::SphereRenderParams::extra_frames`).
     #[arg(long, default_value_t = altrep::sphere::DEFAULT_EXTRA_FRAMES)]
     extra_frames: usize,
+    /// Cap each ray's fetches at this many (0: no cap; `altrep::sphere::SphereRenderParams::max_steps`):
+    /// bounds the time a few long rays hold up the fragments shaded beside them.
+    #[arg(long, default_value_t = 0)]
+    max_steps: u32,
     /// Texels per frame side when precomputing.
     #[arg(long, default_value_t = 64)]
     size: usize,
@@ -111,6 +115,7 @@ fn run(args: &Args) -> Result<(), String> {
     let screen = args.screen;
     let draw = |d: DVec3| SphereDraw {
         extra_frames: args.extra_frames,
+        max_steps: (args.max_steps != 0).then_some(args.max_steps),
         ..SphereDraw::new(d, screen)
     };
     if !(1..=4096).contains(&screen) {

@@ -36,6 +36,17 @@ fn code_value(c: u8) -> f64 {
 }
 
 impl ConeBounds {
+    /// The bounds of each of `frames` for its cone of half-angle `cones[k]` ([`Self::build`]).
+    /// Frames in parallel as well as each frame's tiles: frames' costs differ (their cones and
+    /// coverage), and one frame's tiles alone leave cores idle at its end.
+    pub(crate) fn build_all(frames: &[Frame], cones: &[f64]) -> Vec<Self> {
+        frames
+            .par_iter()
+            .zip(cones)
+            .map(|(fr, &beta)| Self::build(fr, beta))
+            .collect()
+    }
+
     /// Builds the bounds of `frame` for the cone of half-angle `beta` (radians, below 90°).
     /// Exact interval reasoning (module docs), quantised outward. Cost: per texel, at worst
     /// the cells within `tan β` (frame units), `O(F² · (F·tan β)²)`; the pruned walk visits a

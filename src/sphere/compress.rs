@@ -95,13 +95,14 @@ pub struct CompressedFrames {
     pub encode_s: f64,
 }
 
-/// The padded `p × p` image (`p` the side rounded up to 4) of `f × f` per-texel values, each
-/// undefined texel taking its nearest defined texel's value, the padding repeating the last row
-/// and column. `value(k)` gives texel `k`'s channels.
+/// The padded `p × p` image (`p` the side rounded up to 4) of `f × f` per-texel values, the
+/// padding repeating the last row and column. `value(k, n)` gives the channels of texel `k`,
+/// whose nearest defined texel is `n` (itself where defined): what an undefined texel is
+/// dilated with.
 fn padded<const C: usize>(
     f: usize,
     nearest: Option<&[usize]>,
-    value: impl Fn(usize) -> [u8; C],
+    value: impl Fn(usize, usize) -> [u8; C],
 ) -> (usize, Vec<u8>) {
     let p = f.div_ceil(4) * 4;
     let mut out = vec![0u8; p * p * C];
@@ -112,7 +113,7 @@ fn padded<const C: usize>(
         for x in 0..p {
             let k = y.min(f - 1) * f + x.min(f - 1);
             let o = (y * p + x) * C;
-            out[o..o + C].copy_from_slice(&value(nearest[k]));
+            out[o..o + C].copy_from_slice(&value(k, nearest[k]));
         }
     }
     (p, out)
@@ -178,21 +179,14 @@ fn baseline_codes(codes: &FrameCodes) -> FrameCodes {
     let defined: Vec<bool> = codes.depth.iter().map(|&d| d != 0).collect();
     let nearest = nearest_defined(&defined, f);
     let near = nearest.as_deref();
-    let (p, colour) = padded::<4>(f, near, |k| {
-        let a = codes.albedo[k];
-        [a[0], a[1], a[2], 255]
+    // The coverage is the defined mask itself, not its dilation.
+    let (p, colour) = padded::<4>(f, near, |k, n| {
+        let a = codes.albedo[n];
+        [a[0], a[1], a[2], if defined[k] { 255 } else { 0 }]
     });
-    // The coverage is the defined mask itself, not its padding.
-    let mut colour = colour;
-    for y in 0..p {
-        for x in 0..p {
-            let k = y.min(f - 1) * f + x.min(f - 1);
-            colour[(y * p + x) * 4 + 3] = if defined[k] { 255 } else { 0 };
-        }
-    }
-    let (_, geometry) = padded::<4>(f, near, |k| {
-        let n = codes.normal[k];
-        [n[0], n[1], n[2], unorm8(depth_value(codes.depth[k]))]
+    let (_, geometry) = padded::<4>(f, near, |_, n| {
+        let c = codes.normal[n];
+        [c[0], c[1], c[2], unorm8(depth_value(codes.depth[n]))]
     });
     let settings = bc7::alpha_basic_settings();
     let colour = bc7_round_trip(p, &colour, &settings);
@@ -223,12 +217,12 @@ fn warp_codes(frame: &Frame, codes: &FrameCodes) -> (FrameCodes, Vec<Vec3>) {
     let f = codes.size;
     let nearest = nearest_defined(&frame.defined, f);
     let near = nearest.as_deref();
-    let (p, colour) = padded::<4>(f, near, |k| {
-        let a = codes.albedo[k];
+    let (p, colour) = padded::<4>(f, near, |_, n| {
+        let a = codes.albedo[n];
         [a[0], a[1], a[2], 255]
     });
-    let (_, oct) = padded::<2>(f, near, |k| {
-        let e = NORMAL_MAP.encode(frame.normal[k].as_dvec3());
+    let (_, oct) = padded::<2>(f, near, |_, n| {
+        let e = NORMAL_MAP.encode(frame.normal[n].as_dvec3());
         [unorm8(e.x), unorm8(e.y)]
     });
     let colour = bc7_round_trip(p, &colour, &bc7::opaque_basic_settings());
@@ -261,11 +255,7 @@ fn warp_codes(frame: &Frame, codes: &FrameCodes) -> (FrameCodes, Vec<Vec3>) {
 /// Rebuilds a set from decoded frames: their bounds built again (timed).
 fn rebuilt(images: &SphereImages, frames: Vec<Frame>, codes: Vec<FrameCodes>) -> SphereImages {
     let t = Instant::now();
-    let bounds = frames
-        .par_iter()
-        .zip(&images.cones)
-        .map(|(fr, &beta)| ConeBounds::build(fr, beta))
-        .collect();
+    let bounds = ConeBounds::build_all(&frames, &images.cones);
     SphereImages {
         params: images.params,
         frames,

@@ -266,13 +266,7 @@ impl SphereImages {
         let capture_time = t0.elapsed();
         let t1 = Instant::now();
         let cones = Self::cones(&params.set);
-        // Frames in parallel as well as each frame's tiles: frames' costs differ (their
-        // cones and coverage), and one frame's tiles alone leave cores idle at its end.
-        let bounds = frames
-            .par_iter()
-            .zip(&cones)
-            .map(|(fr, &beta)| ConeBounds::build(fr, beta))
-            .collect();
+        let bounds = ConeBounds::build_all(&frames, &cones);
         Ok(Self {
             params: *params,
             frames,

@@ -22,6 +22,7 @@ fn bench(c: &mut Criterion) {
         set: ViewSet::new(Coverage::Sphere, 8).expect("view set"),
         size: 128,
         model: SurfaceModel::DEFAULT,
+        bounds_block: 1,
     };
     let images = SphereImages::capture(&shape, &params).expect("capture");
     let interval = images.bounds.iter().map(|b| b.stats().0).sum::<f64>() / 64.0;

@@ -31,16 +31,19 @@ fn write_and_read(out: &Path, data: &SphereImages) -> SphereImages {
 
 #[test]
 fn sphere_files_read_back_bit_for_bit_and_draw_the_same() {
-    for (shape, coverage, model) in [
-        ("truck", Coverage::Hemisphere, SurfaceModel::DEFAULT),
-        ("chair", Coverage::Sphere, SurfaceModel::Flat),
+    // The chair's cone bounds cover 4 × 4 texels each, on frames of 23² (a partial block at
+    // the right and bottom edges).
+    for (shape, coverage, model, size, block) in [
+        ("truck", Coverage::Hemisphere, SurfaceModel::DEFAULT, 24, 1),
+        ("chair", Coverage::Sphere, SurfaceModel::Flat, 23, 4),
     ] {
         let dir = tempfile::tempdir().unwrap();
         let s = scene_shape(shape).unwrap();
         let params = SphereParams {
             set: ViewSet::new(coverage, 4).unwrap(),
-            size: 24,
+            size,
             model,
+            bounds_block: block,
         };
         let img = SphereImages::capture(&s, &params).unwrap();
         let back = write_and_read(dir.path(), &img);
@@ -157,6 +160,13 @@ fn sphere_planner_chooses_coverage_and_size_from_the_needs() {
         .validate()
         .is_err()
     );
+    let three = SphereSpec {
+        bounds_block: 3,
+        ..SphereSpec::default()
+    }
+    .validate()
+    .unwrap_err();
+    assert!(three.contains("sphere.bounds_block = 3"), "{three}");
 }
 
 const SCENE: &str = r#"

@@ -153,10 +153,11 @@ impl SphereDisplay {
         for (frame, bounds) in images.frames.iter().zip(&images.bounds) {
             for j in 0..f {
                 for i in 0..f {
-                    let idx = j * f + i;
-                    let bound = u32::from(bounds.zmin[idx] <= bounds.zmax[idx]) << 1
-                        | u32::from(bounds.zmin[idx]) << 8
-                        | u32::from(bounds.zmax[idx]) << 16;
+                    // Coarser bounds (`ConeBounds::block` > 1) are spread over the frame
+                    // texels they bound: the same interval read as on the CPU.
+                    let (zmin, zmax) = bounds.codes_at(i, j);
+                    let bound =
+                        u32::from(zmin <= zmax) << 1 | u32::from(zmin) << 8 | u32::from(zmax) << 16;
                     match (frame.plane(i, j), frame.texel(i, j)) {
                         (Some((z, g)), Some((_, a, n))) => {
                             tex.extend_from_slice(&[z, g.x, g.y]);

@@ -94,6 +94,11 @@ pub struct SphereArgs {
     /// reaches it stops where it is and is coloured there (`SphereRenderParams::max_steps`).
     #[arg(long, default_value_t = 0)]
     pub max_steps: u32,
+    /// Frame texels per side of one cone-bounds texel: 1, 2 or 4. Coarser bounds store fewer
+    /// bytes (2 per bounds texel) for the same pictures; the march reads more texels
+    /// (docs/design.md §7b, "Coarser bounds").
+    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=4))]
+    pub bounds_block: u32,
     /// Largest frame size `--fit-budgets` may choose.
     #[arg(long, default_value_t = 256, value_parser = clap::value_parser!(u32).range(8..=4096))]
     pub max_size: u32,
@@ -185,13 +190,21 @@ pub fn run(args: SphereArgs) -> CliResult {
         params.render.supersample.get(),
         params.render.supersample.get()
     );
+    let bounds_per_texel =
+        SphereParams::BOUND_TEXEL_BYTES as f64 / f64::from(args.bounds_block).powi(2);
     println!(
-        "memory counted {}",
+        "memory counted {}; bounds over {b} × {b} texels",
         match storage {
-            Storage::Raw => "raw: 10 bytes per texel (exact warp), 8 (baseline)",
-            Storage::Compressed =>
-                "block-compressed: 6 bytes per texel (exact warp), 2 (baseline), sides padded to whole 4 × 4 blocks",
-        }
+            Storage::Raw => format!(
+                "raw: {} bytes per texel (exact warp), 8 (baseline)",
+                8.0 + bounds_per_texel
+            ),
+            Storage::Compressed => format!(
+                "block-compressed: {} bytes per texel (exact warp), 2 (baseline), sides padded to whole 4 × 4 blocks",
+                4.0 + bounds_per_texel
+            ),
+        },
+        b = args.bounds_block
     );
     println!(
         "{:>3} {:>4} | {:>9} {:>7} {:>7} {:>6} {:>6} {:>5} | {:>9} {:>7} {:>7} {:>6} | {:>6} {:>6} {:>6}",
@@ -219,6 +232,7 @@ pub fn run(args: SphereArgs) -> CliResult {
             set: ViewSet::new(coverage, g)?,
             size: f,
             model,
+            bounds_block: args.bounds_block as usize,
         };
         let images = SphereImages::capture(shape.as_ref(), &sp)?;
         let m = measure_stored(&images, storage, &dirs, &truths, same_positions, &params)?;
@@ -414,14 +428,15 @@ fn configurations(
                 set,
                 size,
                 model: SurfaceModel::DEFAULT,
+                bounds_block: args.bounds_block as usize,
             };
             let methods: [fn(&SphereParams, Storage) -> usize; 2] =
                 [SphereParams::warp_bytes, SphereParams::baseline_bytes];
             for bytes_of in methods {
                 // The largest size within the budget: from the bytes per texel (of a frame of
                 // one whole block), then down while the padding to whole blocks overflows it.
-                let per_texel = bytes_of(&params(4), storage) / (frames * 16);
-                let mut f = (bytes / (frames * per_texel) as f64).sqrt().floor() as usize;
+                let per_texel = bytes_of(&params(4), storage) as f64 / (frames * 16) as f64;
+                let mut f = (bytes / (frames as f64 * per_texel)).sqrt().floor() as usize;
                 f = f.min(args.max_size as usize);
                 while f >= 8 && bytes_of(&params(f), storage) as f64 > bytes {
                     f -= 1;
@@ -469,5 +484,24 @@ mod tests {
         // Compressed, 6 and 2 bytes per texel: 73² would fit unpadded, but its blocks cover
         // 76² and overflow the budget, so the warp gets 72²; the baseline 128².
         assert_eq!(fit(Storage::Compressed), vec![(4, 72), (4, 128)]);
+        // Bounds over 2 × 2 texels: 8.5 and 4.5 bytes per texel for the warp, 62² and 84²
+        // (85² would pad to 88² and overflow); the baseline's sizes do not change.
+        let args = Command::try_parse_from([
+            "sphere",
+            "--shape",
+            "chair",
+            "--grids",
+            "4",
+            "--fit-budgets",
+            "--budgets",
+            "0.5",
+            "--bounds-block",
+            "2",
+        ])
+        .unwrap()
+        .args;
+        let fit = |storage| configurations(&args, Coverage::Hemisphere, storage).unwrap();
+        assert_eq!(fit(Storage::Raw), vec![(4, 62), (4, 64)]);
+        assert_eq!(fit(Storage::Compressed), vec![(4, 84), (4, 128)]);
     }
 }

@@ -7,9 +7,12 @@
 //! `albedo.png` (RGB8 sRGB albedo), `normal.png` (RGB8, object-frame normal `(n + 1)/2`),
 //! `depth.png` (L16: 0 = undefined, else `Z = (code − 1)/65534 · 2 − 1` in the frame's depth
 //! units, the bounding sphere's radius, toward the camera) and `bounds.png` (LA8: `zmin`, `zmax`
-//! codes of the cone bounds, `Z = code/255 · 2 − 1`; `zmin > zmax` where no event is possible).
-//! `asset.json`'s metadata holds the grid, its coverage, the frame size, the surface model and
-//! the bounding sphere (`centre`, `radius`, world units) every frame was captured over.
+//! codes of the cone bounds, `Z = code/255 · 2 − 1`; `zmin > zmax` where no event is possible),
+//! an atlas of `G·B × G·B` texels laid out the same way, `B = ⌈F / bounds_block⌉` bounds texels
+//! per frame side, each bounding `bounds_block²` frame texels.
+//! `asset.json`'s metadata holds the grid, its coverage, the frame size, the surface model, the
+//! bounds block (absent: 1) and the bounding sphere (`centre`, `radius`, world units) every
+//! frame was captured over.
 
 use altrep_data_gen::RgbaImage;
 use altrep_data_gen::Supersample;
@@ -39,6 +42,10 @@ pub struct SphereSpec {
     pub size: usize,
     /// Largest tangent-plane slope kept (default 4); 0 stores flat texel tops.
     pub max_slope: f64,
+    /// Frame texels per side of one cone-bounds texel: 1 (default), 2 or 4. Coarser bounds
+    /// store `1/block²` of the bounds' bytes and draw the same pictures; the march reads more
+    /// texels (docs/design.md §7b, "Coarser bounds").
+    pub bounds_block: usize,
 }
 
 impl Default for SphereSpec {
@@ -47,6 +54,7 @@ impl Default for SphereSpec {
             grid: 8,
             size: 64,
             max_slope: 4.0,
+            bounds_block: 1,
         }
     }
 }
@@ -59,6 +67,12 @@ impl SphereSpec {
         }
         if !(4..=1024).contains(&self.size) {
             return Err(format!("sphere.size = {} must be in 4..=1024", self.size));
+        }
+        if !matches!(self.bounds_block, 1 | 2 | 4) {
+            return Err(format!(
+                "sphere.bounds_block = {} must be 1, 2 or 4 frame texels per side",
+                self.bounds_block
+            ));
         }
         if !(self.max_slope.is_finite() && self.max_slope >= 0.0) {
             return Err(format!(
@@ -178,10 +192,11 @@ impl Representation for SphereRepr {
         // measured from 4² frames of 32² to 16² frames of 64².
         let size = closest_size(needs).min(spec.size) as f64;
         let texels = (spec.grid * spec.grid) as f64 * size * size;
+        let block = spec.bounds_block.max(1) as f64;
         Estimate {
             peak_bytes: linear_bytes(2e6, 82.0, texels),
-            // Albedo 4 B, normal 4 B, depth 2 B, bounds 2 B per texel.
-            output_bytes: linear_bytes(0.0, 12.0, texels),
+            // Albedo 4 B, normal 4 B, depth 2 B per texel, bounds 2 B per bounds texel.
+            output_bytes: linear_bytes(0.0, 10.0 + 2.0 / (block * block), texels),
         }
     }
 
@@ -217,10 +232,14 @@ impl Representation for SphereRepr {
             spec.size
         };
         plan.build(format!(
-            "{g}×{g} {} frames of {size}² (albedo, normal, depth, cone bounds)",
+            "{g}×{g} {} frames of {size}² (albedo, normal, depth, cone bounds{})",
             match coverage {
                 Coverage::Hemisphere => "hemi-octahedral",
                 Coverage::Sphere => "octahedral",
+            },
+            match spec.bounds_block {
+                1 => String::new(),
+                b => format!(" over {b} × {b} texels"),
             },
             g = spec.grid
         ));
@@ -244,6 +263,7 @@ impl Representation for SphereRepr {
             set: ViewSet::new(decisions.coverage, decisions.grid).map_err(sphere_err)?,
             size: decisions.size,
             model: spec.model(),
+            bounds_block: spec.bounds_block,
         };
         let images = match SphereImages::capture(source.shape()?, &params) {
             Err(SphereError::NothingVisible { frames }) => {
@@ -270,7 +290,8 @@ impl Representation for SphereRepr {
         let mut albedo = CodeImage::<u8>::new(side, side, 3);
         let mut normal = CodeImage::<u8>::new(side, side, 3);
         let mut depth = CodeImage::<u16>::new(side, side, 1);
-        let mut bounds = CodeImage::<u8>::new(side, side, 2);
+        let bs = p.bounds_side();
+        let mut bounds = CodeImage::<u8>::new(g * bs, g * bs, 2);
         for (k, (c, b)) in data.codes.iter().zip(&data.bounds).enumerate() {
             for y in 0..f {
                 for x in 0..f {
@@ -279,8 +300,13 @@ impl Representation for SphereRepr {
                     albedo.pixel_mut(dst).copy_from_slice(&c.albedo[src]);
                     normal.pixel_mut(dst).copy_from_slice(&c.normal[src]);
                     depth.pixel_mut(dst)[0] = c.depth[src];
+                }
+            }
+            for y in 0..bs {
+                for x in 0..bs {
+                    let src = y * bs + x;
                     bounds
-                        .pixel_mut(dst)
+                        .pixel_mut(atlas_index(k, g, bs, x, y))
                         .copy_from_slice(&[b.zmin[src], b.zmax[src]]);
                 }
             }
@@ -337,6 +363,7 @@ impl Representation for SphereRepr {
             "coverage": p.set.coverage,
             "size": f,
             "model": p.model,
+            "bounds_block": p.bounds_block,
             "centre": [centre.x, centre.y, centre.z],
             "radius": data.frames[0].frame.radius,
             "cone_half_angles_rad": data.cones,
@@ -362,22 +389,49 @@ impl Representation for SphereRepr {
         let centre: [f64; 3] =
             serde_json::from_value(field("centre")?).map_err(|e| bad("centre", e))?;
         let radius: f64 = serde_json::from_value(field("radius")?).map_err(|e| bad("radius", e))?;
+        // Assets written before coarser bounds existed hold one bound per texel.
+        let bounds_block: usize = match m.get("bounds_block") {
+            None => 1,
+            Some(v) => serde_json::from_value(v.clone()).map_err(|e| bad("bounds_block", e))?,
+        };
         let params = SphereParams {
             set: ViewSet::new(coverage, grid).map_err(sphere_err)?,
             size,
             model,
+            bounds_block,
         };
         params.validate().map_err(sphere_err)?;
         let side = grid * size;
+        let bs = params.bounds_side();
         let albedo = r.png8("albedo")?;
         let normal = r.png8("normal")?;
         let depth = r.png16("depth")?;
         let bounds = r.png8("bounds")?;
-        for (what, (w, h, c), want) in [
-            ("albedo", (albedo.width, albedo.height, albedo.channels), 3),
-            ("normal", (normal.width, normal.height, normal.channels), 3),
-            ("depth", (depth.width, depth.height, depth.channels), 1),
-            ("bounds", (bounds.width, bounds.height, bounds.channels), 2),
+        for (what, (w, h, c), side, want) in [
+            (
+                "albedo",
+                (albedo.width, albedo.height, albedo.channels),
+                side,
+                3,
+            ),
+            (
+                "normal",
+                (normal.width, normal.height, normal.channels),
+                side,
+                3,
+            ),
+            (
+                "depth",
+                (depth.width, depth.height, depth.channels),
+                side,
+                1,
+            ),
+            (
+                "bounds",
+                (bounds.width, bounds.height, bounds.channels),
+                grid * bs,
+                2,
+            ),
         ] {
             if (w, h, c) != (side, side, want) {
                 return Err(r
@@ -399,8 +453,9 @@ impl Representation for SphereRepr {
             };
             let mut b = ConeBounds {
                 size,
-                zmin: vec![0; size * size],
-                zmax: vec![0; size * size],
+                block: bounds_block,
+                zmin: vec![0; bs * bs],
+                zmax: vec![0; bs * bs],
             };
             for y in 0..size {
                 for x in 0..size {
@@ -411,9 +466,13 @@ impl Representation for SphereRepr {
                     let nn = normal.pixel(src);
                     c.normal[dst] = [nn[0], nn[1], nn[2]];
                     c.depth[dst] = depth.pixel(src)[0];
-                    let bb = bounds.pixel(src);
-                    b.zmin[dst] = bb[0];
-                    b.zmax[dst] = bb[1];
+                }
+            }
+            for y in 0..bs {
+                for x in 0..bs {
+                    let bb = bounds.pixel(atlas_index(k, grid, bs, x, y));
+                    b.zmin[y * bs + x] = bb[0];
+                    b.zmax[y * bs + x] = bb[1];
                 }
             }
             codes.push(c);

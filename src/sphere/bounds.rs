@@ -9,14 +9,19 @@ use super::warp::{FrameMap, display_frame, enclosing_maps, first_event, hidden};
 use super::{SphereError, SphereImages};
 use altrep_data_gen::OrthoFrame;
 
-/// The bounds of one frame for its cone (module docs): per texel `Q`, for every ray through `Q`
-/// (at `Z = 0`) with a direction of the cone, every event lies in `[zmin, zmax]`. Stored as
-/// 8-bit codes `round_out((Z + 1)/2 · 255)` (`zmin` rounded down, `zmax` up). A texel where no
-/// event is possible stores `zmin = 255`, `zmax = 0`.
+/// The bounds of one frame for its cone (module docs): per bounds texel `Q` (a square of
+/// `block × block` frame texels; `block = 1`, one per frame texel, as built), for every ray
+/// through `Q` (at `Z = 0`) with a direction of the cone, every event lies in `[zmin, zmax]`.
+/// Stored as 8-bit codes `round_out((Z + 1)/2 · 255)` (`zmin` rounded down, `zmax` up),
+/// row-major over `side()²` bounds texels. A bounds texel where no event is possible stores
+/// `zmin = 255`, `zmax = 0`.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct ConeBounds {
-    /// Texels per side.
+    /// Texels per side of the frame they bound.
     pub size: usize,
+    /// Frame texels per side of one bounds texel (1, 2, 4, …): coarser bounds take
+    /// `1/block²` of the bytes and leave the march longer intervals, never another picture.
+    pub block: usize,
     /// Lower bound codes.
     pub zmin: Vec<u8>,
     /// Upper bound codes.
@@ -39,12 +44,55 @@ impl ConeBounds {
     /// The bounds of each of `frames` for its cone of half-angle `cones[k]` ([`Self::build`]).
     /// Frames in parallel as well as each frame's tiles: frames' costs differ (their cones and
     /// coverage), and one frame's tiles alone leave cores idle at its end.
-    pub(crate) fn build_all(frames: &[Frame], cones: &[f64]) -> Vec<Self> {
+    /// Bounds texels of `block × block` frame texels ([`Self::coarsened`]).
+    pub(crate) fn build_all(frames: &[Frame], cones: &[f64], block: usize) -> Vec<Self> {
         frames
             .par_iter()
             .zip(cones)
-            .map(|(fr, &beta)| Self::build(fr, beta))
+            .map(|(fr, &beta)| {
+                let b = Self::build(fr, beta);
+                if block > 1 { b.coarsened(block) } else { b }
+            })
             .collect()
+    }
+
+    /// Bounds texels per side, `⌈size / block⌉`.
+    pub fn side(&self) -> usize {
+        self.size.div_ceil(self.block)
+    }
+
+    /// The codes `(zmin, zmax)` that bound frame texel `(i, j)` (`i, j < size`).
+    #[inline]
+    pub fn codes_at(&self, i: usize, j: usize) -> (u8, u8) {
+        let k = (j / self.block) * self.side() + i / self.block;
+        (self.zmin[k], self.zmax[k])
+    }
+
+    /// The same bounds over bounds texels `factor` times wider: each holds the union of the
+    /// intervals of the `factor × factor` texels it covers (clipped at the frame's edge). The
+    /// union bounds every ray through any of them, so it stays conservative; it is the interval
+    /// the build's walk would give over that span (quantisation outward is monotone). Cost:
+    /// one pass over the codes. A `factor` of 0 is taken as 1.
+    pub fn coarsened(&self, factor: usize) -> Self {
+        let block = self.block * factor.max(1);
+        let (old, side) = (self.side(), self.size.div_ceil(block));
+        let (mut zmin, mut zmax) = (vec![255u8; side * side], vec![0u8; side * side]);
+        for j in 0..old {
+            for i in 0..old {
+                let (k, n) = (
+                    j * old + i,
+                    (j * self.block / block) * side + i * self.block / block,
+                );
+                zmin[n] = zmin[n].min(self.zmin[k]);
+                zmax[n] = zmax[n].max(self.zmax[k]);
+            }
+        }
+        Self {
+            size: self.size,
+            block,
+            zmin,
+            zmax,
+        }
     }
 
     /// Builds the bounds of `frame` for the cone of half-angle `beta` (radians, below 90°).
@@ -142,6 +190,7 @@ impl ConeBounds {
         }
         Self {
             size: f,
+            block: 1,
             zmin,
             zmax,
         }
@@ -156,11 +205,8 @@ impl ConeBounds {
         if !(0.0..f).contains(&t.x) || !(0.0..f).contains(&t.y) {
             return None;
         }
-        let k = t.y as usize * self.size + t.x as usize;
-        Some(
-            (self.zmin[k] <= self.zmax[k])
-                .then(|| (code_value(self.zmin[k]), code_value(self.zmax[k]))),
-        )
+        let (lo, hi) = self.codes_at(t.x as usize, t.y as usize);
+        Some((lo <= hi).then(|| (code_value(lo), code_value(hi))))
     }
 
     /// Mean stored interval length `zmax − zmin` over the texels where an event is possible
@@ -575,6 +621,41 @@ mod tests {
             let (zmin, zmax) = brute(&frame, beta);
             proptest::prop_assert_eq!(&built.zmin, &zmin);
             proptest::prop_assert_eq!(&built.zmax, &zmax);
+        }
+    }
+
+    /// A coarser bounds texel holds the union of the intervals of the texels it covers, a
+    /// partial block at the frame's edge included, and coarsening twice by 2 is coarsening
+    /// once by 4.
+    #[test]
+    fn coarser_bounds_are_the_union_of_the_texels_they_cover() {
+        let shape = scene_shape("truck").unwrap();
+        let img = SphereImages::capture(&shape, &SphereParams::hemisphere(3, 19).unwrap()).unwrap();
+        for fine in &img.bounds {
+            for block in [2, 4] {
+                let coarse = fine.coarsened(block);
+                assert_eq!(
+                    (coarse.block, coarse.side()),
+                    (block, 19usize.div_ceil(block))
+                );
+                for bj in 0..coarse.side() {
+                    for bi in 0..coarse.side() {
+                        let (mut lo, mut hi) = (255u8, 0u8);
+                        for j in bj * block..((bj + 1) * block).min(19) {
+                            for i in bi * block..((bi + 1) * block).min(19) {
+                                let (l, h) = fine.codes_at(i, j);
+                                (lo, hi) = (lo.min(l), hi.max(h));
+                                assert_eq!(
+                                    coarse.codes_at(i, j),
+                                    coarse.codes_at(bi * block, bj * block)
+                                );
+                            }
+                        }
+                        assert_eq!(coarse.codes_at(bi * block, bj * block), (lo, hi));
+                    }
+                }
+            }
+            assert_eq!(fine.coarsened(2).coarsened(2), fine.coarsened(4));
         }
     }
 

@@ -14,7 +14,7 @@
 //!   uncompressed (16 bits: the march meets the surface at its depth, and a block's endpoints
 //!   would move outlines and steps); the cone bounds uncompressed (8 + 8 bits), **built again
 //!   from the decoded frames**, so they stay conservative for what is drawn. **6 bytes per
-//!   texel.**
+//!   texel**, or 4.5 with bounds over 2 × 2 texels ([`SphereParams::bounds_block`]).
 //!
 //! Before encoding, every undefined texel takes its nearest defined texel's values (bakers
 //! dilate their atlases the same way), so a block on an outline does not mix the object with the
@@ -68,14 +68,13 @@ impl SphereParams {
 
     /// Bytes of the exact warp's frames and bounds in `storage`: raw, [`Self::total_bytes`];
     /// compressed, BC7 albedo and BC5 normal (one byte per padded texel each), then 16-bit
-    /// depth and 8 + 8-bit bounds per texel.
+    /// depth per texel and 8 + 8-bit bounds per bounds texel ([`Self::bounds_block`]).
     pub fn warp_bytes(&self, storage: Storage) -> usize {
         match storage {
             Storage::Raw => self.total_bytes(),
             Storage::Compressed => {
-                self.set.len()
-                    * (self.block_texels() * 2
-                        + self.size * self.size * (2 + Self::BOUND_TEXEL_BYTES))
+                self.set.len() * (self.block_texels() * 2 + self.size * self.size * 2)
+                    + self.bounds_bytes()
             }
         }
     }
@@ -255,7 +254,7 @@ fn warp_codes(frame: &Frame, codes: &FrameCodes) -> (FrameCodes, Vec<Vec3>) {
 /// Rebuilds a set from decoded frames: their bounds built again (timed).
 fn rebuilt(images: &SphereImages, frames: Vec<Frame>, codes: Vec<FrameCodes>) -> SphereImages {
     let t = Instant::now();
-    let bounds = ConeBounds::build_all(&frames, &images.cones);
+    let bounds = ConeBounds::build_all(&frames, &images.cones, images.params.bounds_block);
     SphereImages {
         params: images.params,
         frames,
@@ -319,6 +318,16 @@ mod tests {
         );
         assert_eq!(p.baseline_bytes(Storage::Raw), p.frame_bytes());
         assert_eq!(p.warp_bytes(Storage::Raw), p.total_bytes());
+        // Bounds of 2 × 2 texels: ⌈57/2⌉² = 841 bounds texels of 2 bytes per frame.
+        let p = SphereParams {
+            bounds_block: 2,
+            ..p
+        };
+        assert_eq!(
+            p.warp_bytes(Storage::Compressed),
+            16 * (3600 * 2 + 3249 * 2 + 841 * 2)
+        );
+        assert_eq!(p.warp_bytes(Storage::Raw), 16 * (3249 * 8 + 841 * 2));
     }
 
     #[test]

@@ -37,6 +37,16 @@ pub struct SphereParams {
     pub size: usize,
     /// The surface each texel stands for.
     pub model: SurfaceModel,
+    /// Frame texels per side of one cone-bounds texel: 1 (the default, a bound per texel), 2
+    /// or 4. Coarser bounds store `2/block²` bytes per frame texel instead of 2 and draw the
+    /// same picture; the march reads more texels between their looser intervals
+    /// ([`ConeBounds::coarsened`]).
+    #[serde(default = "one")]
+    pub bounds_block: usize,
+}
+
+fn one() -> usize {
+    1
 }
 
 impl SphereParams {
@@ -47,13 +57,19 @@ impl SphereParams {
     pub const BOUND_TEXEL_BYTES: usize = 2;
 
     /// Checks the parameters. Errors: `size` outside `2..=4096`, a slope limit that is not
-    /// finite and positive.
+    /// finite and positive, a bounds block other than 1, 2 or 4.
     pub fn validate(&self) -> Result<(), SphereError> {
         check(
             (2..=4096).contains(&self.size),
             "frame size",
             self.size,
             "must be 2 to 4096 texels",
+        )?;
+        check(
+            matches!(self.bounds_block, 1 | 2 | 4),
+            "bounds block",
+            self.bounds_block,
+            "must be 1, 2 or 4 frame texels per side",
         )?;
         ViewSet::new(self.set.coverage, self.set.grid)?;
         if let SurfaceModel::Tangent { max_slope } = self.model {
@@ -72,9 +88,19 @@ impl SphereParams {
         self.set.len() * self.size * self.size * Self::FRAME_TEXEL_BYTES
     }
 
+    /// Cone-bounds texels per frame side, `⌈size / bounds_block⌉`.
+    pub fn bounds_side(&self) -> usize {
+        self.size.div_ceil(self.bounds_block.max(1))
+    }
+
+    /// Bytes of the cone bounds alone: [`Self::BOUND_TEXEL_BYTES`] per bounds texel.
+    pub fn bounds_bytes(&self) -> usize {
+        self.set.len() * self.bounds_side().pow(2) * Self::BOUND_TEXEL_BYTES
+    }
+
     /// Bytes of the frames and their cone bounds (what the exact warp stores).
     pub fn total_bytes(&self) -> usize {
-        self.set.len() * self.size * self.size * (Self::FRAME_TEXEL_BYTES + Self::BOUND_TEXEL_BYTES)
+        self.frame_bytes() + self.bounds_bytes()
     }
 }
 
@@ -266,7 +292,7 @@ impl SphereImages {
         let capture_time = t0.elapsed();
         let t1 = Instant::now();
         let cones = Self::cones(&params.set);
-        let bounds = ConeBounds::build_all(&frames, &cones);
+        let bounds = ConeBounds::build_all(&frames, &cones, params.bounds_block);
         Ok(Self {
             params: *params,
             frames,
@@ -300,12 +326,17 @@ impl SphereImages {
             "there must be one frame and one bounds per direction of the grid",
         )?;
         let f = params.size;
+        let side = params.bounds_side();
         for (c, b) in codes.iter().zip(&bounds) {
             check(
-                c.size == f && b.size == f && b.zmin.len() == f * f && b.zmax.len() == f * f,
+                c.size == f
+                    && b.size == f
+                    && b.block == params.bounds_block
+                    && b.zmin.len() == side * side
+                    && b.zmax.len() == side * side,
                 "stored frame size",
-                format!("{} (bounds {})", c.size, b.size),
-                "every frame and bounds must have the parameters' size",
+                format!("{} (bounds {}, block {})", c.size, b.size, b.block),
+                "every frame and bounds must have the parameters' size and bounds block",
             )?;
         }
         let frames = params

@@ -453,6 +453,7 @@ impl SphereParams {
             set: super::ViewSet::hemisphere(grid)?,
             size,
             model: super::SurfaceModel::DEFAULT,
+            bounds_block: 1,
         };
         p.validate()?;
         Ok(p)

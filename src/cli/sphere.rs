@@ -73,6 +73,10 @@ pub struct SphereArgs {
     /// bytes per texel). `--fit-budgets` then fits the compressed bytes.
     #[arg(long)]
     pub compressed: bool,
+    /// With `--compressed`, bits of the exact warp's stored depth: 16 (default) or 8 (an R8
+    /// texture, the baseline's depth precision: one byte per texel less).
+    #[arg(long, default_value_t = 16, requires = "compressed", value_parser = clap::builder::TypedValueParser::map(clap::builder::PossibleValuesParser::new(["8", "16"]), |s| if s == "8" { 8u32 } else { 16 }))]
+    pub depth_bits: u32,
     /// Print, per configuration, the directions where the exact warp scores lowest (elevation,
     /// azimuth, PSNR of both methods, share of rays no frame sees).
     #[arg(long, default_value_t = 0)]
@@ -145,7 +149,9 @@ pub fn run(args: SphereArgs) -> CliResult {
     } else {
         SurfaceModel::DEFAULT
     };
-    let storage = if args.compressed {
+    let storage = if args.compressed && args.depth_bits == 8 {
+        Storage::CompressedDepth8
+    } else if args.compressed {
         Storage::Compressed
     } else {
         Storage::Raw
@@ -199,9 +205,10 @@ pub fn run(args: SphereArgs) -> CliResult {
                 "raw: {} bytes per texel (exact warp), 8 (baseline)",
                 8.0 + bounds_per_texel
             ),
-            Storage::Compressed => format!(
-                "block-compressed: {} bytes per texel (exact warp), 2 (baseline), sides padded to whole 4 × 4 blocks",
-                4.0 + bounds_per_texel
+            Storage::Compressed | Storage::CompressedDepth8 => format!(
+                "block-compressed: {} bytes per texel (exact warp, depth in {} bits), 2 (baseline), sides padded to whole 4 × 4 blocks",
+                2.0 + f64::from(storage.warp_depth_bits() / 8) + bounds_per_texel,
+                storage.warp_depth_bits()
             ),
         },
         b = args.bounds_block
@@ -298,7 +305,7 @@ pub fn run(args: SphereArgs) -> CliResult {
             );
             checks.push(json!({"grid": g, "size": f, "check": c}));
         }
-        if storage == Storage::Compressed {
+        if storage.is_compressed() {
             println!(
                 "          block compression of both layouts: {:.2} s; the warp's bounds from the decoded frames: {:.2} s",
                 m.encode_s, m.bounds_s
@@ -466,42 +473,32 @@ mod tests {
 
     #[test]
     fn budgets_are_fitted_with_the_bytes_of_the_storage() {
-        let args = Command::try_parse_from([
-            "sphere",
-            "--shape",
-            "chair",
-            "--grids",
-            "4",
-            "--fit-budgets",
-            "--budgets",
-            "0.5",
-        ])
-        .unwrap()
-        .args;
-        let fit = |storage| configurations(&args, Coverage::Hemisphere, storage).unwrap();
-        // 0.5 MiB over 16 frames: raw, 10 and 8 bytes per texel give 57² and 64².
-        assert_eq!(fit(Storage::Raw), vec![(4, 57), (4, 64)]);
+        // `--fit-budgets` at 0.5 MiB on 16 frames, with bounds over `block × block` texels.
+        let fit = |block: &str, storage| {
+            let args = Command::try_parse_from([
+                "sphere",
+                "--shape",
+                "chair",
+                "--grids",
+                "4",
+                "--fit-budgets",
+                "--budgets",
+                "0.5",
+                "--bounds-block",
+                block,
+            ])
+            .unwrap()
+            .args;
+            configurations(&args, Coverage::Hemisphere, storage).unwrap()
+        };
+        // Raw, 10 and 8 bytes per texel give 57² and 64².
+        assert_eq!(fit("1", Storage::Raw), vec![(4, 57), (4, 64)]);
         // Compressed, 6 and 2 bytes per texel: 73² would fit unpadded, but its blocks cover
         // 76² and overflow the budget, so the warp gets 72²; the baseline 128².
-        assert_eq!(fit(Storage::Compressed), vec![(4, 72), (4, 128)]);
+        assert_eq!(fit("1", Storage::Compressed), vec![(4, 72), (4, 128)]);
         // Bounds over 2 × 2 texels: 8.5 and 4.5 bytes per texel for the warp, 62² and 84²
         // (85² would pad to 88² and overflow); the baseline's sizes do not change.
-        let args = Command::try_parse_from([
-            "sphere",
-            "--shape",
-            "chair",
-            "--grids",
-            "4",
-            "--fit-budgets",
-            "--budgets",
-            "0.5",
-            "--bounds-block",
-            "2",
-        ])
-        .unwrap()
-        .args;
-        let fit = |storage| configurations(&args, Coverage::Hemisphere, storage).unwrap();
-        assert_eq!(fit(Storage::Raw), vec![(4, 62), (4, 64)]);
-        assert_eq!(fit(Storage::Compressed), vec![(4, 84), (4, 128)]);
+        assert_eq!(fit("2", Storage::Raw), vec![(4, 62), (4, 64)]);
+        assert_eq!(fit("2", Storage::Compressed), vec![(4, 84), (4, 128)]);
     }
 }

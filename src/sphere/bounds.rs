@@ -56,15 +56,17 @@ impl ConeBounds {
             .collect()
     }
 
-    /// Bounds texels per side, `⌈size / block⌉`.
+    /// Bounds texels per side, `⌈size / block⌉` (a `block` of 0 is taken as 1).
     pub fn side(&self) -> usize {
-        self.size.div_ceil(self.block)
+        self.size.div_ceil(self.block.max(1))
     }
 
-    /// The codes `(zmin, zmax)` that bound frame texel `(i, j)` (`i, j < size`).
+    /// The codes `(zmin, zmax)` that bound frame texel `(i, j)` (`i, j < size`; codes of the
+    /// length `side()²` the constructors and the loader give).
     #[inline]
     pub fn codes_at(&self, i: usize, j: usize) -> (u8, u8) {
-        let k = (j / self.block) * self.side() + i / self.block;
+        let b = self.block.max(1);
+        let k = (j / b) * self.side() + i / b;
         (self.zmin[k], self.zmax[k])
     }
 
@@ -74,15 +76,14 @@ impl ConeBounds {
     /// the build's walk would give over that span (quantisation outward is monotone). Cost:
     /// one pass over the codes. A `factor` of 0 is taken as 1.
     pub fn coarsened(&self, factor: usize) -> Self {
-        let block = self.block * factor.max(1);
+        let b = self.block.max(1);
+        let block = b * factor.max(1);
         let (old, side) = (self.side(), self.size.div_ceil(block));
         let (mut zmin, mut zmax) = (vec![255u8; side * side], vec![0u8; side * side]);
         for j in 0..old {
             for i in 0..old {
-                let (k, n) = (
-                    j * old + i,
-                    (j * self.block / block) * side + i * self.block / block,
-                );
+                // Old bounds texel (i, j) starts at frame texel (b·i, b·j).
+                let (k, n) = (j * old + i, (j * b / block) * side + i * b / block);
                 zmin[n] = zmin[n].min(self.zmin[k]);
                 zmax[n] = zmax[n].max(self.zmax[k]);
             }

@@ -14,7 +14,9 @@
 //!   uncompressed (16 bits: the march meets the surface at its depth, and a block's endpoints
 //!   would move outlines and steps); the cone bounds uncompressed (8 + 8 bits), **built again
 //!   from the decoded frames**, so they stay conservative for what is drawn. **6 bytes per
-//!   texel**, or 4.5 with bounds over 2 × 2 texels ([`SphereParams::bounds_block`]).
+//!   texel**, or 4.5 with bounds over 2 × 2 texels ([`SphereParams::bounds_block`]). With
+//!   [`Storage::CompressedDepth8`] the depth takes 8 bits, as the baseline's: 5 bytes per
+//!   texel, 3.5 with 2 × 2 bounds.
 //!
 //! Before encoding, every undefined texel takes its nearest defined texel's values (bakers
 //! dilate their atlases the same way), so a block on an outline does not mix the object with the
@@ -46,8 +48,28 @@ pub enum Storage {
     #[default]
     Raw,
     /// Block-compressed as a GPU samples them (module docs): 2 bytes per texel for the engine
-    /// baseline, 6 for the exact warp.
+    /// baseline, 6 for the exact warp (4.5 with bounds over 2 × 2 texels).
     Compressed,
+    /// As [`Storage::Compressed`], with the exact warp's depth in 8 bits instead of 16 (an R8
+    /// texture: 0 undefined, 255 levels over the bounding sphere's `[−1, 1]`, the baseline's
+    /// depth precision): 5 bytes per texel, 3.5 with bounds over 2 × 2 texels. The bounds are
+    /// built from the 8-bit depth, so they hold for what is drawn.
+    CompressedDepth8,
+}
+
+impl Storage {
+    /// Whether the frames are block-compressed.
+    pub fn is_compressed(self) -> bool {
+        self != Self::Raw
+    }
+
+    /// Bits of the exact warp's stored depth: 8 for [`Storage::CompressedDepth8`], else 16.
+    pub fn warp_depth_bits(self) -> u32 {
+        match self {
+            Self::CompressedDepth8 => 8,
+            Self::Raw | Self::Compressed => 16,
+        }
+    }
 }
 
 impl SphereParams {
@@ -62,18 +84,22 @@ impl SphereParams {
     pub fn baseline_bytes(&self, storage: Storage) -> usize {
         match storage {
             Storage::Raw => self.frame_bytes(),
-            Storage::Compressed => self.set.len() * self.block_texels() * 2,
+            Storage::Compressed | Storage::CompressedDepth8 => {
+                self.set.len() * self.block_texels() * 2
+            }
         }
     }
 
     /// Bytes of the exact warp's frames and bounds in `storage`: raw, [`Self::total_bytes`];
     /// compressed, BC7 albedo and BC5 normal (one byte per padded texel each), then 16-bit
-    /// depth per texel and 8 + 8-bit bounds per bounds texel ([`Self::bounds_block`]).
+    /// (8-bit for [`Storage::CompressedDepth8`]) depth per texel and 8 + 8-bit bounds per
+    /// bounds texel ([`Self::bounds_block`]).
     pub fn warp_bytes(&self, storage: Storage) -> usize {
         match storage {
             Storage::Raw => self.total_bytes(),
-            Storage::Compressed => {
-                self.set.len() * (self.block_texels() * 2 + self.size * self.size * 2)
+            Storage::Compressed | Storage::CompressedDepth8 => {
+                let depth = storage.warp_depth_bits() as usize / 8;
+                self.set.len() * (self.block_texels() * 2 + self.size * self.size * depth)
                     + self.bounds_bytes()
             }
         }
@@ -210,9 +236,19 @@ fn baseline_codes(codes: &FrameCodes) -> FrameCodes {
     out
 }
 
+/// A 16-bit depth code through an 8-bit store: 0 stays undefined, a defined depth takes the
+/// nearest of 255 levels over `[−1, 1]` (as the baseline's [`unorm8`]).
+fn depth8(code: u16) -> u16 {
+    if code == 0 {
+        return 0;
+    }
+    depth_code(f64::from(unorm8(depth_value(code))) / 255.0 * 2.0 - 1.0)
+}
+
 /// The exact warp's round trip of one frame: BC7 albedo and BC5 octahedral normals, the depth
-/// kept. Returns the codes (normals re-quantised to 8-bit codes) and the decoded unit normals.
-fn warp_codes(frame: &Frame, codes: &FrameCodes) -> (FrameCodes, Vec<Vec3>) {
+/// kept at 16 bits or stored in `depth_bits = 8`. Returns the codes (normals re-quantised to
+/// 8-bit codes) and the decoded unit normals.
+fn warp_codes(frame: &Frame, codes: &FrameCodes, depth_bits: u32) -> (FrameCodes, Vec<Vec3>) {
     let f = codes.size;
     let nearest = nearest_defined(&frame.defined, f);
     let near = nearest.as_deref();
@@ -230,7 +266,11 @@ fn warp_codes(frame: &Frame, codes: &FrameCodes) -> (FrameCodes, Vec<Vec3>) {
         size: f,
         albedo: vec![[0; 3]; f * f],
         normal: vec![[0; 3]; f * f],
-        depth: codes.depth.clone(),
+        depth: if depth_bits == 8 {
+            codes.depth.iter().map(|&c| depth8(c)).collect()
+        } else {
+            codes.depth.clone()
+        },
     };
     let mut normals = vec![Vec3::Z; f * f];
     let dec = |c: u8| f64::from(c) / 255.0 * 2.0 - 1.0;
@@ -266,10 +306,18 @@ fn rebuilt(images: &SphereImages, frames: Vec<Frame>, codes: Vec<FrameCodes>) ->
     }
 }
 
-/// Block-compresses `images` in both layouts (module docs) and decodes them back: what each
-/// method draws from a GPU's compressed textures. Frames in parallel. Errors: none beyond a
-/// frame that cannot be decoded (codes of the wrong size).
-pub fn compress(images: &SphereImages) -> Result<CompressedFrames, SphereError> {
+/// Block-compresses `images` in both layouts of `storage` (module docs) and decodes them back:
+/// what each method draws from a GPU's compressed textures. Frames in parallel. Errors:
+/// [`Storage::Raw`] (nothing to compress), a frame that cannot be decoded (codes of the wrong
+/// size).
+pub fn compress(images: &SphereImages, storage: Storage) -> Result<CompressedFrames, SphereError> {
+    super::check(
+        storage.is_compressed(),
+        "storage",
+        format!("{storage:?}"),
+        "must be a compressed layout",
+    )?;
+    let depth_bits = storage.warp_depth_bits();
     let t = Instant::now();
     let model = images.params.model;
     let decoded = images
@@ -277,7 +325,7 @@ pub fn compress(images: &SphereImages) -> Result<CompressedFrames, SphereError> 
         .par_iter()
         .zip(&images.codes)
         .map(|(fr, codes)| -> Result<_, SphereError> {
-            let (wc, normals) = warp_codes(fr, codes);
+            let (wc, normals) = warp_codes(fr, codes, depth_bits);
             let warp = Frame::decode(&fr.frame, &wc, model)?.with_normals(&normals, model)?;
             let bc = baseline_codes(codes);
             let base = Frame::decode(&fr.frame, &bc, model)?;
@@ -328,12 +376,27 @@ mod tests {
             16 * (3600 * 2 + 3249 * 2 + 841 * 2)
         );
         assert_eq!(p.warp_bytes(Storage::Raw), 16 * (3249 * 8 + 841 * 2));
+        // The warp's depth in 8 bits: one byte per texel less.
+        assert_eq!(
+            p.warp_bytes(Storage::CompressedDepth8),
+            16 * (3600 * 2 + 3249 + 841 * 2)
+        );
+        assert_eq!(
+            p.baseline_bytes(Storage::CompressedDepth8),
+            p.baseline_bytes(Storage::Compressed)
+        );
+    }
+
+    #[test]
+    fn raw_storage_is_not_a_compressed_layout() {
+        let e = compress(&truck(2, 8), Storage::Raw).unwrap_err();
+        assert!(e.to_string().contains("compressed layout"), "{e}");
     }
 
     #[test]
     fn compression_keeps_the_outline_and_stays_near_the_codes() {
         let images = truck(3, 30);
-        let c = compress(&images).unwrap();
+        let c = compress(&images, Storage::Compressed).unwrap();
         // Means over the defined texels of every frame: normal angle (degrees), largest albedo
         // channel error (linear), depth error (frame units).
         let (mut n, mut angle, mut albedo_w, mut albedo_b, mut depth_b) = (0.0, 0.0, 0.0, 0.0, 0.0);
@@ -372,11 +435,17 @@ mod tests {
     #[test]
     fn bounds_rebuilt_from_the_decoded_frames_hold() {
         let images = truck(3, 32);
-        let c = compress(&images).unwrap();
-        let dirs = crate::sphere::fibonacci_directions(40, Coverage::Hemisphere);
-        let check = crate::sphere::check_bounds(&c.warp, &dirs, 24).unwrap();
-        assert!(check.marches > 0);
-        assert_eq!(check.violations, 0, "worst excess {:e}", check.worst_excess);
+        for storage in [Storage::Compressed, Storage::CompressedDepth8] {
+            let c = compress(&images, storage).unwrap();
+            let dirs = crate::sphere::fibonacci_directions(40, Coverage::Hemisphere);
+            let check = crate::sphere::check_bounds(&c.warp, &dirs, 24).unwrap();
+            assert!(check.marches > 0);
+            assert_eq!(
+                check.violations, 0,
+                "{storage:?}: worst excess {:e}",
+                check.worst_excess
+            );
+        }
     }
 
     proptest::proptest! {
@@ -409,8 +478,17 @@ mod tests {
             let of = altrep_data_gen::OrthoFrame::new(glam::DVec3::ZERO, 1.0, glam::DVec3::Y).unwrap();
             let model = super::super::SurfaceModel::DEFAULT;
             let frame = Frame::decode(&of, &codes, model).unwrap();
-            let (wc, normals) = warp_codes(&frame, &codes);
+            let (wc, normals) = warp_codes(&frame, &codes, 16);
             proptest::prop_assert_eq!(&wc.depth, &codes.depth);
+            // In 8 bits: the same coverage, each depth within half an 8-bit step (plus half a
+            // 16-bit code).
+            let (w8, _) = warp_codes(&frame, &codes, 8);
+            for (&a, &b) in w8.depth.iter().zip(&codes.depth) {
+                proptest::prop_assert_eq!(a == 0, b == 0);
+                if b != 0 {
+                    proptest::prop_assert!((depth_value(a) - depth_value(b)).abs() <= 1.0 / 255.0 + 1.0 / 65534.0);
+                }
+            }
             let warp = Frame::decode(&of, &wc, model).unwrap().with_normals(&normals, model).unwrap();
             proptest::prop_assert_eq!(&warp.defined, &frame.defined);
             for (k, n) in warp.normal.iter().enumerate() {

@@ -376,7 +376,7 @@ pub fn measure_stored(
 ) -> Result<SphereMeasurement, SphereError> {
     let compressed = match storage {
         Storage::Raw => None,
-        Storage::Compressed => Some(compress(images)?),
+        Storage::Compressed | Storage::CompressedDepth8 => Some(compress(images, storage)?),
     };
     let (warp, base, encode_s) = match &compressed {
         None => (images, images, 0.0),

@@ -410,24 +410,17 @@ fn gpu_coarser_bounds_match_the_cpu() {
     let (mut gpu_sum, mut cpu_sum, mut fine_sum, mut worst_db) = (0u64, 0u64, 0u64, f64::INFINITY);
     for d in directions(&images) {
         let frame = disp.render(gpu, &SphereDraw::new(d, SIZE)).unwrap();
-        let want = cpu(&images, d);
+        let (want, per_texel) = (cpu(&images, d), cpu(&fine, d));
         let name = format!("sphere-block2-{shape}-{:.2}-{:.2}-{:.2}", d.x, d.y, d.z);
         worst_db = worst_db.min(check_image(&name, &frame.image, &want.image, 50.0, 0.01));
         assert_eq!(
-            want.image,
-            cpu(&fine, d).image,
+            want.image, per_texel.image,
             "{name}: bounds changed the picture"
         );
-        gpu_sum += traced_steps(&frame)
-            .iter()
-            .map(|&s| u64::from(s))
-            .sum::<u64>();
-        cpu_sum += want.steps.iter().map(|&s| u64::from(s)).sum::<u64>();
-        fine_sum += cpu(&fine, d)
-            .steps
-            .iter()
-            .map(|&s| u64::from(s))
-            .sum::<u64>();
+        let total = |steps: &[u32]| steps.iter().map(|&s| u64::from(s)).sum::<u64>();
+        gpu_sum += total(&traced_steps(&frame));
+        cpu_sum += total(&want.steps);
+        fine_sum += total(&per_texel.steps);
     }
     eprintln!(
         "bounds over 2 × 2 texels: fetches GPU {gpu_sum}, CPU {cpu_sum} (per-texel bounds {fine_sum}); worst image PSNR GPU vs CPU {worst_db:.1} dB"

@@ -196,20 +196,29 @@ pub fn run(args: SphereArgs) -> CliResult {
         params.render.supersample.get(),
         params.render.supersample.get()
     );
-    let bounds_per_texel =
-        SphereParams::BOUND_TEXEL_BYTES as f64 / f64::from(args.bounds_block).powi(2);
+    // Bytes per texel of each method, from the byte counts themselves: a 4 × 4 frame is one
+    // whole block, and its bounds texels (1, 2 or 4 per side) cover it exactly.
+    let unit = SphereParams {
+        set: ViewSet::new(coverage, 2)?,
+        size: 4,
+        model,
+        bounds_block: args.bounds_block as usize,
+    };
+    let per_texel = |bytes: usize| bytes as f64 / (unit.set.len() * 16) as f64;
     println!(
-        "memory counted {}; bounds over {b} × {b} texels",
-        match storage {
-            Storage::Raw => format!(
-                "raw: {} bytes per texel (exact warp), 8 (baseline)",
-                8.0 + bounds_per_texel
-            ),
-            Storage::Compressed | Storage::CompressedDepth8 => format!(
-                "block-compressed: {} bytes per texel (exact warp, depth in {} bits), 2 (baseline), sides padded to whole 4 × 4 blocks",
-                2.0 + f64::from(storage.warp_depth_bits() / 8) + bounds_per_texel,
-                storage.warp_depth_bits()
-            ),
+        "memory counted {}: {} bytes per texel (exact warp, depth in {} bits), {} (baseline){}; bounds over {b} × {b} texels",
+        if storage.is_compressed() {
+            "block-compressed"
+        } else {
+            "raw"
+        },
+        per_texel(unit.warp_bytes(storage)),
+        storage.warp_depth_bits(),
+        per_texel(unit.baseline_bytes(storage)),
+        if storage.is_compressed() {
+            ", sides padded to whole 4 × 4 blocks"
+        } else {
+            ""
         },
         b = args.bounds_block
     );

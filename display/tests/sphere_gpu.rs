@@ -390,9 +390,6 @@ fn gpu_hole_depth_matches_the_cpu() {
     assert!(emptied > 0, "the hole depth must empty some pixels");
 }
 
-/// With a cap on each ray's fetches that stops many rays, the GPU stops them where the CPU
-/// does: the same pictures, the same fetches to within the `f32` march's texel-edge rays, the
-/// same rays capped, and no ray past the cap by more than two fetches per frame asked.
 /// Cone bounds over 2 × 2 texels, written and read back through the asset files: the GPU
 /// marches between the same coarser intervals as the CPU (same image, same fetches but for the
 /// `f32` texel-edge rays), and the fetches are at least those of per-texel bounds. Measured
@@ -433,6 +430,15 @@ fn gpu_coarser_bounds_match_the_cpu() {
     );
 }
 
+/// With a cap on each ray's fetches that stops many rays, the GPU stops them where the CPU
+/// does and draws them as it does, from the enclosing frames' one-step offsets: the same rays
+/// capped, the same fetches to within the `f32` march's texel-edge rays, no ray past the cap by
+/// more than two fetches per frame asked, and the same pictures but for a few pixels. Those are
+/// decided apart by `f32` rounding: a capped ray's coverage is tested at ½ and its colour read
+/// at an offset that moves with the ray's stopping point, so rays whose march ended a texel
+/// edge apart, or whose coverage lies within rounding of ½, may differ. Measured 2026-12-08 on
+/// lavapipe: 15 of 67,788 traced pixels (5 of them in coverage); before capped rays were drawn
+/// this way, the worst image was 60.8 dB from the CPU's.
 #[test]
 fn gpu_fetch_cap_matches_the_cpu() {
     let Some(gpu) = gpu() else { return };
@@ -440,6 +446,7 @@ fn gpu_fetch_cap_matches_the_cpu() {
     const CAP: u32 = 16;
     let (mut gpu_capped, mut cpu_capped, mut rays) = (0usize, 0usize, 0usize);
     let (mut gpu_sum, mut cpu_sum, mut worst_db) = (0u64, 0u64, f64::INFINITY);
+    let mut differ = 0usize;
     for (shape, coverage, model) in CASES {
         let images = asset(shape, coverage, model, dir.path());
         let disp = SphereDisplay::new(gpu, &images, Precision::F32).unwrap();
@@ -456,7 +463,9 @@ fn gpu_fetch_cap_matches_the_cpu() {
             };
             let want = render(&images, d, &rp).unwrap();
             let name = format!("sphere-cap-{shape}-{:.2}-{:.2}-{:.2}", d.x, d.y, d.z);
-            worst_db = worst_db.min(check_image(&name, &frame.image, &want.image, 40.0, 0.01));
+            worst_db = worst_db.min(psnr(&frame.image, &want.image).unwrap());
+            let errors = pixel_errors(&frame.image, &want.image).unwrap();
+            differ += errors.iter().filter(|&&e| e > 1e-3).count();
             let most = CAP + 2 * (3 + altrep::sphere::DEFAULT_EXTRA_FRAMES as u32);
             assert!(want.max_steps() <= most, "{name}: CPU {}", want.max_steps());
             let g = traced_steps(&frame);
@@ -469,10 +478,12 @@ fn gpu_fetch_cap_matches_the_cpu() {
         }
     }
     eprintln!(
-        "cap of {CAP} fetches: rays capped GPU {gpu_capped}, CPU {cpu_capped} of {rays}; mean fetches GPU {:.3} CPU {:.3}; worst image PSNR GPU vs CPU {worst_db:.1} dB",
+        "cap of {CAP} fetches: rays capped GPU {gpu_capped}, CPU {cpu_capped} of {rays}; mean fetches GPU {:.3} CPU {:.3}; {differ} pixels differ by more than 1e-3, worst image PSNR GPU vs CPU {worst_db:.1} dB",
         gpu_sum as f64 / rays as f64,
         cpu_sum as f64 / rays as f64
     );
+    // At most one pixel in 2000 of those traced.
+    assert!(differ * 2000 <= rays, "{differ} of {rays} pixels differ");
     assert!(
         cpu_capped * 100 > rays,
         "the cap must stop over 1 % of the rays"

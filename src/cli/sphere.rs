@@ -95,7 +95,8 @@ pub struct SphereArgs {
     #[arg(long, default_value_t = crate::sphere::DEFAULT_EXTRA_FRAMES)]
     pub extra_frames: usize,
     /// Cap each ray's march fetches of the exact warp at this many (0: no cap): a ray that
-    /// reaches it stops where it is and is coloured there (`SphereRenderParams::max_steps`).
+    /// reaches it stops marching and is drawn as the engine blend draws it, from the one-step
+    /// offsets of its enclosing frames (`SphereRenderParams::max_steps`).
     #[arg(long, default_value_t = 0)]
     pub max_steps: u32,
     /// Frame texels per side of one cone-bounds texel: 1, 2 or 4. Coarser bounds store fewer

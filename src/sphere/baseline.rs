@@ -57,7 +57,7 @@ fn dilated_depth(frame: &Frame) -> Vec<f64> {
 /// Depth at frame position `p`: bilinear over the defined texels of the four, renormalised; the
 /// padded depth of the nearest texel (clamped to the frame) where none is defined.
 fn depth_at(frame: &Frame, padded: &[f64], p: DVec2) -> f64 {
-    let (d, w) = bilinear(frame, p, |k| frame.depth[k]);
+    let (d, w) = frame.bilinear(p, |k| frame.depth[k]);
     if w > 0.0 {
         return d / w;
     }
@@ -68,26 +68,6 @@ fn depth_at(frame: &Frame, padded: &[f64], p: DVec2) -> f64 {
         (t.y.floor() as i64).clamp(0, f - 1),
     );
     padded[(j * f + i) as usize]
-}
-
-/// `Σ w·value` and `Σ w` over the defined texels of the bilinear footprint at `p`.
-fn bilinear(frame: &Frame, p: DVec2, value: impl Fn(usize) -> f64) -> (f64, f64) {
-    let t = frame.texel_coords(p) - 0.5;
-    let (i0, j0) = (t.x.floor() as i64, t.y.floor() as i64);
-    let (fx, fy) = (t.x - i0 as f64, t.y - j0 as f64);
-    let (mut v, mut a) = (0.0, 0.0);
-    for (di, dj, w) in [
-        (0, 0, (1.0 - fx) * (1.0 - fy)),
-        (1, 0, fx * (1.0 - fy)),
-        (0, 1, (1.0 - fx) * fy),
-        (1, 1, fx * fy),
-    ] {
-        if let Some(k) = frame.cell(i0 + di, j0 + dj) {
-            v += w * value(k);
-            a += w;
-        }
-    }
-    (v, a)
 }
 
 /// Draws the object along `dir` as an engine octahedral impostor does, with the one-step
@@ -134,7 +114,7 @@ pub fn render_engine(
             for _ in 0..steps.count() {
                 p = line.q + depth_at(frame, padded, p) * line.t;
             }
-            let (cov, _) = bilinear(frame, p, |_| 1.0);
+            let (cov, _) = frame.bilinear(p, |_| 1.0);
             if cov <= 0.0 {
                 continue;
             }

@@ -191,6 +191,28 @@ impl Frame {
         Some(self.height(k, p))
     }
 
+    /// `(Σ w·value(k), Σ w)` over the defined texels `k` among the four nearest centres to `P`,
+    /// `w` their bilinear weights: the second is the bilinear coverage at `P`, the ratio the
+    /// value renormalised over the defined texels. Four texel reads.
+    pub(crate) fn bilinear(&self, p: DVec2, value: impl Fn(usize) -> f64) -> (f64, f64) {
+        let t = self.texel_coords(p) - 0.5;
+        let (i0, j0) = (t.x.floor() as i64, t.y.floor() as i64);
+        let (fx, fy) = (t.x - i0 as f64, t.y - j0 as f64);
+        let (mut v, mut a) = (0.0, 0.0);
+        for (di, dj, w) in [
+            (0, 0, (1.0 - fx) * (1.0 - fy)),
+            (1, 0, fx * (1.0 - fy)),
+            (0, 1, (1.0 - fx) * fy),
+            (1, 1, fx * fy),
+        ] {
+            if let Some(k) = self.cell(i0 + di, j0 + dj) {
+                v += w * value(k);
+                a += w;
+            }
+        }
+        (v, a)
+    }
+
     /// Albedo and normal at `P`, bilinear over the defined texels among the four nearest
     /// centres (renormalised weights); `None` if none of them is defined.
     pub(crate) fn attributes_at(&self, p: DVec2) -> Option<(Vec3, Vec3)> {

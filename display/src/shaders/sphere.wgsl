@@ -325,6 +325,72 @@ fn attributes_at(k: u32, p: vec2<real>) -> Attr {
     return out;
 }
 
+// frames.rs `Frame::bilinear` of the stored depth: (Σ w·Z, Σ w) over the defined texels among
+// the four nearest centres to p, w their bilinear weights (Σ w is the bilinear coverage).
+fn bilinear_depth(k: u32, p: vec2<real>) -> vec2<real> {
+    let t = texel_coords(p) - vec2<real>(real(0.5), real(0.5));
+    let i0 = i32(floor(t.x));
+    let j0 = i32(floor(t.y));
+    let fx = t.x - real(i0);
+    let fy = t.y - real(j0);
+    let di = array<i32, 4>(0, 1, 0, 1);
+    let dj = array<i32, 4>(0, 0, 1, 1);
+    let wt = array<real, 4>(
+        (real(1.0) - fx) * (real(1.0) - fy),
+        fx * (real(1.0) - fy),
+        (real(1.0) - fx) * fy,
+        fx * fy,
+    );
+    var v = real(0.0);
+    var a = real(0.0);
+    for (var m = 0; m < 4; m = m + 1) {
+        let c = cell(k, i0 + di[m], j0 + dj[m]);
+        if c >= 0 {
+            v = v + wt[m] * TEX[3u * u32(c)];
+            a = a + wt[m];
+        }
+    }
+    return vec2<real>(v, a);
+}
+
+struct Fallback {
+    alpha: real,
+    colour: vec3<f32>,
+    z: real,
+};
+
+// warp.rs `capped_sample`: a ray stopped by the cap, drawn from the enclosing frames' one-step
+// offsets as the engine blend draws it, the depth read at the ray's point at display depth
+// z_free (the last carving candidate); alpha, the colour's premultiplied sum and the display
+// depth's, both to be divided by alpha.
+fn capped_sample(lines: array<Line, MAX_SLOTS>, nf: u32, z_free: real) -> Fallback {
+    var out: Fallback;
+    out.alpha = real(0.0);
+    out.colour = vec3<f32>(0.0);
+    out.z = real(0.0);
+    for (var s = 0u; s < nf; s = s + 1u) {
+        let l = lines[s];
+        let b = bilinear_depth(l.k, l.q + (l.a + l.c * z_free) * l.t);
+        if b.y <= real(0.0) {
+            continue;
+        }
+        let depth = b.x / b.y;
+        let p = l.q + depth * l.t;
+        let cov = bilinear_depth(l.k, p).y;
+        if cov <= real(0.0) {
+            continue;
+        }
+        let at = attributes_at(l.k, p);
+        if at.found {
+            let a = P[8u + 10u * s + 9u] * cov;
+            out.alpha = out.alpha + a;
+            out.colour = out.colour + shade(at.albedo, at.normal) * f32(a);
+            out.z = out.z + a * (depth - l.a) / l.c;
+        }
+    }
+    return out;
+}
+
 @fragment
 fn fs_main(in: VsOut) -> FsOut {
     let px = u32(in.pos.x);
@@ -379,10 +445,18 @@ fn fs_main(in: VsOut) -> FsOut {
         unresolved = true;
         for (var round = 0u; round < MAX_CARVE_ROUNDS; round = round + 1u) {
             if steps >= U[3] {
-                // Spent: the candidate found stands.
+                // Spent: drawn from the enclosing frames' one-step offsets instead.
                 flags = flags | 8u;
-                unresolved = false;
-                break;
+                STEPS[2u * frag] = steps;
+                STEPS[2u * frag + 1u] = flags;
+                let fb = capped_sample(lines, nf, z_cur);
+                // warp.rs `ALPHA_TIE`.
+                if fb.alpha < real(0.5) - real(1e-6) {
+                    discard;
+                }
+                let zf = fb.z / fb.alpha;
+                let d = clamp(f32((real(1.0) - zf) * real(0.5)), 0.0, 1.0);
+                return fragment_out(vec4<f32>(fb.colour / f32(fb.alpha), 1.0), d);
             }
             // The deepest of the frames' next events below z_cur (display depth).
             // and the frame whose event it is (the first on ties).

@@ -6,7 +6,8 @@
 //! (2D DDA, one fetch per cell), carves free space between the frames (at most
 //! `altrep::sphere::MAX_CARVE_ROUNDS` rounds), and colours the surface point from the frames
 //! that see it, relit from their normals with the diffuse light; where none of them sees it, it
-//! asks the extra frames in turn as the CPU does. The enclosing and extra frames, their
+//! asks the extra frames in turn as the CPU does, and draws a hole, like a ray stopped by the
+//! cap on fetches, from the one-step offsets of the enclosing frames. The enclosing and extra frames, their
 //! weights and their linear maps come from the library (`altrep::sphere::enclosing_frames`,
 //! `altrep::sphere::extra_frames`),
 //! computed on the host in `f64` as the CPU computes them; the shader repeats the CPU's
@@ -23,7 +24,7 @@
 
 use std::time::Instant;
 
-use altrep::sphere::{MAX_EXTRA_FRAMES, SphereImages, enclosing_frames, extra_frames};
+use altrep::sphere::{HoleFill, MAX_EXTRA_FRAMES, SphereImages, enclosing_frames, extra_frames};
 use altrep_data_gen::{Light, RgbaImage};
 use glam::DVec3;
 
@@ -45,8 +46,12 @@ pub struct SphereDraw {
     pub visibility: f64,
     /// March between the stored cone bounds (`false`: the whole chord of the sphere).
     pub use_bounds: bool,
-    /// Holes farther than this from the nearest frame surface are drawn empty
-    /// (`altrep::sphere::SphereRenderParams::hole_depth`; `None`: every hole is coloured).
+    /// How a ray whose surface point no frame sees (a hole) is drawn
+    /// (`altrep::sphere::SphereRenderParams::holes`).
+    pub holes: HoleFill,
+    /// With [`HoleFill::Nearest`], holes farther than this from the nearest frame surface are
+    /// drawn empty (`altrep::sphere::SphereRenderParams::hole_depth`; `None`: every hole is
+    /// coloured).
     pub hole_depth: Option<f64>,
     /// Where no enclosing frame sees the point found, ask up to this many more frames
     /// (`altrep::sphere::SphereRenderParams::extra_frames`, at most
@@ -68,6 +73,7 @@ impl SphereDraw {
             size,
             visibility: d.visibility,
             use_bounds: d.use_bounds,
+            holes: d.holes,
             hole_depth: d.hole_depth,
             extra_frames: d.extra_frames,
             light: d.light,
@@ -274,6 +280,7 @@ impl SphereDisplay {
             extra.len() as u32,
             u32::from(d.use_bounds),
             d.max_steps.unwrap_or(u32::MAX),
+            u32::from(d.holes == HoleFill::Offsets),
         ];
         for (s, e) in enclosing.iter().chain(&extra).enumerate() {
             for (r, row) in e.rows.iter().enumerate() {

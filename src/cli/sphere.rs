@@ -9,7 +9,7 @@ use serde_json::json;
 use super::CliResult;
 use super::capture::load_shape;
 use crate::sphere::{
-    Coverage, SphereImages, SphereMeasureParams, SphereMeasurement, SphereParams,
+    Coverage, HoleFill, SphereImages, SphereMeasureParams, SphereMeasurement, SphereParams,
     SphereRenderParams, Storage, SurfaceModel, ViewSet, budget_table, check_bounds,
     fibonacci_directions, measure_stored, truth_images,
 };
@@ -86,8 +86,14 @@ pub struct SphereArgs {
     /// truth's; negative: missing coverage).
     #[arg(long)]
     pub split: bool,
-    /// Take a ray whose surface point no frame sees as empty when the nearest frame surface
-    /// lies farther than this from it (frame units, sphere radius 1); 0 colours every such ray.
+    /// How the exact warp draws a ray whose surface point no frame sees (a hole): `offsets`
+    /// draws it from the enclosing frames' one-step offsets, read where the march stopped;
+    /// `nearest` colours it from the nearest frame surface, within `--hole-depth`
+    /// (`SphereRenderParams::holes`).
+    #[arg(long, default_value = "offsets", value_parser = clap::builder::TypedValueParser::map(clap::builder::PossibleValuesParser::new(["offsets", "nearest"]), |s| if s == "nearest" { HoleFill::Nearest } else { HoleFill::Offsets }))]
+    pub holes: HoleFill,
+    /// With `--holes nearest`: take a hole as empty when the nearest frame surface lies farther
+    /// than this from it (frame units, sphere radius 1); 0 colours every hole.
     #[arg(long, default_value_t = crate::sphere::DEFAULT_HOLE_DEPTH)]
     pub hole_depth: f64,
     /// Where no enclosing frame sees the point found, ask up to this many more frames (the
@@ -136,6 +142,7 @@ pub fn run(args: SphereArgs) -> CliResult {
             size: args.out_size as usize,
             supersample: Supersample::of(args.supersample as usize),
             use_bounds: !args.no_bounds,
+            holes: args.holes,
             hole_depth: (args.hole_depth != 0.0).then_some(args.hole_depth),
             extra_frames: args.extra_frames,
             max_steps: (args.max_steps != 0).then_some(args.max_steps),

@@ -78,11 +78,14 @@
 //! colours it (with a small weight, 1e-3, beside any enclosing frame that then sees it too); one
 //! that sees through it joins the carving, marched along its whole chord (its bounds hold only
 //! for its own cone of directions), and the carving resumes from the point. Where still no
-//! frame sees it (a point hidden from all of them, e.g. deep in a concavity) the
-//! frame whose surface lies nearest above it gives the colour, if that surface lies within the
-//! hole depth (half the radius by default, [`SphereRenderParams::hole_depth`]); farther, the ray is
-//! taken as empty: through the openings of a see-through shell the ray reaches space that no
-//! enclosing frame looks into, which carving cannot clear.
+//! frame sees it (a hole: through the openings of a see-through shell the ray reaches space
+//! that no enclosing frame looks into, which carving cannot clear; or a point deep in a
+//! concavity) the ray is drawn as the engine blend draws it, from the enclosing frames'
+//! one-step offsets, each frame's depth read where the march stopped ([`HoleFill::Offsets`], the
+//! default; a ray stopped by the cap on fetches is drawn so too). [`HoleFill::Nearest`] colours
+//! it instead from the frame surface nearest above it, if that surface lies within the hole
+//! depth (half the radius by default, [`SphereRenderParams::hole_depth`]); farther, the ray is
+//! taken as empty.
 //!
 //! ## Bounds for a cone of directions
 //!
@@ -126,8 +129,8 @@ pub use measure::{
 };
 pub use viewset::{Coverage, ViewSet, azimuth_elevation};
 pub use warp::{
-    DEFAULT_EXTRA_FRAMES, DEFAULT_HOLE_DEPTH, EnclosingFrame, MAX_CARVE_ROUNDS, MAX_EXTRA_FRAMES,
-    RenderOutput, SphereRenderParams, enclosing_frames, extra_frames, render,
+    DEFAULT_EXTRA_FRAMES, DEFAULT_HOLE_DEPTH, EnclosingFrame, HoleFill, MAX_CARVE_ROUNDS,
+    MAX_EXTRA_FRAMES, RenderOutput, SphereRenderParams, enclosing_frames, extra_frames, render,
 };
 
 use altrep_data_gen::DataGenError;

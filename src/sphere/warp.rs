@@ -53,6 +53,25 @@ const EXTRA_WEIGHT: f64 = 1e-3;
 /// An extra frame must face the display direction at least this much (`d·d_k`).
 const EXTRA_MIN_FACING: f64 = 0.1;
 
+/// How [`render`] draws a ray where no frame asked sees the surface point the carving found (a
+/// hole: through the opening of a see-through shell, or deep in a concavity no frame looks
+/// into).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+pub enum HoleFill {
+    /// As the engine blend draws it, from the enclosing frames' one-step offsets, each frame's
+    /// depth read where the march stopped (as a ray stopped by
+    /// [`SphereRenderParams::max_steps`] is drawn): 16 texel reads per enclosing frame. On the
+    /// beetle, a see-through shell, it gains 0.6–1.5 dB over [`HoleFill::Nearest`] (4 × 4 and
+    /// 8 × 8 frames of 64² and 128²); over the upper hemisphere of opaque subjects it moves the
+    /// mean PSNR by 0.11 dB or less; the chair seen from every side, under its seat, loses up to
+    /// 0.4 dB (bench/RESULTS.md, "Holes drawn from the offsets").
+    #[default]
+    Offsets,
+    /// From the frame surface nearest above the point, where it lies within
+    /// [`SphereRenderParams::hole_depth`]; farther, the ray is taken as empty.
+    Nearest,
+}
+
 /// Parameters of [`render`] (and of the engine baseline, which uses `size`, `samples` and
 /// `light`).
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -67,12 +86,15 @@ pub struct SphereRenderParams {
     pub visibility: f64,
     /// Use the cone bounds (`false`: march the whole chord of the bounding sphere).
     pub use_bounds: bool,
-    /// Where no frame asked (the enclosing and the extra frames) sees the surface point found (a
-    /// hole), it is coloured from the frame surface nearest to it only when that surface lies
-    /// within this distance (frame units, the bounding sphere's radius is 1); farther, the ray
-    /// is taken as empty: space seen through an opening that none of the frames looks into (a
-    /// see-through shell) rather than a surface. `None`: every hole is coloured. Default
-    /// [`DEFAULT_HOLE_DEPTH`].
+    /// How a ray is drawn where no frame asked (the enclosing and the extra frames) sees the
+    /// surface point found (a hole). Default [`HoleFill::Offsets`].
+    #[serde(default)]
+    pub holes: HoleFill,
+    /// With [`HoleFill::Nearest`], a hole is coloured from the frame surface nearest to it only
+    /// when that surface lies within this distance (frame units, the bounding sphere's radius
+    /// is 1); farther, the ray is taken as empty: space seen through an opening that none of
+    /// the frames looks into (a see-through shell) rather than a surface. `None`: every hole is
+    /// coloured. Unused with [`HoleFill::Offsets`]. Default [`DEFAULT_HOLE_DEPTH`].
     #[serde(default = "default_hole_depth")]
     pub hole_depth: Option<f64>,
     /// Where no enclosing frame sees the surface point found, up to this many more frames, the
@@ -97,14 +119,15 @@ pub struct SphereRenderParams {
 }
 
 impl Default for SphereRenderParams {
-    /// 128², one ray per pixel, visibility 2, bounds on, hole depth 0.5, the default light, no
-    /// cap on the fetches.
+    /// 128², one ray per pixel, visibility 2, bounds on, holes drawn from the offsets (hole
+    /// depth 0.5 for [`HoleFill::Nearest`]), the default light, no cap on the fetches.
     fn default() -> Self {
         Self {
             size: 128,
             supersample: Supersample::ONE,
             visibility: 2.0,
             use_bounds: true,
+            holes: HoleFill::Offsets,
             hole_depth: Some(DEFAULT_HOLE_DEPTH),
             extra_frames: DEFAULT_EXTRA_FRAMES,
             light: Light::default(),
@@ -678,7 +701,8 @@ fn trace(
             if ray.steps >= cap {
                 // Spent: drawn from the enclosing frames' one-step offsets instead.
                 ray.capped = true;
-                return capped_sample(&lines[..maps.len()], z_cur, params, ray);
+                ray.unresolved = false;
+                return offset_sample(&lines[..maps.len()], z_cur, params, ray);
             }
             // The deepest of the frames' next events below `z_cur` (display depth), and the
             // frame whose event it is (the first such frame on ties).
@@ -756,14 +780,18 @@ fn trace(
             break;
         }
         // No frame asked sees the point: ask the next extra frame, carving again from the
-        // candidate (if the new frame sees through it, the march goes on below it); a capped
-        // ray asks none.
+        // candidate (if the new frame sees through it, the march goes on below it); a ray past
+        // its cap asks none. With none left, the ray is a hole ([`HoleFill`]).
         if let Some(&(k, ref map)) = extra.next().filter(|_| ray.steps < cap) {
             let line = map.line(x, y);
             let (lo, hi) = (line.a - line.c * zs, line.a + line.c * zs);
             lines.push((&images.frames[k], line, lo, hi, EXTRA_WEIGHT));
             z_cur = z_c;
             continue;
+        }
+        if params.holes == HoleFill::Offsets {
+            ray.hole = nearest.is_some();
+            return offset_sample(&lines[..maps.len()], z_c, params, ray);
         }
         if let Some((gap, c)) = nearest {
             ray.hole = true;
@@ -781,28 +809,31 @@ fn trace(
     ray
 }
 
-/// How far below ½ a capped ray's blended coverage still counts as covered ([`capped_sample`]):
-/// a direction on an edge of the view set's grid gives two frames weight ½ each, and where one
-/// of them alone covers the ray the coverage is ½ up to rounding, which `f32` and `f64`, and
-/// the order of the sums, would decide apart.
+/// How far below ½ the blended coverage of [`offset_sample`] still counts as covered: a
+/// direction on an edge of the view set's grid gives two frames weight ½ each, and where one of
+/// them alone covers the ray the coverage is ½ up to rounding, which `f32` and `f64`, and the
+/// order of the sums, would decide apart.
 const ALPHA_TIE: f64 = 1e-6;
 
-/// A ray stopped by the cap on fetches ([`SphereRenderParams::max_steps`]), drawn as the engine
-/// blend draws it (src/sphere/baseline.rs) from `lines`, the enclosing frames' `(frame, line, lo,
-/// hi, weight)`, but with its offset read where the march stopped: the ray is free in front of
-/// display depth `z_free` (the last carving candidate), so in each frame the depth `D` is read
-/// at the ray's point at `z_free` rather than where it crosses the frame plane (bilinear over
-/// the defined texels, renormalised; a frame with none of the four defined there adds nothing).
-/// Coverage `α`, colour and normal are read bilinearly at the offset `q + D·t`. The frames are
-/// blended by weight and coverage and alpha-tested at ½; the depth is the same blend of the
-/// offsets' display depths. The depth is not padded as the blend's is: the march's frames
-/// store none. 16 texel reads per enclosing frame (depth 4, coverage with colour 8, normal 4:
-/// the blend's count), added to `ray.other_reads`.
+/// A ray whose march cannot finish — stopped by the cap on fetches
+/// ([`SphereRenderParams::max_steps`]), or a hole with [`HoleFill::Offsets`] — drawn as the
+/// engine blend draws it (src/sphere/baseline.rs) from `lines`, the enclosing frames' `(frame,
+/// line, lo, hi, weight)`, but with its offset read where the march stopped: the ray is free in
+/// front of display depth `z_free` (the last carving candidate), so in each frame the depth `D`
+/// is read at the ray's point at `z_free` rather than where it crosses the frame plane
+/// (bilinear over the defined texels, renormalised; a frame with none of the four defined there
+/// adds nothing). Coverage `α`, colour and normal are read bilinearly at the offset `q + D·t`.
+/// The frames are blended by weight and coverage and alpha-tested at ½; the depth is the same
+/// blend of the offsets' display depths. The depth is not padded as the blend's is: the march's
+/// frames store none. 16 texel reads per enclosing frame (depth 4, coverage with colour 8,
+/// normal 4: the blend's count), added to `ray.other_reads`.
 ///
-/// Measured on the truck (4 × 4 frames of 64², caps of 64, 32 and 16 fetches): reading the
-/// depth at the frame plane as the blend does lost 1.83, 5.91 and 9.12 dB against no cap;
-/// read at `z_free`, 0.56, 3.30 and 6.49 dB; a second depth read (two steps) gained nothing.
-fn capped_sample(
+/// Measured on the truck (4 × 4 frames of 64², caps of 64, 32 and 16 fetches, holes still
+/// coloured from the nearest surface): reading the depth at the frame plane as the blend does
+/// lost 1.83, 5.91 and 9.12 dB against no cap; read at `z_free`, 0.56, 3.30 and 6.49 dB; a
+/// second depth read (two steps) gained nothing. With holes drawn from the offsets too, 0.32,
+/// 2.82 and 6.26 dB.
+fn offset_sample(
     lines: &[(&Frame, FrameLine, f64, f64, f64)],
     z_free: f64,
     params: &SphereRenderParams,
@@ -830,7 +861,6 @@ fn capped_sample(
             z += a * (depth - line.a) / line.c;
         }
     }
-    ray.unresolved = false;
     if alpha >= 0.5 - ALPHA_TIE {
         ray.colour = Some(col / alpha as f32);
         ray.depth = Some(z / alpha);

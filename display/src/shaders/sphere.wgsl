@@ -12,7 +12,8 @@
 @group(0) @binding(0) var<storage, read> P: array<real>;
 // Integers: 0 number of enclosing frames (1..3), 1 number of extra frames (0..MAX_EXTRA_FRAMES),
 // 2 use the bounds, 3 the cap on a ray's fetches (warp.rs `SphereRenderParams::max_steps`; the
-// largest u32: none), then 4 + s the frame index of slot s.
+// largest u32: none), 4 how a hole is drawn (1: from the one-step offsets, warp.rs
+// `HoleFill::Offsets`; 0: from the nearest frame surface), then 5 + s the frame index of slot s.
 @group(0) @binding(1) var<storage, read> U: array<u32>;
 // Light: direction xyz (unit, object frame), ambient.
 @group(0) @binding(2) var<storage, read> L: array<f32>;
@@ -243,7 +244,7 @@ fn map_at(s: u32, r: u32, col: u32) -> real {
 
 fn line_of(s: u32, x: real, y: real) -> Line {
     var l: Line;
-    l.k = U[4u + s];
+    l.k = U[5u + s];
     l.c = map_at(s, 2u, 2u);
     l.a = map_at(s, 2u, 0u) * x + map_at(s, 2u, 1u) * y;
     let z0 = -l.a / l.c;
@@ -359,11 +360,11 @@ struct Fallback {
     z: real,
 };
 
-// warp.rs `capped_sample`: a ray stopped by the cap, drawn from the enclosing frames' one-step
-// offsets as the engine blend draws it, the depth read at the ray's point at display depth
-// z_free (the last carving candidate); alpha, the colour's premultiplied sum and the display
-// depth's, both to be divided by alpha.
-fn capped_sample(lines: array<Line, MAX_SLOTS>, nf: u32, z_free: real) -> Fallback {
+// warp.rs `offset_sample`: a ray stopped by the cap, or a hole, drawn from the enclosing frames'
+// one-step offsets as the engine blend draws it, the depth read at the ray's point at display
+// depth z_free (the last carving candidate); alpha, the colour's premultiplied sum and the
+// display depth's, both to be divided by alpha.
+fn offset_sample(lines: array<Line, MAX_SLOTS>, nf: u32, z_free: real) -> Fallback {
     var out: Fallback;
     out.alpha = real(0.0);
     out.colour = vec3<f32>(0.0);
@@ -449,7 +450,7 @@ fn fs_main(in: VsOut) -> FsOut {
                 flags = flags | 8u;
                 STEPS[2u * frag] = steps;
                 STEPS[2u * frag + 1u] = flags;
-                let fb = capped_sample(lines, nf, z_cur);
+                let fb = offset_sample(lines, nf, z_cur);
                 // warp.rs `ALPHA_TIE`.
                 if fb.alpha < real(0.5) - real(1e-6) {
                     discard;
@@ -545,6 +546,22 @@ fn fs_main(in: VsOut) -> FsOut {
     }
     if unresolved {
         flags = flags | 2u;
+    }
+    if wsum <= real(0.0) && U[4] != 0u {
+        // A hole drawn from the one-step offsets (warp.rs `HoleFill::Offsets`).
+        if have_nearest {
+            flags = flags | 1u;
+        }
+        STEPS[2u * frag] = steps;
+        STEPS[2u * frag + 1u] = flags;
+        let fb = offset_sample(lines, nf, z_c);
+        // warp.rs `ALPHA_TIE`.
+        if fb.alpha < real(0.5) - real(1e-6) {
+            discard;
+        }
+        let zf = fb.z / fb.alpha;
+        let d = clamp(f32((real(1.0) - zf) * real(0.5)), 0.0, 1.0);
+        return fragment_out(vec4<f32>(fb.colour / f32(fb.alpha), 1.0), d);
     }
     var colour: vec4<f32>;
     if wsum > real(0.0) {

@@ -61,10 +61,12 @@ pub enum HoleFill {
     /// As the engine blend draws it, from the enclosing frames' one-step offsets, each frame's
     /// depth read where the march stopped (as a ray stopped by
     /// [`SphereRenderParams::max_steps`] is drawn): 16 texel reads per enclosing frame. On the
-    /// beetle, a see-through shell, it gains 0.6–1.5 dB over [`HoleFill::Nearest`] (4 × 4 and
-    /// 8 × 8 frames of 64² and 128²); over the upper hemisphere of opaque subjects it moves the
-    /// mean PSNR by 0.11 dB or less; the chair seen from every side, under its seat, loses up to
-    /// 0.4 dB (bench/RESULTS.md, "Holes drawn from the offsets").
+    /// beetle, a see-through shell, it gains 0.6–1.7 dB over [`HoleFill::Nearest`], which
+    /// takes every hole near a frame surface as covered; in the budget tables it lifts the
+    /// beetle above the engine blend at every budget. A hole in a closed object is always
+    /// covered, which the offsets' alpha test may miss: the teapot loses up to 1.0 dB (4 × 4
+    /// frames of 256²), the chair seen from every side up to 0.4 dB, while spot and the bunny
+    /// gain up to 0.35 dB (bench/RESULTS.md, "Holes drawn from the offsets").
     #[default]
     Offsets,
     /// From the frame surface nearest above the point, where it lies within

@@ -466,7 +466,7 @@ fn gpu_coarser_bounds_match_the_cpu() {
 /// decided apart by `f32` rounding: a capped ray's coverage is tested at ½ and its colour read
 /// at an offset that moves with the ray's stopping point, so rays whose march ended a texel
 /// edge apart, or whose coverage lies within rounding of ½, may differ. Measured 2026-12-08 on
-/// lavapipe: 15 of 67,788 traced pixels (5 of them in coverage); before capped rays were drawn
+/// lavapipe: 14 of 67,788 traced pixels, the worst image 40.8 dB; before capped rays were drawn
 /// this way, the worst image was 60.8 dB from the CPU's.
 #[test]
 fn gpu_fetch_cap_matches_the_cpu() {

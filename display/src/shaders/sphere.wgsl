@@ -392,6 +392,18 @@ fn offset_sample(lines: array<Line, MAX_SLOTS>, nf: u32, z_free: real) -> Fallba
     return out;
 }
 
+// The fragment of a ray drawn from the one-step offsets: discarded where the blended coverage
+// is below ½ (warp.rs `ALPHA_TIE`), else the blended colour at the blended depth, written as
+// every fragment's (0 at the front of the bounding sphere, 1 at its back).
+fn offset_fragment(fb: Fallback) -> FsOut {
+    if fb.alpha < real(0.5) - real(1e-6) {
+        discard;
+    }
+    let zf = fb.z / fb.alpha;
+    let d = clamp(f32((real(1.0) - zf) * real(0.5)), 0.0, 1.0);
+    return fragment_out(vec4<f32>(fb.colour / f32(fb.alpha), 1.0), d);
+}
+
 @fragment
 fn fs_main(in: VsOut) -> FsOut {
     let px = u32(in.pos.x);
@@ -450,14 +462,7 @@ fn fs_main(in: VsOut) -> FsOut {
                 flags = flags | 8u;
                 STEPS[2u * frag] = steps;
                 STEPS[2u * frag + 1u] = flags;
-                let fb = offset_sample(lines, nf, z_cur);
-                // warp.rs `ALPHA_TIE`.
-                if fb.alpha < real(0.5) - real(1e-6) {
-                    discard;
-                }
-                let zf = fb.z / fb.alpha;
-                let d = clamp(f32((real(1.0) - zf) * real(0.5)), 0.0, 1.0);
-                return fragment_out(vec4<f32>(fb.colour / f32(fb.alpha), 1.0), d);
+                return offset_fragment(offset_sample(lines, nf, z_cur));
             }
             // The deepest of the frames' next events below z_cur (display depth).
             // and the frame whose event it is (the first on ties).
@@ -554,14 +559,7 @@ fn fs_main(in: VsOut) -> FsOut {
         }
         STEPS[2u * frag] = steps;
         STEPS[2u * frag + 1u] = flags;
-        let fb = offset_sample(lines, nf, z_c);
-        // warp.rs `ALPHA_TIE`.
-        if fb.alpha < real(0.5) - real(1e-6) {
-            discard;
-        }
-        let zf = fb.z / fb.alpha;
-        let d = clamp(f32((real(1.0) - zf) * real(0.5)), 0.0, 1.0);
-        return fragment_out(vec4<f32>(fb.colour / f32(fb.alpha), 1.0), d);
+        return offset_fragment(offset_sample(lines, nf, z_c));
     }
     var colour: vec4<f32>;
     if wsum > real(0.0) {

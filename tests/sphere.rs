@@ -745,10 +745,10 @@ fn straight_down_into_a_cup_needs_a_frame_at_the_zenith() {
 
 #[test]
 fn a_hole_depth_empties_only_holes_deeper_than_it() {
-    // Holes coloured from the nearest frame surface (`HoleFill::Nearest`). Straight down into the cup with 4 × 4 frames: some rays reach floor points no frame sees
-    // (holes). With a hole depth larger than any possible gap (the sphere's diameter) the
-    // picture is the one with every hole coloured; with a tiny one every hole ray is empty and
-    // nothing else changes.
+    // Holes coloured from the nearest frame surface (`HoleFill::Nearest`). Straight down into
+    // the cup with 4 × 4 frames: some rays reach floor points no frame sees (holes). With a hole
+    // depth larger than any possible gap (the sphere's diameter) the picture is the one with
+    // every hole coloured; with a tiny one every hole ray is empty and nothing else changes.
     let img = SphereImages::capture(&cup(), &SphereParams::hemisphere(4, 50).unwrap()).unwrap();
     let d = DVec3::new(0.05, 1.0, 0.03).normalize();
     let rp = SphereRenderParams {
@@ -878,8 +878,8 @@ fn extra_frames_change_only_rays_no_enclosing_frame_sees_and_gain_against_the_tr
 /// coloured from the nearest frame surface within the hole depth (`HoleFill::Nearest`): on the
 /// beetle, an open shell whose windows show space no enclosing frame looks into, the offsets
 /// gain; over the upper hemisphere of opaque subjects, whose few holes lie in concavities, they
-/// change little; the chair seen from below loses a little. The march is the same either way. Needs `../shared` for the beetle (skipped loudly without it, a
-/// failure under `CI=true`).
+/// change little; the chair seen from below loses a little. The march is the same either way.
+/// Needs `../shared` for the beetle (skipped loudly without it, a failure under `CI=true`).
 #[test]
 fn holes_drawn_from_the_offsets_gain_on_a_see_through_shell() {
     let run = |shape: &dyn altrep::data_gen::Shape, coverage: Coverage, grid: usize| {

@@ -7,10 +7,10 @@
 //! `altrep::sphere::MAX_CARVE_ROUNDS` rounds), and colours the surface point from the frames
 //! that see it, relit from their normals with the diffuse light; where none of them sees it, it
 //! asks the extra frames in turn as the CPU does, and draws a hole, like a ray stopped by the
-//! cap on fetches, from the one-step offsets of the enclosing frames. The enclosing and extra frames, their
-//! weights and their linear maps come from the library (`altrep::sphere::enclosing_frames`,
-//! `altrep::sphere::extra_frames`),
-//! computed on the host in `f64` as the CPU computes them; the shader repeats the CPU's
+//! cap on fetches, from the one-step offsets of the enclosing frames. The enclosing and extra
+//! frames, their weights and their linear maps come from the library
+//! (`altrep::sphere::enclosing_frames`, `altrep::sphere::extra_frames`), computed on the host
+//! in `f64` as the CPU computes them; the shader repeats the CPU's
 //! formulas in the same order, in `f32` ([`Precision::F32`], what an engine ships) or, where the
 //! adapter has `SHADER_F64`, in `f64` ([`Precision::F64`]), where it is the CPU's computation
 //! operation for operation.
